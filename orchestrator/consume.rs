@@ -1,0 +1,249 @@
+//! The orchestrator as a consumer: it reads `truth` (for scoring), the heartbeats of every
+//! service, and — until consumer services exist for them — the frames and spectra themselves,
+//! verifying each one and folding it into a digest so two runs can be compared byte for byte.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use anyhow::Result;
+use glint_runtime::ports::{FrameInbox, Inbox, Outbox};
+use glint_runtime::TopicStats;
+use iceoryx2::port::listener::Listener;
+use shared_types::topics::{
+    ack_service, control_service, frame_service, heartbeat_service, spectrum_service,
+    truth_service, Ipc, IpcNode,
+};
+use shared_types::{
+    deployment, Ack, Command, Control, Heartbeat, Scenario, ServiceId, Spectrum, TopicCounters,
+    TopicId, Truth,
+};
+use xxhash_rust::xxh3::Xxh3;
+
+/// The last heartbeat of a service and when it arrived.
+pub struct Seen {
+    pub heartbeat: Heartbeat,
+    pub at: Instant,
+}
+
+pub struct Consumer {
+    pub frames: Option<FrameInbox>,
+    pub spectra: Option<Inbox<Spectrum>>,
+    pub truth: Inbox<Truth>,
+    heartbeats: Inbox<Heartbeat>,
+    control: Outbox<Control>,
+    acks: Outbox<Ack>,
+    frame_digest: Xxh3,
+    spectrum_digest: Xxh3,
+    truth_digest: Xxh3,
+    /// Send → receive latency of every frame [ns].
+    pub frame_latency_ns: Vec<u64>,
+    /// Send → receive latency of every spectrum [ns].
+    pub spectrum_latency_ns: Vec<u64>,
+    pub truths: Vec<Truth>,
+    pub seen: BTreeMap<ServiceId, Seen>,
+    /// Messages on each consumed topic the run must account for.
+    pub expected: BTreeMap<TopicId, u64>,
+    acked: BTreeMap<TopicId, u64>,
+}
+
+/// Listeners to attach to the orchestrator's WaitSet, in this order: heartbeat, truth, frame?,
+/// spectrum?.
+pub struct Listeners {
+    pub heartbeat: Listener<Ipc>,
+    pub truth: Listener<Ipc>,
+    pub frame: Option<Listener<Ipc>>,
+    pub spectrum: Option<Listener<Ipc>>,
+}
+
+impl Consumer {
+    pub fn open(node: &IpcNode, scenario: &Scenario) -> Result<(Self, Listeners)> {
+        let me = ServiceId::Orchestrator;
+        let consumes = |t| deployment::consumers(scenario, t).contains(&me);
+        let (frames, frame_l) = if consumes(TopicId::Frame) {
+            let (i, l) = FrameInbox::open(node, &frame_service(node)?)?;
+            (Some(i), Some(l))
+        } else {
+            (None, None)
+        };
+        let (spectra, spectrum_l) = if consumes(TopicId::Spectrum) {
+            let (i, l) = Inbox::open(node, TopicId::Spectrum, &spectrum_service(node)?)?;
+            (Some(i), Some(l))
+        } else {
+            (None, None)
+        };
+        let (truth, truth_l) = Inbox::open(node, TopicId::Truth, &truth_service(node)?)?;
+        let (heartbeats, hb_l) = Inbox::open(node, TopicId::Heartbeat, &heartbeat_service(node)?)?;
+        let control = Outbox::open(node, TopicId::Control, &control_service(node)?, me)?;
+        let acks = Outbox::open(node, TopicId::Ack, &ack_service(node)?, me)?;
+        let mut expected = BTreeMap::new();
+        for t in [TopicId::Frame, TopicId::Spectrum, TopicId::Truth] {
+            if consumes(t) {
+                expected.insert(t, deployment::expected_messages(scenario, t));
+            }
+        }
+        Ok((
+            Consumer {
+                frames,
+                spectra,
+                truth,
+                heartbeats,
+                control,
+                acks,
+                frame_digest: Xxh3::new(),
+                spectrum_digest: Xxh3::new(),
+                truth_digest: Xxh3::new(),
+                frame_latency_ns: vec![],
+                spectrum_latency_ns: vec![],
+                truths: vec![],
+                seen: BTreeMap::new(),
+                expected,
+                acked: BTreeMap::new(),
+            },
+            Listeners {
+                heartbeat: hb_l,
+                truth: truth_l,
+                frame: frame_l,
+                spectrum: spectrum_l,
+            },
+        ))
+    }
+
+    pub fn command(&mut self, command: Command, target: u32) -> Result<()> {
+        let c = Control {
+            command: command as u32,
+            target,
+            ..Default::default()
+        };
+        self.control.send(c, 0)?;
+        Ok(())
+    }
+
+    /// Reads every input, accounts for it, and acknowledges it (the producers' credit).
+    pub fn poll(&mut self) -> Result<()> {
+        self.poll_heartbeats()?;
+        if let Some(frames) = self.frames.as_mut() {
+            let (digest, lat) = (&mut self.frame_digest, &mut self.frame_latency_ns);
+            frames.drain(|h, _pixels, latency_ns| {
+                digest.update(&h.meta.seq.to_le_bytes());
+                digest.update(&h.pixels_xxh3.to_le_bytes());
+                lat.push(latency_ns);
+                Ok(())
+            })?;
+            let next = frames.stats.next_seq;
+            self.ack(TopicId::Frame, next)?;
+        }
+        if let Some(spectra) = self.spectra.as_mut() {
+            let (digest, lat) = (&mut self.spectrum_digest, &mut self.spectrum_latency_ns);
+            spectra.drain(|r| {
+                digest.update(&r.msg.content_xxh3.to_le_bytes());
+                lat.push(r.latency_ns);
+                Ok(())
+            })?;
+            let next = spectra.stats.next_seq;
+            self.ack(TopicId::Spectrum, next)?;
+        }
+        let (digest, truths) = (&mut self.truth_digest, &mut self.truths);
+        self.truth.drain(|r| {
+            let t = r.msg;
+            digest.update(&t.meta.seq.to_le_bytes());
+            digest.update(&t.meta.t_ns.to_le_bytes());
+            for s in &t.debris_state_lvlh[..t.n_debris as usize] {
+                for v in s {
+                    digest.update(&v.to_le_bytes());
+                }
+            }
+            for v in t.attitude_body_rest.iter().chain(t.rate_deg_per_frame.iter()) {
+                digest.update(&v.to_le_bytes());
+            }
+            truths.push(*t);
+            Ok(())
+        })?;
+        let next = self.truth.stats.next_seq;
+        self.ack(TopicId::Truth, next)?;
+        Ok(())
+    }
+
+    pub fn poll_heartbeats(&mut self) -> Result<()> {
+        let seen = &mut self.seen;
+        self.heartbeats.drain(|r| {
+            if let Some(id) = ServiceId::from_u32(r.msg.meta.producer) {
+                seen.insert(
+                    id,
+                    Seen {
+                        heartbeat: *r.msg,
+                        at: Instant::now(),
+                    },
+                );
+            }
+            Ok(())
+        })?;
+        Ok(())
+    }
+
+    fn ack(&mut self, topic: TopicId, next_seq: u64) -> Result<()> {
+        let a = Ack {
+            topic: topic as u32,
+            consumer: ServiceId::Orchestrator as u32,
+            next_seq,
+            ..Default::default()
+        };
+        // Send only when something new arrived.
+        if self.acked.get(&topic) == Some(&next_seq) {
+            return Ok(());
+        }
+        self.acked.insert(topic, next_seq);
+        self.acks.send(a, 0)?;
+        Ok(())
+    }
+
+    /// Own statistics per consumed topic.
+    pub fn own_stats(&self) -> Vec<&TopicStats> {
+        let mut v: Vec<&TopicStats> = vec![];
+        if let Some(f) = &self.frames {
+            v.push(&f.stats);
+        }
+        if let Some(s) = &self.spectra {
+            v.push(&s.stats);
+        }
+        v.push(&self.truth.stats);
+        v
+    }
+
+    /// True once every expected message of every consumed topic is accounted for.
+    pub fn complete(&self) -> bool {
+        self.own_stats().iter().all(|s| {
+            let want = self.expected.get(&s.topic).copied().unwrap_or(0);
+            s.next_seq >= want
+        })
+    }
+
+    /// (accepted, expected) over all consumed topics, for progress display.
+    pub fn progress(&self) -> (u64, u64) {
+        let done: u64 = self.own_stats().iter().map(|s| s.next_seq).sum();
+        let want: u64 = self.expected.values().sum();
+        (done, want)
+    }
+
+    pub fn digests(&self) -> BTreeMap<TopicId, u64> {
+        let mut m = BTreeMap::new();
+        if self.frames.is_some() {
+            m.insert(TopicId::Frame, self.frame_digest.digest());
+        }
+        if self.spectra.is_some() {
+            m.insert(TopicId::Spectrum, self.spectrum_digest.digest());
+        }
+        m.insert(TopicId::Truth, self.truth_digest.digest());
+        m
+    }
+
+    /// Counters a service reported for a topic in its last heartbeat.
+    pub fn reported(&self, id: ServiceId, topic: TopicId) -> Option<TopicCounters> {
+        self.seen.get(&id).and_then(|s| {
+            s.heartbeat
+                .topics
+                .iter()
+                .find(|c| c.topic == topic as u32)
+                .copied()
+        })
+    }
+}

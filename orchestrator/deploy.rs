@@ -1,0 +1,173 @@
+//! Child processes: spawn `glint service <name>` in its own process group, watch it, and stop
+//! it with the ladder Shutdown → grace → SIGTERM → grace → SIGKILL (a polled state machine).
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use shared_types::ServiceId;
+
+/// How a child ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Ending {
+    Running,
+    /// Exited by itself with this status (code or signal).
+    Exited(String),
+    /// Exited after the `Shutdown` control message.
+    Shutdown,
+    /// Needed SIGTERM.
+    Terminated,
+    /// Needed SIGKILL.
+    Killed,
+}
+
+impl Ending {
+    pub fn label(&self) -> String {
+        match self {
+            Ending::Running => "running".into(),
+            Ending::Exited(s) => format!("exited ({s})"),
+            Ending::Shutdown => "shutdown".into(),
+            Ending::Terminated => "sigterm".into(),
+            Ending::Killed => "sigkill".into(),
+        }
+    }
+}
+
+pub struct ServiceProcess {
+    pub id: ServiceId,
+    pub pid: u32,
+    pub restarts: u32,
+    pub ending: Ending,
+    child: Option<Child>,
+    pub log_path: PathBuf,
+}
+
+impl ServiceProcess {
+    /// Spawns `exe service <name> --prefix P --scenario FILE`; stderr goes to `logs/<name>.log`.
+    pub fn spawn(exe: &Path, id: ServiceId, prefix: &str, scenario: &Path, log_dir: &Path) -> Result<Self> {
+        use std::os::unix::process::CommandExt;
+        std::fs::create_dir_all(log_dir)?;
+        let log_path = log_dir.join(format!("{}.log", id.name()));
+        let log = std::fs::File::create(&log_path)
+            .with_context(|| format!("creating {}", log_path.display()))?;
+        let child = Command::new(exe)
+            .arg("service")
+            .arg(id.name())
+            .arg("--prefix")
+            .arg(prefix)
+            .arg("--scenario")
+            .arg(scenario)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(log))
+            .process_group(0)
+            .spawn()
+            .with_context(|| format!("spawning service {}", id.name()))?;
+        Ok(ServiceProcess {
+            id,
+            pid: child.id(),
+            restarts: 0,
+            ending: Ending::Running,
+            child: Some(child),
+            log_path,
+        })
+    }
+
+    /// Non-blocking: has the child exited? Records the ending the first time.
+    pub fn poll_exit(&mut self) -> bool {
+        let Some(child) = self.child.as_mut() else {
+            return true;
+        };
+        match child.try_wait() {
+            Ok(Some(status)) => {
+                if self.ending == Ending::Running {
+                    self.ending = Ending::Exited(status.to_string());
+                }
+                self.child = None;
+                true
+            }
+            Ok(None) => false,
+            Err(_) => false,
+        }
+    }
+
+    pub fn is_running(&mut self) -> bool {
+        !self.poll_exit()
+    }
+
+    fn signal(&self, sig: libc::c_int) {
+        if self.child.is_some() {
+            // SAFETY: kill(2) on our own child's process group (it was spawned with pgid = pid).
+            unsafe {
+                libc::kill(-(self.pid as libc::pid_t), sig);
+            }
+        }
+    }
+
+    /// Last lines of the service's log, for error messages.
+    pub fn log_tail(&self, lines: usize) -> String {
+        let text = std::fs::read_to_string(&self.log_path).unwrap_or_default();
+        let all: Vec<&str> = text.lines().collect();
+        all[all.len().saturating_sub(lines)..].join("\n")
+    }
+}
+
+impl Drop for ServiceProcess {
+    /// Never leave a child behind, whatever path leads here.
+    fn drop(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            // SAFETY: see `signal`.
+            unsafe {
+                libc::kill(-(self.pid as libc::pid_t), libc::SIGKILL);
+            }
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Waits for every child to exit, polling every 5 ms, for at most `grace`; calls `while_waiting`
+/// on each poll (the caller drains final heartbeats there).
+fn wait_all(children: &mut [ServiceProcess], grace: Duration, while_waiting: &mut dyn FnMut()) -> bool {
+    let t0 = Instant::now();
+    loop {
+        while_waiting();
+        let all = children.iter_mut().all(|c| c.poll_exit());
+        if all {
+            return true;
+        }
+        if t0.elapsed() >= grace {
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// The stop ladder, after the caller has published `Shutdown`. Each child's ending records the
+/// rung that stopped it (a child that had exited before the ladder keeps its own status).
+pub fn stop_ladder(children: &mut [ServiceProcess], grace: Duration, while_waiting: &mut dyn FnMut()) {
+    let rungs = [
+        (None, Ending::Shutdown),
+        (Some(libc::SIGTERM), Ending::Terminated),
+        (Some(libc::SIGKILL), Ending::Killed),
+    ];
+    for (signal, label) in rungs {
+        let running: Vec<bool> = children.iter_mut().map(|c| c.is_running()).collect();
+        if !running.iter().any(|r| *r) {
+            return;
+        }
+        if let Some(sig) = signal {
+            for (c, r) in children.iter().zip(&running) {
+                if *r {
+                    c.signal(sig);
+                }
+            }
+        }
+        wait_all(children, grace, while_waiting);
+        for (c, r) in children.iter_mut().zip(&running) {
+            if *r && !c.is_running() {
+                c.ending = label.clone();
+            }
+        }
+    }
+}

@@ -1,0 +1,155 @@
+//! `glint`: deploys the characterization chain as separate processes over iceoryx2 shared
+//! memory, supervises them, and writes a report. Also the entry point of every service
+//! (`glint service <name>`), so one executable ships the whole chain.
+//!
+//! Exit codes: 0 success, 1 the run failed (a service died, a message was lost, …),
+//! 2 bad input (scenario file, arguments).
+
+mod consume;
+mod deploy;
+mod progress;
+mod report;
+mod run;
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use shared_types::scenario::ScenarioError;
+use shared_types::{Scenario, ServiceId};
+
+/// The scenario `glint run` uses without an argument.
+const DEFAULT_SCENARIO: &str = include_str!("../scenarios/default.toml");
+
+#[derive(Parser)]
+#[command(name = "glint", version, about = "On-board space-object characterization chain over iceoryx2 shared memory")]
+struct Cli {
+    #[command(subcommand)]
+    command: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Deploy the chain for a scenario, run it to the end, write the report.
+    Run {
+        /// Scenario file (TOML); the built-in default when absent.
+        scenario: Option<PathBuf>,
+        /// Run directory (default: runs/<name>-<UTC timestamp>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override the scenario's seed.
+        #[arg(long)]
+        seed: Option<u64>,
+    },
+    /// Check a scenario file; report every problem with its field and allowed range.
+    Validate {
+        scenario: PathBuf,
+    },
+    /// Run one service in this process (the orchestrator spawns these).
+    Service {
+        /// sensor
+        name: String,
+        /// Shared-memory prefix of the deployment.
+        #[arg(long)]
+        prefix: String,
+        /// The resolved scenario file of the run.
+        #[arg(long)]
+        scenario: PathBuf,
+    },
+}
+
+fn load(path: Option<&PathBuf>) -> Result<(Scenario, String), ScenarioError> {
+    match path {
+        Some(p) => Ok((Scenario::from_file(p)?, p.display().to_string())),
+        None => Ok((
+            Scenario::from_toml_str(DEFAULT_SCENARIO, "(built-in default)")?,
+            "(built-in default)".to_string(),
+        )),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Cmd::Validate { scenario } => match Scenario::from_file(&scenario) {
+            Ok(s) => {
+                println!(
+                    "{}: ok ({}: camera {}, spectra {})",
+                    scenario.display(),
+                    s.name,
+                    if s.camera.is_some() { "yes" } else { "no" },
+                    if s.spectra.is_some() { "yes" } else { "no" }
+                );
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+        },
+        Cmd::Run { scenario, out, seed } => {
+            glint_runtime::init_tracing("orchestrator");
+            let (mut sc, file) = match load(scenario.as_ref()) {
+                Ok(x) => x,
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(2);
+                }
+            };
+            if let Some(seed) = seed {
+                sc.seed = seed;
+            }
+            let opts = run::RunOptions {
+                scenario: sc,
+                scenario_file: file,
+                out_dir: out,
+                progress: std::io::stderr().is_terminal(),
+            };
+            match run::run(opts) {
+                Ok((dir, ok)) => {
+                    println!("{}", dir.join("summary.md").display());
+                    if ok {
+                        ExitCode::SUCCESS
+                    } else {
+                        eprintln!("run failed: see {}", dir.join("summary.md").display());
+                        ExitCode::from(1)
+                    }
+                }
+                Err(e) => {
+                    eprintln!("error: {e:#}");
+                    ExitCode::from(1)
+                }
+            }
+        }
+        Cmd::Service {
+            name,
+            prefix,
+            scenario,
+        } => {
+            glint_runtime::init_tracing(&name);
+            let sc = match Scenario::from_file(&scenario) {
+                Ok(s) => s,
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return ExitCode::from(2);
+                }
+            };
+            let result = match ServiceId::from_name(&name) {
+                Some(ServiceId::Sensor) => glint_sensor::node::run(&prefix, &sc),
+                _ => {
+                    eprintln!("error: unknown service '{name}' (available: sensor)");
+                    return ExitCode::from(2);
+                }
+            };
+            match result {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    tracing::error!("{e:#}");
+                    eprintln!("error: {e:#}");
+                    ExitCode::from(1)
+                }
+            }
+        }
+    }
+}

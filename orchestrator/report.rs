@@ -1,0 +1,351 @@
+//! The run report: `report.json` (machine-readable) and `summary.md` (what a person reads).
+//!
+//! Everything outside the `run` and `timing` objects and the `pid` fields is a function of the
+//! scenario and the seed alone, so two runs of the same scenario and seed give byte-identical
+//! reports once those are removed (keys are sorted; serde_json's map is a BTreeMap).
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use serde_json::{json, Value};
+use shared_types::{deployment, DropReason, Scenario, ServiceId, TopicCounters, TopicId};
+
+use crate::consume::Consumer;
+use crate::deploy::{Ending, ServiceProcess};
+
+pub struct Outcome {
+    pub startup_s: f64,
+    pub production_s: f64,
+}
+
+pub struct ServiceFact {
+    pub name: String,
+    pub pid: u32,
+    pub restarts: u32,
+    pub ending: Ending,
+}
+
+pub struct ConsumerFact {
+    pub received: u64,
+    pub dropped: [u64; shared_types::DROP_REASONS],
+}
+
+pub struct TopicFact {
+    pub expected: u64,
+    pub published: Option<u64>,
+    pub digest: Option<u64>,
+    pub consumers: BTreeMap<String, Option<ConsumerFact>>,
+}
+
+pub struct RunFacts {
+    pub services: Vec<ServiceFact>,
+    pub topics: BTreeMap<TopicId, TopicFact>,
+    pub failure: Option<String>,
+    pub outcome: Outcome,
+    pub frame_latency_ns: Vec<u64>,
+    pub spectrum_latency_ns: Vec<u64>,
+    pub range_requests: u64,
+    pub wall_s: f64,
+    pub prefix: String,
+    pub scenario_file: String,
+    pub shm_removed: usize,
+    pub shm_leftover: Vec<String>,
+}
+
+fn consumer_fact(c: TopicCounters) -> ConsumerFact {
+    ConsumerFact {
+        received: c.received,
+        dropped: c.dropped,
+    }
+}
+
+impl RunFacts {
+    pub fn collect(
+        consumer: &Consumer,
+        children: &[ServiceProcess],
+        scenario: &Scenario,
+        failure: Option<String>,
+        outcome: Outcome,
+    ) -> Self {
+        let services = children
+            .iter()
+            .map(|c| ServiceFact {
+                name: c.id.name().to_string(),
+                pid: c.pid,
+                restarts: c.restarts,
+                ending: c.ending.clone(),
+            })
+            .collect();
+        let digests = consumer.digests();
+        let mut topics = BTreeMap::new();
+        for t in [TopicId::Frame, TopicId::Spectrum, TopicId::Truth] {
+            let expected = deployment::expected_messages(scenario, t);
+            if expected == 0 {
+                continue;
+            }
+            let mut consumers = BTreeMap::new();
+            for c in deployment::consumers(scenario, t) {
+                let fact = if c == ServiceId::Orchestrator {
+                    consumer
+                        .own_stats()
+                        .into_iter()
+                        .find(|s| s.topic == t)
+                        .map(|s| consumer_fact(s.counters()))
+                } else {
+                    consumer.reported(c, t).map(consumer_fact)
+                };
+                consumers.insert(c.name().to_string(), fact);
+            }
+            topics.insert(
+                t,
+                TopicFact {
+                    expected,
+                    published: consumer.reported(ServiceId::Sensor, t).map(|c| c.published),
+                    digest: digests.get(&t).copied(),
+                    consumers,
+                },
+            );
+        }
+        RunFacts {
+            services,
+            topics,
+            failure,
+            outcome,
+            frame_latency_ns: consumer.frame_latency_ns.clone(),
+            spectrum_latency_ns: consumer.spectrum_latency_ns.clone(),
+            range_requests: consumer
+                .reported(ServiceId::Sensor, TopicId::Range)
+                .map_or(0, |c| c.received + c.dropped.iter().sum::<u64>()),
+            wall_s: 0.0,
+            prefix: String::new(),
+            scenario_file: String::new(),
+            shm_removed: 0,
+            shm_leftover: vec![],
+        }
+    }
+
+    /// received + dropped == published == expected, for every topic and consumer.
+    pub fn invariant_held(&self) -> bool {
+        self.topics.values().all(|t| {
+            t.published == Some(t.expected)
+                && t.consumers.values().all(|c| {
+                    c.as_ref()
+                        .is_some_and(|c| c.received + c.dropped.iter().sum::<u64>() == t.expected)
+                })
+        })
+    }
+
+    pub fn success(&self) -> bool {
+        self.failure.is_none()
+            && self.invariant_held()
+            && self.shm_leftover.is_empty()
+            && self.services.iter().all(|s| s.ending == Ending::Shutdown)
+    }
+}
+
+/// Percentiles of a latency sample [µs].
+fn percentiles_us(ns: &[u64]) -> Value {
+    if ns.is_empty() {
+        return Value::Null;
+    }
+    let mut v = ns.to_vec();
+    v.sort_unstable();
+    let p = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize] as f64 / 1e3;
+    json!({ "count": v.len(), "p50": p(0.5), "p90": p(0.9), "p99": p(0.99), "max": p(1.0) })
+}
+
+fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
+    let mut topics = serde_json::Map::new();
+    for (t, tf) in &f.topics {
+        let mut consumers = serde_json::Map::new();
+        for (name, c) in &tf.consumers {
+            let v = match c {
+                Some(c) => {
+                    let by_reason: serde_json::Map<String, Value> = DropReason::ALL
+                        .iter()
+                        .map(|r| (r.name().to_string(), json!(c.dropped[*r as usize])))
+                        .collect();
+                    json!({
+                        "received": c.received,
+                        "dropped": c.dropped.iter().sum::<u64>(),
+                        "dropped_by_reason": by_reason,
+                        "accounted": c.received + c.dropped.iter().sum::<u64>() == tf.expected,
+                    })
+                }
+                None => json!({ "received": null, "dropped": null, "accounted": false }),
+            };
+            consumers.insert(name.clone(), v);
+        }
+        topics.insert(
+            t.name().to_string(),
+            json!({
+                "expected": tf.expected,
+                "published": tf.published,
+                "digest_xxh3": tf.digest.map(|d| format!("{d:016x}")),
+                "consumers": consumers,
+            }),
+        );
+    }
+    let frames = f.topics.get(&TopicId::Frame).map_or(0, |t| t.expected);
+    let spectra = f.topics.get(&TopicId::Spectrum).map_or(0, |t| t.expected);
+    let rate = |n: u64| {
+        if f.outcome.production_s > 0.0 {
+            n as f64 / f.outcome.production_s
+        } else {
+            0.0
+        }
+    };
+    json!({
+        "glint_version": env!("CARGO_PKG_VERSION"),
+        "contract_version": shared_types::CONTRACT_VERSION,
+        "scenario": {
+            "name": scenario.name,
+            "clock": format!("{:?}", scenario.clock).to_lowercase(),
+            "frames": frames,
+            "spectra": spectra,
+        },
+        "seed": scenario.seed,
+        "success": f.success(),
+        "failure": f.failure,
+        "accounting": { "invariant_held": f.invariant_held() },
+        "services": f.services.iter().map(|s| json!({
+            "name": s.name, "pid": s.pid, "restarts": s.restarts, "ending": s.ending.label(),
+        })).collect::<Vec<_>>(),
+        "topics": topics,
+        "laser": { "requests": f.range_requests },
+        "shared_memory": { "leftover": f.shm_leftover },
+        "run": {
+            "prefix": f.prefix,
+            "scenario_file": f.scenario_file,
+            "shm_entries_removed": f.shm_removed,
+        },
+        "timing": {
+            "wall_s": f.wall_s,
+            "startup_s": f.outcome.startup_s,
+            "production_s": f.outcome.production_s,
+            "frames_per_s": rate(frames),
+            "spectra_per_s": rate(spectra),
+            "frame_latency_us": percentiles_us(&f.frame_latency_ns),
+            "spectrum_latency_us": percentiles_us(&f.spectrum_latency_ns),
+        },
+    })
+}
+
+/// A text histogram of latencies (log-spaced bins) for the summary.
+fn latency_histogram(ns: &[u64]) -> String {
+    if ns.is_empty() {
+        return String::new();
+    }
+    let edges_us = [5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0, 5000.0, f64::INFINITY];
+    let mut counts = vec![0usize; edges_us.len()];
+    for &v in ns {
+        let us = v as f64 / 1e3;
+        let i = edges_us.iter().position(|e| us < *e).unwrap_or(edges_us.len() - 1);
+        counts[i] += 1;
+    }
+    let max = *counts.iter().max().unwrap_or(&1).max(&1);
+    let mut s = String::from("```\n");
+    let mut lo = 0.0;
+    for (e, c) in edges_us.iter().zip(&counts) {
+        let label = if e.is_finite() {
+            format!("{lo:>6.0}–{e:<6.0} µs")
+        } else {
+            format!("{lo:>6.0}+        µs")
+        };
+        let bar = "█".repeat((c * 40).div_ceil(max));
+        let _ = writeln!(s, "{label} {bar} {c}");
+        lo = *e;
+    }
+    s.push_str("```\n");
+    s
+}
+
+fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
+    let mut s = String::new();
+    let verdict = if f.success() { "PASS" } else { "FAIL" };
+    let _ = writeln!(s, "# glint run: {} — {verdict}\n", scenario.name);
+    if !scenario.description.is_empty() {
+        let _ = writeln!(s, "{}\n", scenario.description.trim());
+    }
+    let _ = writeln!(
+        s,
+        "Seed {}, clock `{}`, scenario file `{}`.\n",
+        scenario.seed,
+        j["scenario"]["clock"].as_str().unwrap_or("?"),
+        f.scenario_file
+    );
+    if let Some(fail) = &f.failure {
+        let _ = writeln!(s, "**Failure:** {fail}\n");
+    }
+    let _ = writeln!(s, "## Services\n\n| service | pid | restarts | ended by |\n|---|---|---|---|");
+    for sv in &f.services {
+        let _ = writeln!(s, "| {} | {} | {} | {} |", sv.name, sv.pid, sv.restarts, sv.ending.label());
+    }
+    let _ = writeln!(
+        s,
+        "\n## Message accounting\n\nEvery message published must be received or dropped with a counted reason.\n\n| topic | published | consumer | received | dropped | accounted | digest |\n|---|---|---|---|---|---|---|"
+    );
+    for (t, tf) in &f.topics {
+        for (name, c) in &tf.consumers {
+            let (r, d, ok) = match c {
+                Some(c) => {
+                    let d: u64 = c.dropped.iter().sum();
+                    (c.received.to_string(), d.to_string(), c.received + d == tf.expected)
+                }
+                None => ("—".into(), "—".into(), false),
+            };
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | `{}` |",
+                t.name(),
+                tf.published.map_or("—".into(), |p| p.to_string()),
+                name,
+                r,
+                d,
+                if ok { "yes" } else { "**NO**" },
+                tf.digest.map_or(String::new(), |d| format!("{d:016x}"))
+            );
+        }
+    }
+    let tm = &j["timing"];
+    let _ = writeln!(
+        s,
+        "\n## Timing (this machine; not part of the deterministic results)\n\n- wall time {:.3} s (startup {:.3} s, production {:.3} s)\n- frames/s {:.1}, spectra/s {:.1}\n- laser requests served: {}\n- shared memory: {} entries removed, {} left over",
+        f.wall_s,
+        f.outcome.startup_s,
+        f.outcome.production_s,
+        tm["frames_per_s"].as_f64().unwrap_or(0.0),
+        tm["spectra_per_s"].as_f64().unwrap_or(0.0),
+        f.range_requests,
+        f.shm_removed,
+        f.shm_leftover.len()
+    );
+    for (label, ns) in [("Frame", &f.frame_latency_ns), ("Spectrum", &f.spectrum_latency_ns)] {
+        if ns.is_empty() {
+            continue;
+        }
+        let p = percentiles_us(ns);
+        let _ = writeln!(
+            s,
+            "\n### {label} latency, sensor send → orchestrator receive\n\np50 {:.1} µs, p90 {:.1} µs, p99 {:.1} µs, max {:.1} µs over {} messages.\n",
+            p["p50"].as_f64().unwrap_or(0.0),
+            p["p90"].as_f64().unwrap_or(0.0),
+            p["p99"].as_f64().unwrap_or(0.0),
+            p["max"].as_f64().unwrap_or(0.0),
+            ns.len()
+        );
+        s.push_str(&latency_histogram(ns));
+    }
+    s
+}
+
+/// Writes `report.json` and `summary.md`; returns whether the run succeeded.
+pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> {
+    let j = report_json(scenario, facts);
+    let text = serde_json::to_string_pretty(&j)? + "\n";
+    std::fs::write(dir.join("report.json"), text).context("writing report.json")?;
+    std::fs::write(dir.join("summary.md"), summary_md(scenario, facts, &j)).context("writing summary.md")?;
+    Ok(facts.success())
+}

@@ -1,0 +1,235 @@
+//! `glint run`: create the services, spawn the children, wait for readiness, start, supervise,
+//! account for every message, stop with the ladder, remove the shared memory, write the report.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use glint_runtime::{open_node, remove_shm, run_loop, shm_entries, Step, Wake};
+use shared_types::{deployment, Command, Control, Heartbeat, Scenario};
+
+use crate::consume::Consumer;
+use crate::deploy::{stop_ladder, Ending, ServiceProcess};
+use crate::report::{self, Outcome, RunFacts};
+
+/// Orchestrator tick: supervision and progress cadence.
+const TICK: Duration = Duration::from_millis(20);
+
+pub struct RunOptions {
+    pub scenario: Scenario,
+    pub scenario_file: String,
+    pub out_dir: Option<PathBuf>,
+    pub progress: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Starting,
+    Running,
+    Done,
+}
+
+/// Runs a deployment to the end. Returns the run directory and whether the run succeeded.
+pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
+    let scenario = &opts.scenario;
+    let out_dir = opts
+        .out_dir
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("runs").join(format!("{}-{}", scenario.name, utc_stamp())));
+    std::fs::create_dir_all(&out_dir)
+        .with_context(|| format!("creating run directory {}", out_dir.display()))?;
+    let resolved = out_dir.join("scenario.toml");
+    std::fs::write(&resolved, scenario.to_toml())
+        .with_context(|| format!("writing {}", resolved.display()))?;
+    let prefix = run_prefix();
+    let exe = std::env::current_exe().context("locating the glint executable")?;
+
+    let wall0 = Instant::now();
+    let result = deploy_and_run(scenario, &prefix, &exe, &resolved, &out_dir, opts.progress);
+    // Everything iceoryx2 is dropped inside deploy_and_run; now nothing of the prefix may remain.
+    let removed = remove_shm(&prefix);
+    let leftover: Vec<String> = shm_entries(&prefix)
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    let mut facts = result?;
+    facts.shm_removed = removed;
+    facts.shm_leftover = leftover;
+    facts.wall_s = wall0.elapsed().as_secs_f64();
+    facts.prefix = prefix;
+    facts.scenario_file = opts.scenario_file.clone();
+    let ok = report::write(&out_dir, scenario, &facts)?;
+    Ok((out_dir, ok))
+}
+
+fn deploy_and_run(
+    scenario: &Scenario,
+    prefix: &str,
+    exe: &Path,
+    resolved: &Path,
+    out_dir: &Path,
+    progress: bool,
+) -> Result<RunFacts> {
+    let node = open_node(prefix, "orchestrator")?;
+    let _services = shared_types::topics::create_all(&node)?;
+    let (mut consumer, listeners) = Consumer::open(&node, scenario)?;
+
+    let log_dir = out_dir.join("logs");
+    let mut children: Vec<ServiceProcess> = vec![];
+    for id in deployment::services(scenario) {
+        children.push(ServiceProcess::spawn(exe, id, prefix, resolved, &log_dir)?);
+    }
+    tracing::info!(prefix, services = children.len(), "deployed");
+
+    let bar = progress.then(|| crate::progress::bar(consumer.progress().1));
+    let limits = &scenario.run;
+    let t_start = Instant::now();
+    let mut t_running: Option<Instant> = None;
+    let mut t_done: Option<Instant> = None;
+    let mut phase = Phase::Starting;
+    let mut failure: Option<String> = None;
+
+    let mut inputs = vec![(&listeners.heartbeat, None), (&listeners.truth, None)];
+    if let Some(l) = &listeners.frame {
+        inputs.push((l, None));
+    }
+    if let Some(l) = &listeners.spectrum {
+        inputs.push((l, None));
+    }
+    let hb_deadline = Duration::from_millis(limits.heartbeat_deadline_ms);
+    let exit = run_loop(&inputs, TICK, |wakes| {
+        consumer.poll()?;
+        if let Some(b) = &bar {
+            b.set_position(consumer.progress().0);
+        }
+        if phase == Phase::Starting {
+            let ready = children.iter().all(|c| {
+                consumer
+                    .seen
+                    .get(&c.id)
+                    .is_some_and(|s| s.heartbeat.state >= Heartbeat::READY)
+            });
+            if ready {
+                consumer.command(Command::Start, Control::ALL)?;
+                t_running = Some(Instant::now());
+                phase = Phase::Running;
+                tracing::info!(startup_ms = t_start.elapsed().as_millis() as u64, "all services ready; started");
+            } else if t_start.elapsed() > Duration::from_millis(limits.startup_timeout_ms) {
+                failure = Some(format!(
+                    "services not ready within run.startup_timeout_ms = {} ms",
+                    limits.startup_timeout_ms
+                ));
+                return Ok(Step::Stop);
+            }
+        }
+        if phase == Phase::Running && consumer.complete() {
+            t_done = Some(Instant::now());
+            phase = Phase::Done;
+            return Ok(Step::Stop);
+        }
+        if wakes.contains(&Wake::Tick) || wakes.contains(&Wake::Timeout) {
+            for c in children.iter_mut() {
+                if !c.is_running() {
+                    failure = Some(format!(
+                        "service {} exited unexpectedly: {}\n{}",
+                        c.id.name(),
+                        c.ending.label(),
+                        c.log_tail(8)
+                    ));
+                    return Ok(Step::Stop);
+                }
+                if phase == Phase::Running {
+                    let stale = consumer
+                        .seen
+                        .get(&c.id)
+                        .is_none_or(|s| s.at.elapsed() > hb_deadline);
+                    if stale {
+                        failure = Some(format!(
+                            "service {} sent no heartbeat for run.heartbeat_deadline_ms = {} ms",
+                            c.id.name(),
+                            limits.heartbeat_deadline_ms
+                        ));
+                        return Ok(Step::Stop);
+                    }
+                }
+            }
+            if t_start.elapsed().as_secs_f64() > limits.timeout_s {
+                failure = Some(format!("run exceeded run.timeout_s = {} s", limits.timeout_s));
+                return Ok(Step::Stop);
+            }
+        }
+        Ok(Step::Wait)
+    })?;
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    if exit == glint_runtime::Exit::Terminated && failure.is_none() {
+        failure = Some("interrupted by a signal".into());
+    }
+
+    // Stop ladder; drain final heartbeats while waiting so the last counters are captured.
+    consumer.command(Command::Shutdown, Control::ALL)?;
+    let grace = Duration::from_millis(limits.shutdown_grace_ms);
+    stop_ladder(&mut children, grace, &mut || {
+        let _ = consumer.poll();
+    });
+    consumer.poll()?;
+
+    let production_s = match (t_running, t_done) {
+        (Some(a), Some(b)) => (b - a).as_secs_f64(),
+        _ => 0.0,
+    };
+    let facts = RunFacts::collect(
+        &consumer,
+        &children,
+        scenario,
+        failure,
+        Outcome {
+            startup_s: t_running.map_or(0.0, |t| (t - t_start).as_secs_f64()),
+            production_s,
+        },
+    );
+    if children.iter().any(|c| c.ending == Ending::Running) {
+        bail!("a child survived the stop ladder");
+    }
+    drop(children);
+    drop(consumer);
+    drop(listeners);
+    drop(node);
+    Ok(facts)
+}
+
+/// A prefix unique to this deployment (pid and time), short enough for iceoryx2's file names.
+fn run_prefix() -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos())
+        .unwrap_or(0);
+    let h = xxhash_rust::xxh3::xxh3_64(&[nanos.to_le_bytes().as_slice(), &std::process::id().to_le_bytes()].concat());
+    format!("glint_{:08x}_", h as u32)
+}
+
+/// `YYYYmmdd-HHMMSS` in UTC.
+pub fn utc_stamp() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let (days, rem) = (secs / 86400, secs % 86400);
+    // Civil-from-days (Howard Hinnant's algorithm).
+    let z = days as i64 + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}{m:02}{d:02}-{:02}{:02}{:02}",
+        rem / 3600,
+        (rem / 60) % 60,
+        rem % 60
+    )
+}

@@ -1,0 +1,20 @@
+//! Plumbing every glint service shares: the iceoryx2 node under a per-deployment prefix, typed
+//! ports with per-message accounting, the WaitSet loop (deadline per input, tick), heartbeats,
+//! control handling, and tracing setup.
+//!
+//! A service is a pure core plus a thin node loop; this crate is the loop's vocabulary.
+
+pub mod clock;
+pub mod housekeeping;
+pub mod node;
+pub mod ports;
+pub mod rpc;
+pub mod stats;
+pub mod waitloop;
+
+pub use clock::mono_ns;
+pub use housekeeping::Housekeeping;
+pub use node::{init_tracing, open_node, shm_entries, remove_shm};
+pub use ports::{Inbox, Outbox};
+pub use stats::TopicStats;
+pub use waitloop::{run_loop, Exit, Step, Wake};

@@ -1,0 +1,284 @@
+//! Typed ports: an [`Outbox`] is a publisher plus the notifier that wakes its consumers; an
+//! [`Inbox`] is a subscriber whose `drain` validates, sequence-accounts and hands over each
+//! message. Frames have their own pair ([`FrameOutbox`], [`FrameInbox`]) because their payload
+//! is a `[u16]` slice rendered in place in the loaned sample.
+
+use anyhow::{anyhow, Result};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use shared_types::topics::{
+    event_service, EventService, FrameService, Ipc, IpcNode, PubSubService, EVENT_DATA,
+};
+use shared_types::{DropReason, FrameHeader, Message, Meta, Reject, ServiceId, TopicId};
+
+use crate::clock::mono_ns;
+use crate::stats::{SeqVerdict, TopicStats};
+
+/// The listener a consumer attaches to its WaitSet for a topic.
+pub fn listener(node: &IpcNode, topic: TopicId) -> Result<Listener<Ipc>> {
+    let ev: EventService = event_service(node, topic, false)?;
+    ev.listener_builder()
+        .create()
+        .map_err(|e| anyhow!("listener for {}: {e:?}", topic.name()))
+}
+
+fn notifier(node: &IpcNode, topic: TopicId) -> Result<Notifier<Ipc>> {
+    let ev: EventService = event_service(node, topic, false)?;
+    ev.notifier_builder()
+        .create()
+        .map_err(|e| anyhow!("notifier for {}: {e:?}", topic.name()))
+}
+
+pub struct Outbox<T: Message> {
+    publisher: Publisher<Ipc, T, ()>,
+    notifier: Notifier<Ipc>,
+    producer: ServiceId,
+    pub stats: TopicStats,
+}
+
+impl<T: Message> Outbox<T> {
+    pub fn open(
+        node: &IpcNode,
+        topic: TopicId,
+        service: &PubSubService<T>,
+        producer: ServiceId,
+    ) -> Result<Self> {
+        let publisher = service
+            .publisher_builder()
+            .create()
+            .map_err(|e| anyhow!("publisher for {}: {e:?}", topic.name()))?;
+        Ok(Outbox {
+            publisher,
+            notifier: notifier(node, topic)?,
+            producer,
+            stats: TopicStats::new(topic),
+        })
+    }
+
+    /// Fills the header (next seq, `t_ns`, send time), seals and sends a copy, wakes consumers.
+    /// Returns the seq used.
+    pub fn send(&mut self, mut msg: T, t_ns: u64) -> Result<u64> {
+        let seq = self.stats.published;
+        *msg.meta_mut() = Meta::new(seq, t_ns, mono_ns(), self.producer);
+        msg.seal();
+        self.publisher
+            .send_copy(msg)
+            .map_err(|e| anyhow!("send on {}: {e:?}", self.stats.topic.name()))?;
+        self.stats.published += 1;
+        self.notifier
+            .notify_with_custom_event_id(EVENT_DATA)
+            .map_err(|e| anyhow!("notify on {}: {e:?}", self.stats.topic.name()))?;
+        Ok(seq)
+    }
+
+    /// Sends a message exactly as given (fault injection and tests: no header rewrite, no seal).
+    pub fn send_raw(&mut self, msg: T) -> Result<()> {
+        self.publisher
+            .send_copy(msg)
+            .map_err(|e| anyhow!("send on {}: {e:?}", self.stats.topic.name()))?;
+        self.notifier
+            .notify_with_custom_event_id(EVENT_DATA)
+            .map_err(|e| anyhow!("notify: {e:?}"))?;
+        Ok(())
+    }
+}
+
+/// One accepted message handed to a consumer.
+pub struct Received<'a, T> {
+    pub msg: &'a T,
+    /// Transport + queueing latency: consumer's receive time − producer's send time [ns].
+    pub latency_ns: u64,
+}
+
+pub struct Inbox<T: Message> {
+    subscriber: Subscriber<Ipc, T, ()>,
+    pub stats: TopicStats,
+    /// Last rejection, for logs.
+    pub last_reject: Option<Reject>,
+}
+
+impl<T: Message> Inbox<T> {
+    /// Opens a subscriber and the listener to wait on.
+    pub fn open(
+        node: &IpcNode,
+        topic: TopicId,
+        service: &PubSubService<T>,
+    ) -> Result<(Self, Listener<Ipc>)> {
+        let subscriber = service
+            .subscriber_builder()
+            .create()
+            .map_err(|e| anyhow!("subscriber for {}: {e:?}", topic.name()))?;
+        Ok((
+            Inbox {
+                subscriber,
+                stats: TopicStats::new(topic),
+                last_reject: None,
+            },
+            listener(node, topic)?,
+        ))
+    }
+
+    /// Receives everything queued. Malformed messages are counted and skipped; the handler
+    /// returns `Err(reason)` to drop an accepted message with a counted reason.
+    pub fn drain(
+        &mut self,
+        mut handle: impl FnMut(Received<'_, T>) -> Result<(), DropReason>,
+    ) -> Result<usize> {
+        let mut n = 0;
+        while let Some(sample) = self
+            .subscriber
+            .receive()
+            .map_err(|e| anyhow!("receive on {}: {e:?}", self.stats.topic.name()))?
+        {
+            n += 1;
+            let msg: &T = sample.payload();
+            if let Err(r) = msg.check() {
+                // A corrupted message cannot be trusted to carry a valid seq; count it only.
+                self.stats.drop_for(DropReason::Malformed);
+                self.last_reject = Some(r);
+                continue;
+            }
+            if self.stats.observe_seq(msg.meta().seq) == SeqVerdict::Stale {
+                continue;
+            }
+            let latency_ns = mono_ns().saturating_sub(msg.meta().send_mono_ns);
+            match handle(Received { msg, latency_ns }) {
+                Ok(()) => self.stats.accept(),
+                Err(reason) => self.stats.drop_for(reason),
+            }
+        }
+        Ok(n)
+    }
+}
+
+/// The sensor's frame publisher: pixels are rendered straight into the loaned sample.
+pub struct FrameOutbox {
+    publisher: Publisher<Ipc, [u16], FrameHeader>,
+    notifier: Notifier<Ipc>,
+    pixels: usize,
+    pub stats: TopicStats,
+}
+
+impl FrameOutbox {
+    pub fn open(node: &IpcNode, service: &FrameService, pixels: usize) -> Result<Self> {
+        let publisher = service
+            .publisher_builder()
+            .initial_max_slice_len(pixels)
+            .allocation_strategy(AllocationStrategy::Static)
+            .max_loaned_samples(1)
+            .create()
+            .map_err(|e| anyhow!("frame publisher: {e:?}"))?;
+        Ok(FrameOutbox {
+            publisher,
+            notifier: notifier(node, TopicId::Frame)?,
+            pixels,
+            stats: TopicStats::new(TopicId::Frame),
+        })
+    }
+
+    /// Loans a sample, lets `render` write every pixel in place and fill the header, then sends.
+    /// `render` must write all pixels: the sample memory is reused shared memory.
+    pub fn publish(
+        &mut self,
+        t_ns: u64,
+        render: impl FnOnce(&mut FrameHeader, &mut [u16]),
+    ) -> Result<u64> {
+        let seq = self.stats.published;
+        let mut sample = self
+            .publisher
+            .loan_slice_uninit(self.pixels)
+            .map_err(|e| anyhow!("frame loan: {e:?}"))?;
+        let uninit = sample.payload_mut();
+        // SAFETY: the payload is `pixels` u16 slots of mapped shared memory (the kernel zero-fills
+        // fresh pages and reused samples hold earlier frames), so every byte is initialised at the
+        // OS level and every bit pattern is a valid u16. `render` overwrites all of them before
+        // `assume_init` below, which the renderers' tests check (every pixel written once).
+        let pixels: &mut [u16] =
+            unsafe { std::slice::from_raw_parts_mut(uninit.as_mut_ptr() as *mut u16, uninit.len()) };
+        let mut header = FrameHeader {
+            meta: Meta::new(seq, t_ns, 0, ServiceId::Sensor),
+            ..Default::default()
+        };
+        render(&mut header, pixels);
+        header.pixels_xxh3 = shared_types::pixels_xxh3(pixels);
+        header.meta.send_mono_ns = mono_ns();
+        *sample.user_header_mut() = header;
+        // SAFETY: see above; all pixels were written by `render`.
+        let sample = unsafe { sample.assume_init() };
+        sample.send().map_err(|e| anyhow!("frame send: {e:?}"))?;
+        self.stats.published += 1;
+        self.notifier
+            .notify_with_custom_event_id(EVENT_DATA)
+            .map_err(|e| anyhow!("frame notify: {e:?}"))?;
+        Ok(seq)
+    }
+}
+
+pub struct FrameInbox {
+    subscriber: Subscriber<Ipc, [u16], FrameHeader>,
+    pub stats: TopicStats,
+    pub last_reject: Option<Reject>,
+    /// Verify `pixels_xxh3` on every frame (costs one pass over the pixels).
+    pub verify_checksum: bool,
+}
+
+impl FrameInbox {
+    pub fn open(node: &IpcNode, service: &FrameService) -> Result<(Self, Listener<Ipc>)> {
+        let subscriber = service
+            .subscriber_builder()
+            .create()
+            .map_err(|e| anyhow!("frame subscriber: {e:?}"))?;
+        Ok((
+            FrameInbox {
+                subscriber,
+                stats: TopicStats::new(TopicId::Frame),
+                last_reject: None,
+                verify_checksum: true,
+            },
+            listener(node, TopicId::Frame)?,
+        ))
+    }
+
+    /// Receives every queued frame and hands header + pixels (read in place) to `handle`.
+    pub fn drain(
+        &mut self,
+        mut handle: impl FnMut(&FrameHeader, &[u16], u64) -> Result<(), DropReason>,
+    ) -> Result<usize> {
+        let mut n = 0;
+        while let Some(sample) = self
+            .subscriber
+            .receive()
+            .map_err(|e| anyhow!("frame receive: {e:?}"))?
+        {
+            n += 1;
+            let header = *sample.user_header();
+            let latency_ns = mono_ns().saturating_sub(header.meta.send_mono_ns);
+            let pixels: &[u16] = sample.payload();
+            if let Err(r) = header.validate(pixels.len()) {
+                self.stats.drop_for(DropReason::Malformed);
+                self.last_reject = Some(r);
+                continue;
+            }
+            if self.verify_checksum && shared_types::pixels_xxh3(pixels) != header.pixels_xxh3 {
+                self.stats.observe_seq(header.meta.seq);
+                self.stats.drop_for(DropReason::Malformed);
+                self.last_reject = Some(Reject {
+                    field: "frame.pixels_xxh3",
+                    what: "does not match the pixels",
+                });
+                continue;
+            }
+            if self.stats.observe_seq(header.meta.seq) == SeqVerdict::Stale {
+                continue;
+            }
+            match handle(&header, pixels, latency_ns) {
+                Ok(()) => self.stats.accept(),
+                Err(reason) => self.stats.drop_for(reason),
+            }
+        }
+        Ok(n)
+    }
+}

@@ -1,0 +1,286 @@
+//! The sensor's node loop: open ports, wait for `Start`, then produce frames, spectra and truth —
+//! in sim-clock mode as fast as the consumers' acknowledgements allow (lockstep, nothing
+//! dropped), in realtime mode paced by the wall clock — while answering laser-range requests.
+
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use glint_runtime::ports::{FrameOutbox, Inbox, Outbox};
+use glint_runtime::rpc::RangeServer;
+use glint_runtime::{mono_ns, open_node, run_loop, Exit, Housekeeping, Step};
+use shared_types::scenario::Clock;
+use shared_types::topics::{
+    ack_service, frame_service, spectrum_service, truth_service, FRAME_BUFFER, SPECTRUM_BUFFER,
+    TRUTH_BUFFER,
+};
+use shared_types::{
+    deployment, Ack, Command, Heartbeat, RangeResponse, RangeStatus, Scenario, ServiceId, TopicId,
+};
+
+use crate::debris_scene::DebrisScene;
+use crate::laser::{respond, LaserConfig, RangeOutcome};
+use crate::render::noise::{inverse_normal_cdf, Xoshiro256pp};
+use crate::spectra_scene::SpectraScene;
+
+/// Messages produced per wake-up before the loop checks control and acks again.
+const BATCH: usize = 8;
+const LASER_STREAM: u64 = 1 << 56;
+
+/// Credit bookkeeping of one produced topic (sim-clock lockstep).
+struct Credit {
+    window: u64,
+    acked: BTreeMap<ServiceId, u64>,
+}
+
+impl Credit {
+    fn new(window: usize, consumers: Vec<ServiceId>) -> Self {
+        Credit {
+            window: window as u64,
+            acked: consumers.into_iter().map(|c| (c, 0)).collect(),
+        }
+    }
+    fn allows(&self, published: u64) -> bool {
+        self.acked
+            .values()
+            .all(|&a| published.saturating_sub(a) < self.window)
+    }
+    fn record(&mut self, consumer: ServiceId, next_seq: u64) {
+        if let Some(a) = self.acked.get_mut(&consumer) {
+            *a = (*a).max(next_seq);
+        }
+    }
+}
+
+pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
+    let node = open_node(prefix, "sensor")?;
+    let (mut hk, control_listener) = Housekeeping::open(&node, ServiceId::Sensor)?;
+    let (mut acks, ack_listener) = Inbox::<Ack>::open(&node, TopicId::Ack, &ack_service(&node)?)?;
+    let (mut range, range_listener) = RangeServer::open(&node, ServiceId::Sensor)?;
+    let mut truth_out = Outbox::open(&node, TopicId::Truth, &truth_service(&node)?, ServiceId::Sensor)?;
+
+    let debris = match &scenario.camera {
+        Some(cam) => Some(DebrisScene::new(cam, scenario.seed).map_err(|e| anyhow::anyhow!("{e}"))?),
+        None => None,
+    };
+    let mut frames = match &scenario.camera {
+        Some(cam) => Some(FrameOutbox::open(&node, &frame_service(&node)?, cam.pixels())?),
+        None => None,
+    };
+    let spectra = match &scenario.spectra {
+        Some(sp) => Some(SpectraScene::new(sp, scenario.seed).context("spectra scene")?),
+        None => None,
+    };
+    let mut spectrum_out = match &scenario.spectra {
+        Some(_) => Some(Outbox::open(&node, TopicId::Spectrum, &spectrum_service(&node)?, ServiceId::Sensor)?),
+        None => None,
+    };
+    let laser = scenario.camera.as_ref().map(|c| LaserConfig {
+        beam_full_width_rad: c.laser.beam_deg.to_radians(),
+        range_sigma_m: c.laser.range_sigma_m,
+        delay_s: c.laser.delay_s,
+    });
+
+    let n_frames = deployment::expected_messages(scenario, TopicId::Frame);
+    let n_spectra = deployment::expected_messages(scenario, TopicId::Spectrum);
+    let mut frame_credit = Credit::new(FRAME_BUFFER, deployment::consumers(scenario, TopicId::Frame));
+    let mut spectrum_credit =
+        Credit::new(SPECTRUM_BUFFER, deployment::consumers(scenario, TopicId::Spectrum));
+    let mut truth_credit = Credit::new(TRUTH_BUFFER, deployment::consumers(scenario, TopicId::Truth));
+    let realtime = scenario.clock == Clock::Realtime;
+    let frame_period = scenario
+        .camera
+        .as_ref()
+        .map(|c| Duration::from_nanos(c.frame_period_ns()))
+        .unwrap_or_default();
+
+    let mut started: Option<Instant> = None;
+    let mut paused = false;
+    let hb_period = Duration::from_millis(scenario.run.heartbeat_period_ms);
+    hk.state = Heartbeat::READY;
+    tracing::info!(n_frames, n_spectra, ?scenario.clock, "sensor ready");
+
+    let inputs = [
+        (&control_listener, None),
+        (&ack_listener, None),
+        (&range_listener, None),
+    ];
+    let exit = run_loop(&inputs, hb_period, |wakes| {
+        for cmd in hk.poll_control()? {
+            match cmd {
+                Command::Start if started.is_none() => {
+                    started = Some(Instant::now());
+                    hk.state = Heartbeat::RUNNING;
+                }
+                Command::Pause => paused = true,
+                Command::Resume => paused = false,
+                Command::Shutdown => {
+                    hk.state = Heartbeat::STOPPING;
+                    let f = frames.as_ref().map(|f| &f.stats);
+                    let s = spectrum_out.as_ref().map(|s| &s.stats);
+                    let stats: Vec<_> = [f, s, Some(&truth_out.stats), Some(&range.stats)]
+                        .into_iter()
+                        .flatten()
+                        .collect();
+                    hk.beat(0, &stats)?;
+                    return Ok(Step::Stop);
+                }
+                _ => {}
+            }
+        }
+        acks.drain(|r| {
+            let a = r.msg;
+            if let (Some(topic), Some(consumer)) =
+                (TopicId::from_u32(a.topic), ServiceId::from_u32(a.consumer))
+            {
+                match topic {
+                    TopicId::Frame => frame_credit.record(consumer, a.next_seq),
+                    TopicId::Spectrum => spectrum_credit.record(consumer, a.next_seq),
+                    TopicId::Truth => truth_credit.record(consumer, a.next_seq),
+                    _ => {}
+                }
+            }
+            Ok(())
+        })?;
+        range.serve(|req| answer_range(&debris, &laser, scenario.seed, req))?;
+
+        let mut next_wake: Option<Duration> = None;
+        if let (Some(t0), false) = (started, paused) {
+            for _ in 0..BATCH {
+                let mut progressed = false;
+                // Frames.
+                if let (Some(out), Some(scene)) = (frames.as_mut(), debris.as_ref()) {
+                    let k = out.stats.published;
+                    let due = if realtime {
+                        let at = frame_period * k as u32;
+                        let now = t0.elapsed();
+                        if now < at {
+                            next_wake = Some(next_wake.map_or(at - now, |w: Duration| w.min(at - now)));
+                        }
+                        now >= at
+                    } else {
+                        frame_credit.allows(k) && truth_credit.allows(truth_out.stats.published)
+                    };
+                    if k < n_frames && due {
+                        let t_ns = (scene.exposure_end_s(k) * 1e9).round() as u64;
+                        out.publish(t_ns, |h, px| {
+                            h.frame_index = k;
+                            h.exposure_start_ns = (scene.exposure_start_s(k) * 1e9).round() as u64;
+                            h.exposure_ns = (scene_exposure_ns(scenario)).max(1);
+                            h.interval_ns = scenario
+                                .camera
+                                .as_ref()
+                                .map_or(0, |c| (c.interval_s * 1e9).round() as u64);
+                            h.width_px = scene.camera.width_px;
+                            h.height_px = scene.camera.height_px;
+                            scene.render(k, px);
+                        })?;
+                        truth_out.send(scene.truth(k), t_ns)?;
+                        progressed = true;
+                    }
+                }
+                // Spectra (sim-clock: credit; realtime: as fast as credit too — they are slow data).
+                if let (Some(out), Some(scene)) = (spectrum_out.as_mut(), spectra.as_ref()) {
+                    let k = out.stats.published;
+                    if k < n_spectra
+                        && (realtime || spectrum_credit.allows(k))
+                        && (realtime || truth_credit.allows(truth_out.stats.published))
+                    {
+                        let (sp, truth, t_ns) = scene.sample(k).context("spectrum sample")?;
+                        out.send(sp, t_ns)?;
+                        truth_out.send(truth, t_ns)?;
+                        progressed = true;
+                    }
+                }
+                if !progressed {
+                    break;
+                }
+            }
+            let frames_done = frames.as_ref().is_none_or(|f| f.stats.published >= n_frames);
+            let spectra_done = spectrum_out.as_ref().is_none_or(|s| s.stats.published >= n_spectra);
+            if frames_done && spectra_done && hk.state == Heartbeat::RUNNING {
+                hk.state = Heartbeat::FINISHED;
+                tracing::info!("sensor finished producing");
+            }
+        }
+        if wakes.contains(&glint_runtime::Wake::Tick) || hk.state == Heartbeat::FINISHED {
+            let f = frames.as_ref().map(|f| &f.stats);
+            let s = spectrum_out.as_ref().map(|s| &s.stats);
+            let stats: Vec<_> = [f, s, Some(&truth_out.stats), Some(&range.stats)]
+                .into_iter()
+                .flatten()
+                .collect();
+            let t_ns = 0;
+            if wakes.contains(&glint_runtime::Wake::Tick) {
+                hk.beat(t_ns, &stats)?;
+            }
+        }
+        let more = started.is_some()
+            && !paused
+            && hk.state == Heartbeat::RUNNING
+            && (realtime || credit_available(&frames, n_frames, &frame_credit)
+                || spectrum_available(&spectrum_out, n_spectra, &spectrum_credit));
+        Ok(match (more, next_wake) {
+            (true, Some(d)) if realtime => Step::WaitAtMost(d),
+            (true, _) if !realtime => Step::WaitAtMost(Duration::ZERO),
+            _ => Step::Wait,
+        })
+    })?;
+    if exit == Exit::Terminated {
+        tracing::info!("sensor terminated by signal");
+    }
+    let _ = mono_ns();
+    Ok(())
+}
+
+fn scene_exposure_ns(scenario: &Scenario) -> u64 {
+    scenario
+        .camera
+        .as_ref()
+        .map_or(0, |c| (c.exposure_s * 1e9).round() as u64)
+}
+
+fn credit_available(frames: &Option<FrameOutbox>, n: u64, credit: &Credit) -> bool {
+    frames
+        .as_ref()
+        .is_some_and(|f| f.stats.published < n && credit.allows(f.stats.published))
+}
+
+fn spectrum_available(
+    out: &Option<Outbox<shared_types::Spectrum>>,
+    n: u64,
+    credit: &Credit,
+) -> bool {
+    out.as_ref()
+        .is_some_and(|s| s.stats.published < n && credit.allows(s.stats.published))
+}
+
+/// The laser: fire at the request's time, echo after the delay, deterministic noise per request.
+fn answer_range(
+    debris: &Option<DebrisScene>,
+    laser: &Option<LaserConfig>,
+    seed: u64,
+    req: &shared_types::RangeRequest,
+) -> (RangeResponse, u64) {
+    let mut resp = RangeResponse {
+        request_id: req.request_id,
+        track_id: req.track_id,
+        status: RangeStatus::Miss as u32,
+        ..Default::default()
+    };
+    let (Some(scene), Some(cfg)) = (debris, laser) else {
+        return (resp, req.meta.t_ns);
+    };
+    let t_fire_s = req.meta.t_ns as f64 * 1e-9;
+    let echo_ns = req.meta.t_ns + (cfg.delay_s * 1e9).round() as u64;
+    let targets = scene.laser_targets(t_fire_s + cfg.delay_s);
+    let mut rng = Xoshiro256pp::new(seed, LASER_STREAM + req.request_id);
+    let noise = inverse_normal_cdf(rng.next_open01());
+    if let RangeOutcome::Hit { range_m, .. } =
+        respond(cfg, req.azimuth_rad, req.elevation_rad, &targets, noise)
+    {
+        resp.status = RangeStatus::Hit as u32;
+        resp.range_m = range_m;
+    }
+    (resp, echo_ns)
+}

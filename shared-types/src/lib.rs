@@ -1,0 +1,29 @@
+//! glint's wire contract: the messages every service exchanges over iceoryx2 shared memory,
+//! the topic names and QoS (one place, so no two processes disagree), and the scenario schema.
+//!
+//! Only this crate and `glint-runtime` touch iceoryx2 directly.
+
+pub mod deployment;
+pub mod messages;
+pub mod scenario;
+pub mod topics;
+
+pub use messages::*;
+pub use scenario::Scenario;
+pub use topics::{ServiceId, TopicId};
+
+/// Version of the wire contract. Bump it on any change to a message layout or a topic's QoS:
+/// it is part of every `#[type_name]` and of the `glint.contract` service attribute.
+pub const CONTRACT_VERSION: u32 = 1;
+
+/// xxh3-64 of a frame's pixels as little-endian bytes (the value in `FrameHeader::pixels_xxh3`).
+pub fn pixels_xxh3(pixels: &[u16]) -> u64 {
+    // SAFETY: u16 has no padding or invalid bit patterns; on little-endian targets the byte view
+    // is the little-endian encoding. Big-endian hosts are rejected at compile time below.
+    let bytes =
+        unsafe { std::slice::from_raw_parts(pixels.as_ptr() as *const u8, std::mem::size_of_val(pixels)) };
+    xxhash_rust::xxh3::xxh3_64(bytes)
+}
+
+#[cfg(target_endian = "big")]
+compile_error!("glint's shared-memory contract is little-endian");

@@ -1,0 +1,284 @@
+//! Topic names, quality of service, and the one place services are opened.
+//!
+//! The first process to create an iceoryx2 service fixes its QoS, and any setting an opener
+//! passes is checked as a minimum; so every process opens every service through the functions
+//! here, with the same numbers. The orchestrator creates all services before it spawns children.
+//!
+//! Each data topic has an event service of the same name: the producer notifies after `send`,
+//! consumers block on the listener in a WaitSet (pub/sub ports are not waitable).
+//!
+//! Every service carries the attribute `glint.contract = CONTRACT_VERSION`; opening a service
+//! created by another contract version fails with a clear error instead of exchanging garbage.
+
+use iceoryx2::port::event_id::EventId;
+use iceoryx2::prelude::*;
+use iceoryx2::service::attribute::{AttributeKey, AttributeValue};
+use iceoryx2::service::port_factory::{event, publish_subscribe, request_response};
+
+use crate::messages::*;
+use crate::CONTRACT_VERSION;
+
+/// Services of a deployment. The numeric value travels in [`Meta::producer`] and [`Ack::consumer`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u32)]
+pub enum ServiceId {
+    Orchestrator = 0,
+    Sensor = 1,
+    Detector = 2,
+    Tracker = 3,
+    Inversion = 4,
+}
+
+impl ServiceId {
+    pub const SPAWNABLE: [ServiceId; 4] = [
+        ServiceId::Sensor,
+        ServiceId::Detector,
+        ServiceId::Tracker,
+        ServiceId::Inversion,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ServiceId::Orchestrator => "orchestrator",
+            ServiceId::Sensor => "sensor",
+            ServiceId::Detector => "detector",
+            ServiceId::Tracker => "tracker",
+            ServiceId::Inversion => "inversion",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        [ServiceId::Orchestrator]
+            .into_iter()
+            .chain(Self::SPAWNABLE)
+            .find(|s| s.name() == name)
+    }
+
+    pub fn from_u32(v: u32) -> Option<Self> {
+        [ServiceId::Orchestrator]
+            .into_iter()
+            .chain(Self::SPAWNABLE)
+            .find(|s| *s as u32 == v)
+    }
+}
+
+/// Topics of the chain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u32)]
+pub enum TopicId {
+    Frame = 0,
+    Spectrum = 1,
+    Truth = 2,
+    Heartbeat = 3,
+    Control = 4,
+    Ack = 5,
+    Range = 6,
+}
+
+impl TopicId {
+    pub const ALL: [TopicId; 7] = [
+        TopicId::Frame,
+        TopicId::Spectrum,
+        TopicId::Truth,
+        TopicId::Heartbeat,
+        TopicId::Control,
+        TopicId::Ack,
+        TopicId::Range,
+    ];
+
+    /// Short name used in reports (`topics.<name>`).
+    pub fn name(self) -> &'static str {
+        match self {
+            TopicId::Frame => "frame",
+            TopicId::Spectrum => "spectrum",
+            TopicId::Truth => "truth",
+            TopicId::Heartbeat => "heartbeat",
+            TopicId::Control => "control",
+            TopicId::Ack => "ack",
+            TopicId::Range => "range",
+        }
+    }
+
+    /// iceoryx2 service name (the run prefix lives in the iceoryx2 config, not here).
+    pub fn service_name(self) -> String {
+        format!("glint/{}", self.name())
+    }
+
+    pub fn from_u32(v: u32) -> Option<Self> {
+        Self::ALL.into_iter().find(|t| *t as u32 == v)
+    }
+}
+
+/// Per-subscriber buffer of the data topics; also the sim-clock credit window: a producer never
+/// has more than this many unacknowledged messages in flight per consumer, so nothing overflows.
+pub const FRAME_BUFFER: usize = 4;
+pub const SPECTRUM_BUFFER: usize = 32;
+pub const TRUTH_BUFFER: usize = 32;
+const HEARTBEAT_BUFFER: usize = 64;
+const CONTROL_BUFFER: usize = 16;
+const ACK_BUFFER: usize = 256;
+/// History kept for late joiners (a restarted consumer catches up from it).
+pub const FRAME_HISTORY: usize = FRAME_BUFFER;
+pub const SPECTRUM_HISTORY: usize = SPECTRUM_BUFFER;
+
+/// Subscribers per data topic: orchestrator, one consumer service, one restart replacement, one tool.
+const MAX_DATA_SUBSCRIBERS: usize = 4;
+/// Publishers/nodes per many-to-one topic: every service, plus restarts.
+const MAX_PEERS: usize = 16;
+const MAX_NODES: usize = 24;
+
+/// Event id a producer notifies with after a send.
+pub const EVENT_DATA: EventId = EventId::new(1);
+/// Event id the iceoryx2 cleanup emits when a notifier's node died.
+pub const EVENT_NOTIFIER_DEAD: EventId = EventId::new(2);
+
+#[derive(Debug, thiserror::Error)]
+pub enum OpenError {
+    #[error("opening service '{service}': {detail}")]
+    Open { service: String, detail: String },
+}
+
+fn err(topic: TopicId, e: impl std::fmt::Debug) -> OpenError {
+    OpenError::Open {
+        service: topic.service_name(),
+        detail: format!("{e:?}"),
+    }
+}
+
+fn name(topic: TopicId) -> Result<ServiceName, OpenError> {
+    ServiceName::new(&topic.service_name()).map_err(|e| err(topic, e))
+}
+
+fn contract_verifier(topic: TopicId) -> Result<AttributeVerifier, OpenError> {
+    let key = AttributeKey::try_from("glint.contract").map_err(|e| err(topic, e))?;
+    let value =
+        AttributeValue::try_from(CONTRACT_VERSION.to_string().as_str()).map_err(|e| err(topic, e))?;
+    AttributeVerifier::new()
+        .require(&key, &value)
+        .map_err(|e| err(topic, e))
+}
+
+pub type Ipc = ipc::Service;
+pub type IpcNode = Node<Ipc>;
+pub type FrameService = publish_subscribe::PortFactory<Ipc, [u16], FrameHeader>;
+pub type PubSubService<T> = publish_subscribe::PortFactory<Ipc, T, ()>;
+pub type EventService = event::PortFactory<Ipc>;
+pub type RangeService = request_response::PortFactory<Ipc, RangeRequest, (), RangeResponse, ()>;
+
+/// Opens (or creates) the frame topic: `[u16]` pixels with a [`FrameHeader`].
+pub fn frame_service(node: &IpcNode) -> Result<FrameService, OpenError> {
+    let t = TopicId::Frame;
+    node.service_builder(&name(t)?)
+        .publish_subscribe::<[u16]>()
+        .user_header::<FrameHeader>()
+        .max_publishers(2)
+        .max_subscribers(MAX_DATA_SUBSCRIBERS)
+        .max_nodes(MAX_NODES)
+        .subscriber_max_buffer_size(FRAME_BUFFER)
+        .subscriber_max_borrowed_samples(2)
+        .history_size(FRAME_HISTORY)
+        .enable_safe_overflow(true)
+        .open_or_create_with_attributes(&contract_verifier(t)?)
+        .map_err(|e| err(t, e))
+}
+
+fn pubsub<T: std::fmt::Debug + ZeroCopySend>(
+    node: &IpcNode,
+    t: TopicId,
+    publishers: usize,
+    subscribers: usize,
+    buffer: usize,
+    history: usize,
+) -> Result<PubSubService<T>, OpenError> {
+    node.service_builder(&name(t)?)
+        .publish_subscribe::<T>()
+        .max_publishers(publishers)
+        .max_subscribers(subscribers)
+        .max_nodes(MAX_NODES)
+        .subscriber_max_buffer_size(buffer)
+        .subscriber_max_borrowed_samples(2)
+        .history_size(history)
+        .enable_safe_overflow(true)
+        .open_or_create_with_attributes(&contract_verifier(t)?)
+        .map_err(|e| err(t, e))
+}
+
+pub fn spectrum_service(node: &IpcNode) -> Result<PubSubService<Spectrum>, OpenError> {
+    pubsub(
+        node,
+        TopicId::Spectrum,
+        2,
+        MAX_DATA_SUBSCRIBERS,
+        SPECTRUM_BUFFER,
+        SPECTRUM_HISTORY,
+    )
+}
+
+pub fn truth_service(node: &IpcNode) -> Result<PubSubService<Truth>, OpenError> {
+    pubsub(node, TopicId::Truth, 2, MAX_DATA_SUBSCRIBERS, TRUTH_BUFFER, 0)
+}
+
+pub fn heartbeat_service(node: &IpcNode) -> Result<PubSubService<Heartbeat>, OpenError> {
+    pubsub(node, TopicId::Heartbeat, MAX_PEERS, 4, HEARTBEAT_BUFFER, 0)
+}
+
+pub fn control_service(node: &IpcNode) -> Result<PubSubService<Control>, OpenError> {
+    pubsub(node, TopicId::Control, 2, MAX_PEERS, CONTROL_BUFFER, 0)
+}
+
+pub fn ack_service(node: &IpcNode) -> Result<PubSubService<Ack>, OpenError> {
+    pubsub(node, TopicId::Ack, MAX_PEERS, 4, ACK_BUFFER, 0)
+}
+
+/// The laser rangefinder: request/response, served by the sensor.
+pub fn range_service(node: &IpcNode) -> Result<RangeService, OpenError> {
+    let t = TopicId::Range;
+    node.service_builder(&name(t)?)
+        .request_response::<RangeRequest, RangeResponse>()
+        .max_servers(2)
+        .max_clients(4)
+        .max_nodes(MAX_NODES)
+        .max_active_requests_per_client(8)
+        .max_response_buffer_size(4)
+        .enable_safe_overflow_for_requests(false)
+        .enable_safe_overflow_for_responses(false)
+        .open_or_create_with_attributes(&contract_verifier(t)?)
+        .map_err(|e| err(t, e))
+}
+
+/// The wake-up event paired with a topic. For request/response topics, `reply = true` names the
+/// server→client direction.
+pub fn event_service(node: &IpcNode, t: TopicId, reply: bool) -> Result<EventService, OpenError> {
+    let n = if reply {
+        format!("{}/reply", t.service_name())
+    } else {
+        t.service_name()
+    };
+    let service_name = ServiceName::new(&n).map_err(|e| err(t, e))?;
+    node.service_builder(&service_name)
+        .event()
+        .max_notifiers(MAX_PEERS)
+        .max_listeners(MAX_PEERS)
+        .max_nodes(MAX_NODES)
+        .notifier_dead_event(EVENT_NOTIFIER_DEAD)
+        .open_or_create_with_attributes(&contract_verifier(t)?)
+        .map_err(|e| err(t, e))
+}
+
+/// Creates every service of the contract (the orchestrator does this before spawning children).
+pub fn create_all(node: &IpcNode) -> Result<Vec<Box<dyn std::any::Any>>, OpenError> {
+    let mut keep: Vec<Box<dyn std::any::Any>> = vec![
+        Box::new(frame_service(node)?),
+        Box::new(spectrum_service(node)?),
+        Box::new(truth_service(node)?),
+        Box::new(heartbeat_service(node)?),
+        Box::new(control_service(node)?),
+        Box::new(ack_service(node)?),
+        Box::new(range_service(node)?),
+    ];
+    for t in TopicId::ALL {
+        keep.push(Box::new(event_service(node, t, false)?));
+    }
+    keep.push(Box::new(event_service(node, TopicId::Range, true)?));
+    Ok(keep)
+}
