@@ -152,7 +152,11 @@ impl Consumer {
                     digest.update(&v.to_le_bytes());
                 }
             }
-            for v in t.attitude_body_rest.iter().chain(t.rate_deg_per_frame.iter()) {
+            for v in t
+                .attitude_body_rest
+                .iter()
+                .chain(t.rate_deg_per_frame.iter())
+            {
                 digest.update(&v.to_le_bytes());
             }
             truths.push(*t);

@@ -45,7 +45,13 @@ pub struct ServiceProcess {
 
 impl ServiceProcess {
     /// Spawns `exe service <name> --prefix P --scenario FILE`; stderr goes to `logs/<name>.log`.
-    pub fn spawn(exe: &Path, id: ServiceId, prefix: &str, scenario: &Path, log_dir: &Path) -> Result<Self> {
+    pub fn spawn(
+        exe: &Path,
+        id: ServiceId,
+        prefix: &str,
+        scenario: &Path,
+        log_dir: &Path,
+    ) -> Result<Self> {
         use std::os::unix::process::CommandExt;
         std::fs::create_dir_all(log_dir)?;
         let log_path = log_dir.join(format!("{}.log", id.name()));
@@ -128,7 +134,11 @@ impl Drop for ServiceProcess {
 
 /// Waits for every child to exit, polling every 5 ms, for at most `grace`; calls `while_waiting`
 /// on each poll (the caller drains final heartbeats there).
-fn wait_all(children: &mut [ServiceProcess], grace: Duration, while_waiting: &mut dyn FnMut()) -> bool {
+fn wait_all(
+    children: &mut [ServiceProcess],
+    grace: Duration,
+    while_waiting: &mut dyn FnMut(),
+) -> bool {
     let t0 = Instant::now();
     loop {
         while_waiting();
@@ -145,7 +155,11 @@ fn wait_all(children: &mut [ServiceProcess], grace: Duration, while_waiting: &mu
 
 /// The stop ladder, after the caller has published `Shutdown`. Each child's ending records the
 /// rung that stopped it (a child that had exited before the ladder keeps its own status).
-pub fn stop_ladder(children: &mut [ServiceProcess], grace: Duration, while_waiting: &mut dyn FnMut()) {
+pub fn stop_ladder(
+    children: &mut [ServiceProcess],
+    grace: Duration,
+    while_waiting: &mut dyn FnMut(),
+) {
     let rungs = [
         (None, Ending::Shutdown),
         (Some(libc::SIGTERM), Ending::Terminated),

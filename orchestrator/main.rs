@@ -23,7 +23,11 @@ use shared_types::{Scenario, ServiceId};
 const DEFAULT_SCENARIO: &str = include_str!("../scenarios/default.toml");
 
 #[derive(Parser)]
-#[command(name = "glint", version, about = "On-board space-object characterization chain over iceoryx2 shared memory")]
+#[command(
+    name = "glint",
+    version,
+    about = "On-board space-object characterization chain over iceoryx2 shared memory"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
@@ -43,9 +47,7 @@ enum Cmd {
         seed: Option<u64>,
     },
     /// Check a scenario file; report every problem with its field and allowed range.
-    Validate {
-        scenario: PathBuf,
-    },
+    Validate { scenario: PathBuf },
     /// Run one service in this process (the orchestrator spawns these).
     Service {
         /// sensor
@@ -88,7 +90,11 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
-        Cmd::Run { scenario, out, seed } => {
+        Cmd::Run {
+            scenario,
+            out,
+            seed,
+        } => {
             glint_runtime::init_tracing("orchestrator");
             let (mut sc, file) = match load(scenario.as_ref()) {
                 Ok(x) => x,

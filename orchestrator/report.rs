@@ -238,11 +238,26 @@ fn latency_histogram(ns: &[u64]) -> String {
     if ns.is_empty() {
         return String::new();
     }
-    let edges_us = [5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0, 5000.0, f64::INFINITY];
+    let edges_us = [
+        5.0,
+        10.0,
+        20.0,
+        50.0,
+        100.0,
+        200.0,
+        500.0,
+        1000.0,
+        2000.0,
+        5000.0,
+        f64::INFINITY,
+    ];
     let mut counts = vec![0usize; edges_us.len()];
     for &v in ns {
         let us = v as f64 / 1e3;
-        let i = edges_us.iter().position(|e| us < *e).unwrap_or(edges_us.len() - 1);
+        let i = edges_us
+            .iter()
+            .position(|e| us < *e)
+            .unwrap_or(edges_us.len() - 1);
         counts[i] += 1;
     }
     let max = *counts.iter().max().unwrap_or(&1).max(&1);
@@ -279,9 +294,19 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     if let Some(fail) = &f.failure {
         let _ = writeln!(s, "**Failure:** {fail}\n");
     }
-    let _ = writeln!(s, "## Services\n\n| service | pid | restarts | ended by |\n|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "## Services\n\n| service | pid | restarts | ended by |\n|---|---|---|---|"
+    );
     for sv in &f.services {
-        let _ = writeln!(s, "| {} | {} | {} | {} |", sv.name, sv.pid, sv.restarts, sv.ending.label());
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} |",
+            sv.name,
+            sv.pid,
+            sv.restarts,
+            sv.ending.label()
+        );
     }
     let _ = writeln!(
         s,
@@ -292,7 +317,11 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
             let (r, d, ok) = match c {
                 Some(c) => {
                     let d: u64 = c.dropped.iter().sum();
-                    (c.received.to_string(), d.to_string(), c.received + d == tf.expected)
+                    (
+                        c.received.to_string(),
+                        d.to_string(),
+                        c.received + d == tf.expected,
+                    )
                 }
                 None => ("—".into(), "—".into(), false),
             };
@@ -322,7 +351,10 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
         f.shm_removed,
         f.shm_leftover.len()
     );
-    for (label, ns) in [("Frame", &f.frame_latency_ns), ("Spectrum", &f.spectrum_latency_ns)] {
+    for (label, ns) in [
+        ("Frame", &f.frame_latency_ns),
+        ("Spectrum", &f.spectrum_latency_ns),
+    ] {
         if ns.is_empty() {
             continue;
         }
@@ -346,6 +378,7 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
     let j = report_json(scenario, facts);
     let text = serde_json::to_string_pretty(&j)? + "\n";
     std::fs::write(dir.join("report.json"), text).context("writing report.json")?;
-    std::fs::write(dir.join("summary.md"), summary_md(scenario, facts, &j)).context("writing summary.md")?;
+    std::fs::write(dir.join("summary.md"), summary_md(scenario, facts, &j))
+        .context("writing summary.md")?;
     Ok(facts.success())
 }

@@ -32,10 +32,9 @@ enum Phase {
 /// Runs a deployment to the end. Returns the run directory and whether the run succeeded.
 pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let scenario = &opts.scenario;
-    let out_dir = opts
-        .out_dir
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("runs").join(format!("{}-{}", scenario.name, utc_stamp())));
+    let out_dir = opts.out_dir.clone().unwrap_or_else(|| {
+        PathBuf::from("runs").join(format!("{}-{}", scenario.name, utc_stamp()))
+    });
     std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("creating run directory {}", out_dir.display()))?;
     let resolved = out_dir.join("scenario.toml");
@@ -113,7 +112,10 @@ fn deploy_and_run(
                 consumer.command(Command::Start, Control::ALL)?;
                 t_running = Some(Instant::now());
                 phase = Phase::Running;
-                tracing::info!(startup_ms = t_start.elapsed().as_millis() as u64, "all services ready; started");
+                tracing::info!(
+                    startup_ms = t_start.elapsed().as_millis() as u64,
+                    "all services ready; started"
+                );
             } else if t_start.elapsed() > Duration::from_millis(limits.startup_timeout_ms) {
                 failure = Some(format!(
                     "services not ready within run.startup_timeout_ms = {} ms",
@@ -154,7 +156,10 @@ fn deploy_and_run(
                 }
             }
             if t_start.elapsed().as_secs_f64() > limits.timeout_s {
-                failure = Some(format!("run exceeded run.timeout_s = {} s", limits.timeout_s));
+                failure = Some(format!(
+                    "run exceeded run.timeout_s = {} s",
+                    limits.timeout_s
+                ));
                 return Ok(Step::Stop);
             }
         }
@@ -205,7 +210,13 @@ fn run_prefix() -> String {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
-    let h = xxhash_rust::xxh3::xxh3_64(&[nanos.to_le_bytes().as_slice(), &std::process::id().to_le_bytes()].concat());
+    let h = xxhash_rust::xxh3::xxh3_64(
+        &[
+            nanos.to_le_bytes().as_slice(),
+            &std::process::id().to_le_bytes(),
+        ]
+        .concat(),
+    );
     format!("glint_{:08x}_", h as u32)
 }
 

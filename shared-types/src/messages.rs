@@ -125,12 +125,21 @@ impl FrameHeader {
     /// Checks the header against the received payload length.
     pub fn validate(&self, payload_len: usize) -> Result<(), Reject> {
         self.meta.validate()?;
-        if self.width_px == 0 || self.height_px == 0 || self.width_px > 16384 || self.height_px > 16384
+        if self.width_px == 0
+            || self.height_px == 0
+            || self.width_px > 16384
+            || self.height_px > 16384
         {
-            return Err(Reject::new("frame.width_px/height_px", "out of range 1..=16384"));
+            return Err(Reject::new(
+                "frame.width_px/height_px",
+                "out of range 1..=16384",
+            ));
         }
         if (self.width_px as usize) * (self.height_px as usize) != payload_len {
-            return Err(Reject::new("frame.payload", "length != width_px * height_px"));
+            return Err(Reject::new(
+                "frame.payload",
+                "length != width_px * height_px",
+            ));
         }
         if self.exposure_ns == 0 {
             return Err(Reject::new("frame.exposure_ns", "zero"));
@@ -234,7 +243,10 @@ impl Spectrum {
     pub fn validate(&self) -> Result<(), Reject> {
         self.meta.validate()?;
         if Window::from_u32(self.window).is_none() {
-            return Err(Reject::new("spectrum.window", "not 0 (stable) or 1 (motion)"));
+            return Err(Reject::new(
+                "spectrum.window",
+                "not 0 (stable) or 1 (motion)",
+            ));
         }
         if self.n_bands == 0 || self.n_bands as usize > MAX_BANDS {
             return Err(Reject::new("spectrum.n_bands", "out of range 1..=64"));
@@ -253,7 +265,10 @@ impl Spectrum {
             }
         }
         if self.compute_hash() != self.content_xxh3 {
-            return Err(Reject::new("spectrum.content_xxh3", "does not match content"));
+            return Err(Reject::new(
+                "spectrum.content_xxh3",
+                "does not match content",
+            ));
         }
         Ok(())
     }
@@ -344,7 +359,10 @@ impl RangeRequest {
         if self.azimuth_rad.abs() > std::f64::consts::PI
             || self.elevation_rad.abs() > std::f64::consts::FRAC_PI_2
         {
-            return Err(Reject::new("range_request.azimuth/elevation", "out of range"));
+            return Err(Reject::new(
+                "range_request.azimuth/elevation",
+                "out of range",
+            ));
         }
         Ok(())
     }

@@ -322,7 +322,9 @@ fn default_stable_start_phase() -> f64 {
 impl SpectraScenario {
     /// Band centres [nm].
     pub fn wavelengths_nm(&self) -> Vec<f64> {
-        let n = ((self.band_stop_nm - self.band_start_nm) / self.band_step_nm + 1e-9).floor() as usize + 1;
+        let n = ((self.band_stop_nm - self.band_start_nm) / self.band_step_nm + 1e-9).floor()
+            as usize
+            + 1;
         (0..n)
             .map(|i| self.band_start_nm + i as f64 * self.band_step_nm)
             .collect()
@@ -345,7 +347,10 @@ struct Checker {
 impl Checker {
     fn range(&mut self, field: &str, v: f64, lo: f64, hi: f64) {
         if !v.is_finite() {
-            self.fail(field, format!("{v} is not a finite number; allowed {lo}..={hi}"));
+            self.fail(
+                field,
+                format!("{v} is not a finite number; allowed {lo}..={hi}"),
+            );
         } else if v < lo || v > hi {
             self.fail(field, format!("{v} is out of range; allowed {lo}..={hi}"));
         }
@@ -367,10 +372,12 @@ impl Scenario {
     /// Parses and validates a scenario held in memory; `file` names it in errors.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Scenario, ScenarioError> {
         let scenario: Scenario = toml::from_str(text).map_err(|e| parse_error(text, file, &e))?;
-        scenario.validate().map_err(|errors| ScenarioError::Invalid {
-            file: file.to_string(),
-            errors,
-        })?;
+        scenario
+            .validate()
+            .map_err(|errors| ScenarioError::Invalid {
+                file: file.to_string(),
+                errors,
+            })?;
         Ok(scenario)
     }
 
@@ -404,7 +411,12 @@ impl Scenario {
         let r = &self.run;
         c.range("run.timeout_s", r.timeout_s, 1.0, 86400.0);
         c.range_u("run.heartbeat_period_ms", r.heartbeat_period_ms, 10, 10_000);
-        c.range_u("run.heartbeat_deadline_ms", r.heartbeat_deadline_ms, 100, 600_000);
+        c.range_u(
+            "run.heartbeat_deadline_ms",
+            r.heartbeat_deadline_ms,
+            100,
+            600_000,
+        );
         c.range_u("run.shutdown_grace_ms", r.shutdown_grace_ms, 10, 60_000);
         c.range_u("run.startup_timeout_ms", r.startup_timeout_ms, 100, 600_000);
         if r.heartbeat_deadline_ms < 2 * r.heartbeat_period_ms {
@@ -414,7 +426,10 @@ impl Scenario {
             );
         }
         if self.camera.is_none() && self.spectra.is_none() {
-            c.fail("camera", "a scenario needs a [camera] or a [spectra] section (or both)".into());
+            c.fail(
+                "camera",
+                "a scenario needs a [camera] or a [spectra] section (or both)".into(),
+            );
         }
         if let Some(cam) = &self.camera {
             check_camera(&mut c, cam);
@@ -441,7 +456,12 @@ fn check_camera(c: &mut Checker, cam: &CameraScenario) {
     c.range("camera.read_noise_dn", cam.read_noise_dn, 0.0, 5000.0);
     c.range_u("camera.saturation_dn", cam.saturation_dn as u64, 1, 65535);
     c.range("camera.psf_sigma_px", cam.psf_sigma_px, 0.2, 5.0);
-    c.range("camera.reference_signal_dn", cam.reference_signal_dn, 1.0, 1e8);
+    c.range(
+        "camera.reference_signal_dn",
+        cam.reference_signal_dn,
+        1.0,
+        1e8,
+    );
     c.range(
         "camera.orbit_semi_major_axis_km",
         cam.orbit_semi_major_axis_km,
@@ -454,7 +474,11 @@ fn check_camera(c: &mut Checker, cam: &CameraScenario) {
         for (f, v) in [("x_m", d.x_m), ("y_m", d.y_m), ("z_m", d.z_m)] {
             c.range(&p(f), v, -1e8, 1e8);
         }
-        for (f, v) in [("vx_mps", d.vx_mps), ("vy_mps", d.vy_mps), ("vz_mps", d.vz_mps)] {
+        for (f, v) in [
+            ("vx_mps", d.vx_mps),
+            ("vy_mps", d.vy_mps),
+            ("vz_mps", d.vz_mps),
+        ] {
             c.range(&p(f), v, -1e5, 1e5);
         }
         c.range(&p("size_m"), d.size_m, 0.001, 100.0);
@@ -469,12 +493,20 @@ fn check_camera(c: &mut Checker, cam: &CameraScenario) {
         if *f >= cam.frames {
             c.fail(
                 &format!("camera.false_targets.frames[{i}]"),
-                format!("{f} is out of range; allowed 0..={}", cam.frames.saturating_sub(1)),
+                format!(
+                    "{f} is out of range; allowed 0..={}",
+                    cam.frames.saturating_sub(1)
+                ),
             );
         }
     }
     c.range("camera.laser.beam_deg", cam.laser.beam_deg, 0.001, 10.0);
-    c.range("camera.laser.range_sigma_m", cam.laser.range_sigma_m, 0.0, 100.0);
+    c.range(
+        "camera.laser.range_sigma_m",
+        cam.laser.range_sigma_m,
+        0.0,
+        100.0,
+    );
     c.range("camera.laser.delay_s", cam.laser.delay_s, 0.0, 1.0);
 }
 
@@ -484,32 +516,57 @@ fn check_spectra(c: &mut Checker, sp: &SpectraScenario) {
     c.range("spectra.band_step_nm", sp.band_step_nm, 1.0, 100.0);
     c.range("spectra.band_width_nm", sp.band_width_nm, 1.0, 100.0);
     if sp.band_stop_nm < sp.band_start_nm {
-        c.fail("spectra.band_stop_nm", "must be >= spectra.band_start_nm".into());
+        c.fail(
+            "spectra.band_stop_nm",
+            "must be >= spectra.band_start_nm".into(),
+        );
     } else if sp.band_step_nm >= 1.0 && sp.wavelengths_nm().len() > crate::MAX_BANDS {
         c.fail(
             "spectra.band_step_nm",
             format!("gives more than {} bands", crate::MAX_BANDS),
         );
     }
-    if sp.band_start_nm - sp.band_width_nm / 2.0 < 380.0 || sp.band_stop_nm + sp.band_width_nm / 2.0 > 780.0 {
+    if sp.band_start_nm - sp.band_width_nm / 2.0 < 380.0
+        || sp.band_stop_nm + sp.band_width_nm / 2.0 > 780.0
+    {
         c.fail(
             "spectra.band_width_nm",
             "bands must stay inside 380..=780 nm (the material data range)".into(),
         );
     }
-    c.range("spectra.aperture_diameter_m", sp.aperture_diameter_m, 0.001, 10.0);
+    c.range(
+        "spectra.aperture_diameter_m",
+        sp.aperture_diameter_m,
+        0.001,
+        10.0,
+    );
     for (i, w) in sp.rate_deg_per_frame.iter().enumerate() {
         c.range(&format!("spectra.rate_deg_per_frame[{i}]"), *w, -10.0, 10.0);
     }
     c.range("spectra.start_phase_deg", sp.start_phase_deg, 0.5, 90.0);
-    c.range("spectra.stable_start_phase_deg", sp.stable_start_phase_deg, 1.0, 120.0);
+    c.range(
+        "spectra.stable_start_phase_deg",
+        sp.stable_start_phase_deg,
+        1.0,
+        120.0,
+    );
     c.range_u("spectra.stable_samples", sp.stable_samples, 22, 1_000_000);
     c.range_u("spectra.motion_frames", sp.motion_frames, 2, 1_000_000);
-    c.range("spectra.frame_interval_s", sp.frame_interval_s, 0.001, 3600.0);
+    c.range(
+        "spectra.frame_interval_s",
+        sp.frame_interval_s,
+        0.001,
+        3600.0,
+    );
     if let Some(snr) = sp.snr {
         c.range("spectra.snr", snr, 0.01, 1e9);
     }
-    c.range("spectra.sun_declination_deg", sp.sun_declination_deg, -23.5, 23.5);
+    c.range(
+        "spectra.sun_declination_deg",
+        sp.sun_declination_deg,
+        -23.5,
+        23.5,
+    );
 }
 
 /// Turns a TOML/serde error into file:line + field path.
@@ -542,7 +599,11 @@ fn locate(text: &str, offset: usize) -> (usize, String) {
         .rev()
         .map(str::trim)
         .find(|l| l.starts_with('['))
-        .map(|l| l.trim_matches(|ch| ch == '[' || ch == ']').trim().to_string());
+        .map(|l| {
+            l.trim_matches(|ch| ch == '[' || ch == ']')
+                .trim()
+                .to_string()
+        });
     let field = match (table, key.is_empty()) {
         (Some(t), false) => format!("{t}.{key}"),
         (Some(t), true) => t,

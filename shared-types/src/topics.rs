@@ -151,8 +151,8 @@ fn name(topic: TopicId) -> Result<ServiceName, OpenError> {
 
 fn contract_verifier(topic: TopicId) -> Result<AttributeVerifier, OpenError> {
     let key = AttributeKey::try_from("glint.contract").map_err(|e| err(topic, e))?;
-    let value =
-        AttributeValue::try_from(CONTRACT_VERSION.to_string().as_str()).map_err(|e| err(topic, e))?;
+    let value = AttributeValue::try_from(CONTRACT_VERSION.to_string().as_str())
+        .map_err(|e| err(topic, e))?;
     AttributeVerifier::new()
         .require(&key, &value)
         .map_err(|e| err(topic, e))
@@ -215,7 +215,14 @@ pub fn spectrum_service(node: &IpcNode) -> Result<PubSubService<Spectrum>, OpenE
 }
 
 pub fn truth_service(node: &IpcNode) -> Result<PubSubService<Truth>, OpenError> {
-    pubsub(node, TopicId::Truth, 2, MAX_DATA_SUBSCRIBERS, TRUTH_BUFFER, 0)
+    pubsub(
+        node,
+        TopicId::Truth,
+        2,
+        MAX_DATA_SUBSCRIBERS,
+        TRUTH_BUFFER,
+        0,
+    )
 }
 
 pub fn heartbeat_service(node: &IpcNode) -> Result<PubSubService<Heartbeat>, OpenError> {

@@ -14,7 +14,7 @@ pub mod waitloop;
 
 pub use clock::mono_ns;
 pub use housekeeping::Housekeeping;
-pub use node::{init_tracing, open_node, shm_entries, remove_shm};
+pub use node::{init_tracing, open_node, remove_shm, shm_entries};
 pub use ports::{Inbox, Outbox};
 pub use stats::TopicStats;
 pub use waitloop::{run_loop, Exit, Step, Wake};

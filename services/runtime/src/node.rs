@@ -10,9 +10,10 @@ use shared_types::topics::IpcNode;
 pub fn open_node(prefix: &str, name: &str) -> Result<IpcNode> {
     set_log_level_from_env_or(LogLevel::Error);
     let mut config = Config::global_config().clone();
-    config.global.prefix =
-        FileName::new(prefix.as_bytes()).map_err(|e| anyhow!("invalid prefix '{prefix}': {e:?}"))?;
-    let node_name = NodeName::new(name).map_err(|e| anyhow!("invalid node name '{name}': {e:?}"))?;
+    config.global.prefix = FileName::new(prefix.as_bytes())
+        .map_err(|e| anyhow!("invalid prefix '{prefix}': {e:?}"))?;
+    let node_name =
+        NodeName::new(name).map_err(|e| anyhow!("invalid node name '{name}': {e:?}"))?;
     let node = NodeBuilder::new()
         .name(&node_name)
         .config(&config)

@@ -196,8 +196,9 @@ impl FrameOutbox {
         // fresh pages and reused samples hold earlier frames), so every byte is initialised at the
         // OS level and every bit pattern is a valid u16. `render` overwrites all of them before
         // `assume_init` below, which the renderers' tests check (every pixel written once).
-        let pixels: &mut [u16] =
-            unsafe { std::slice::from_raw_parts_mut(uninit.as_mut_ptr() as *mut u16, uninit.len()) };
+        let pixels: &mut [u16] = unsafe {
+            std::slice::from_raw_parts_mut(uninit.as_mut_ptr() as *mut u16, uninit.len())
+        };
         let mut header = FrameHeader {
             meta: Meta::new(seq, t_ns, 0, ServiceId::Sensor),
             ..Default::default()

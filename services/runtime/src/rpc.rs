@@ -52,7 +52,10 @@ impl RangeServer {
 
     /// Answers every pending request with `answer(request) -> (response, t_ns)`. Malformed
     /// requests are counted and answered with `RangeStatus::Rejected`.
-    pub fn serve(&mut self, mut answer: impl FnMut(&RangeRequest) -> (RangeResponse, u64)) -> Result<usize> {
+    pub fn serve(
+        &mut self,
+        mut answer: impl FnMut(&RangeRequest) -> (RangeResponse, u64),
+    ) -> Result<usize> {
         let mut n = 0;
         while let Some(active) = self
             .server
@@ -153,7 +156,10 @@ impl RangeClient {
             .map_err(|e| anyhow!("range request notify: {e:?}"))?;
         let t0 = Instant::now();
         loop {
-            if let Some(r) = pending.receive().map_err(|e| anyhow!("range reply: {e:?}"))? {
+            if let Some(r) = pending
+                .receive()
+                .map_err(|e| anyhow!("range reply: {e:?}"))?
+            {
                 return Ok(CallOutcome::Answered(*r.payload()));
             }
             if !pending.is_connected() {

@@ -92,6 +92,9 @@ mod tests {
         assert_eq!(s.dropped[DropReason::Overflow as usize], 2);
         assert_eq!(s.dropped[DropReason::Stale as usize], 1);
         // invariant: every seq below next_seq is received or dropped (duplicates are extra)
-        assert_eq!(s.received + s.dropped[DropReason::Overflow as usize], s.next_seq);
+        assert_eq!(
+            s.received + s.dropped[DropReason::Overflow as usize],
+            s.next_seq
+        );
     }
 }

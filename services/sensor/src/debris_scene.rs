@@ -107,11 +107,17 @@ impl DebrisScene {
 
     /// Streaks of frame k: one per debris in front of the camera, plus the false targets.
     pub fn streaks(&self, frame_index: u64) -> Vec<Streak> {
-        let (t0, t1) = (self.exposure_start_s(frame_index), self.exposure_end_s(frame_index));
+        let (t0, t1) = (
+            self.exposure_start_s(frame_index),
+            self.exposure_end_s(frame_index),
+        );
         let mut out = Vec::with_capacity(self.debris_count() + self.false_count as usize);
         for i in 0..self.debris_count() {
             let (a, b) = (self.state_at(i, t0), self.state_at(i, t1));
-            let (ra, rb) = (Vector3::new(a[0], a[1], a[2]), Vector3::new(b[0], b[1], b[2]));
+            let (ra, rb) = (
+                Vector3::new(a[0], a[1], a[2]),
+                Vector3::new(b[0], b[1], b[2]),
+            );
             if let (Some(p0), Some(p1)) = (self.camera.project(ra), self.camera.project(rb)) {
                 let range_m = 0.5 * (ra.norm() + rb.norm());
                 out.push(Streak {

@@ -57,14 +57,25 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     let (mut hk, control_listener) = Housekeeping::open(&node, ServiceId::Sensor)?;
     let (mut acks, ack_listener) = Inbox::<Ack>::open(&node, TopicId::Ack, &ack_service(&node)?)?;
     let (mut range, range_listener) = RangeServer::open(&node, ServiceId::Sensor)?;
-    let mut truth_out = Outbox::open(&node, TopicId::Truth, &truth_service(&node)?, ServiceId::Sensor)?;
+    let mut truth_out = Outbox::open(
+        &node,
+        TopicId::Truth,
+        &truth_service(&node)?,
+        ServiceId::Sensor,
+    )?;
 
     let debris = match &scenario.camera {
-        Some(cam) => Some(DebrisScene::new(cam, scenario.seed).map_err(|e| anyhow::anyhow!("{e}"))?),
+        Some(cam) => {
+            Some(DebrisScene::new(cam, scenario.seed).map_err(|e| anyhow::anyhow!("{e}"))?)
+        }
         None => None,
     };
     let mut frames = match &scenario.camera {
-        Some(cam) => Some(FrameOutbox::open(&node, &frame_service(&node)?, cam.pixels())?),
+        Some(cam) => Some(FrameOutbox::open(
+            &node,
+            &frame_service(&node)?,
+            cam.pixels(),
+        )?),
         None => None,
     };
     let spectra = match &scenario.spectra {
@@ -72,7 +83,12 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
         None => None,
     };
     let mut spectrum_out = match &scenario.spectra {
-        Some(_) => Some(Outbox::open(&node, TopicId::Spectrum, &spectrum_service(&node)?, ServiceId::Sensor)?),
+        Some(_) => Some(Outbox::open(
+            &node,
+            TopicId::Spectrum,
+            &spectrum_service(&node)?,
+            ServiceId::Sensor,
+        )?),
         None => None,
     };
     let laser = scenario.camera.as_ref().map(|c| LaserConfig {
@@ -83,10 +99,18 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
 
     let n_frames = deployment::expected_messages(scenario, TopicId::Frame);
     let n_spectra = deployment::expected_messages(scenario, TopicId::Spectrum);
-    let mut frame_credit = Credit::new(FRAME_BUFFER, deployment::consumers(scenario, TopicId::Frame));
-    let mut spectrum_credit =
-        Credit::new(SPECTRUM_BUFFER, deployment::consumers(scenario, TopicId::Spectrum));
-    let mut truth_credit = Credit::new(TRUTH_BUFFER, deployment::consumers(scenario, TopicId::Truth));
+    let mut frame_credit = Credit::new(
+        FRAME_BUFFER,
+        deployment::consumers(scenario, TopicId::Frame),
+    );
+    let mut spectrum_credit = Credit::new(
+        SPECTRUM_BUFFER,
+        deployment::consumers(scenario, TopicId::Spectrum),
+    );
+    let mut truth_credit = Credit::new(
+        TRUTH_BUFFER,
+        deployment::consumers(scenario, TopicId::Truth),
+    );
     let realtime = scenario.clock == Clock::Realtime;
     let frame_period = scenario
         .camera
@@ -145,28 +169,52 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
         range.serve(|req| answer_range(&debris, &laser, scenario.seed, req))?;
 
         let mut next_wake: Option<Duration> = None;
+        let mut produced = 0;
         if let (Some(t0), false) = (started, paused) {
             for _ in 0..BATCH {
+                // Next message of each stream, by simulated time. In sim-clock mode the sensor
+                // emits strictly in simulated-time order (frames before spectra on a tie), so the
+                // interleaving — and with it every sequence number — is deterministic.
+                let next_frame = match (frames.as_ref(), debris.as_ref()) {
+                    (Some(out), Some(scene)) if out.stats.published < n_frames => {
+                        let k = out.stats.published;
+                        Some((k, (scene.exposure_end_s(k) * 1e9).round() as u64))
+                    }
+                    _ => None,
+                };
+                let next_spectrum = match (spectrum_out.as_ref(), spectra.as_ref()) {
+                    (Some(out), Some(scene)) if out.stats.published < n_spectra => {
+                        let k = out.stats.published;
+                        Some((k, scene.t_ns(k)))
+                    }
+                    _ => None,
+                };
+                let truth_ok = truth_credit.allows(truth_out.stats.published);
+                let frame_first = match (next_frame, next_spectrum) {
+                    (Some((_, tf)), Some((_, ts))) => tf <= ts,
+                    (Some(_), None) => true,
+                    _ => false,
+                };
                 let mut progressed = false;
-                // Frames.
-                if let (Some(out), Some(scene)) = (frames.as_mut(), debris.as_ref()) {
-                    let k = out.stats.published;
+                if let (Some((k, t_ns)), Some(out), Some(scene)) =
+                    (next_frame, frames.as_mut(), debris.as_ref())
+                {
                     let due = if realtime {
                         let at = frame_period * k as u32;
                         let now = t0.elapsed();
                         if now < at {
-                            next_wake = Some(next_wake.map_or(at - now, |w: Duration| w.min(at - now)));
+                            next_wake =
+                                Some(next_wake.map_or(at - now, |w: Duration| w.min(at - now)));
                         }
                         now >= at
                     } else {
-                        frame_credit.allows(k) && truth_credit.allows(truth_out.stats.published)
+                        frame_first && frame_credit.allows(k) && truth_ok
                     };
-                    if k < n_frames && due {
-                        let t_ns = (scene.exposure_end_s(k) * 1e9).round() as u64;
+                    if due {
                         out.publish(t_ns, |h, px| {
                             h.frame_index = k;
                             h.exposure_start_ns = (scene.exposure_start_s(k) * 1e9).round() as u64;
-                            h.exposure_ns = (scene_exposure_ns(scenario)).max(1);
+                            h.exposure_ns = scene_exposure_ns(scenario).max(1);
                             h.interval_ns = scenario
                                 .camera
                                 .as_ref()
@@ -179,13 +227,14 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                         progressed = true;
                     }
                 }
-                // Spectra (sim-clock: credit; realtime: as fast as credit too — they are slow data).
-                if let (Some(out), Some(scene)) = (spectrum_out.as_mut(), spectra.as_ref()) {
-                    let k = out.stats.published;
-                    if k < n_spectra
-                        && (realtime || spectrum_credit.allows(k))
-                        && (realtime || truth_credit.allows(truth_out.stats.published))
-                    {
+                if let (Some((k, _)), Some(out), Some(scene)) =
+                    (next_spectrum, spectrum_out.as_mut(), spectra.as_ref())
+                {
+                    let due = realtime
+                        || (!frame_first
+                            && spectrum_credit.allows(k)
+                            && truth_credit.allows(truth_out.stats.published));
+                    if due {
                         let (sp, truth, t_ns) = scene.sample(k).context("spectrum sample")?;
                         out.send(sp, t_ns)?;
                         truth_out.send(truth, t_ns)?;
@@ -195,9 +244,14 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                 if !progressed {
                     break;
                 }
+                produced += 1;
             }
-            let frames_done = frames.as_ref().is_none_or(|f| f.stats.published >= n_frames);
-            let spectra_done = spectrum_out.as_ref().is_none_or(|s| s.stats.published >= n_spectra);
+            let frames_done = frames
+                .as_ref()
+                .is_none_or(|f| f.stats.published >= n_frames);
+            let spectra_done = spectrum_out
+                .as_ref()
+                .is_none_or(|s| s.stats.published >= n_spectra);
             if frames_done && spectra_done && hk.state == Heartbeat::RUNNING {
                 hk.state = Heartbeat::FINISHED;
                 tracing::info!("sensor finished producing");
@@ -215,14 +269,11 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                 hk.beat(t_ns, &stats)?;
             }
         }
-        let more = started.is_some()
-            && !paused
-            && hk.state == Heartbeat::RUNNING
-            && (realtime || credit_available(&frames, n_frames, &frame_credit)
-                || spectrum_available(&spectrum_out, n_spectra, &spectrum_credit));
-        Ok(match (more, next_wake) {
-            (true, Some(d)) if realtime => Step::WaitAtMost(d),
-            (true, _) if !realtime => Step::WaitAtMost(Duration::ZERO),
+        // A full batch means there may be more to produce right away; otherwise wait for acks
+        // (sim) or the next frame time (realtime), never spin.
+        Ok(match next_wake {
+            _ if produced == BATCH => Step::WaitAtMost(Duration::ZERO),
+            Some(d) if realtime => Step::WaitAtMost(d),
             _ => Step::Wait,
         })
     })?;
@@ -238,21 +289,6 @@ fn scene_exposure_ns(scenario: &Scenario) -> u64 {
         .camera
         .as_ref()
         .map_or(0, |c| (c.exposure_s * 1e9).round() as u64)
-}
-
-fn credit_available(frames: &Option<FrameOutbox>, n: u64, credit: &Credit) -> bool {
-    frames
-        .as_ref()
-        .is_some_and(|f| f.stats.published < n && credit.allows(f.stats.published))
-}
-
-fn spectrum_available(
-    out: &Option<Outbox<shared_types::Spectrum>>,
-    n: u64,
-    credit: &Credit,
-) -> bool {
-    out.as_ref()
-        .is_some_and(|s| s.stats.published < n && credit.allows(s.stats.published))
 }
 
 /// The laser: fire at the request's time, echo after the delay, deterministic noise per request.

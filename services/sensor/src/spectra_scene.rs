@@ -44,7 +44,6 @@ pub enum SpectraSceneError {
 
 /// One sample before noise.
 struct Clean {
-    t_s: f64,
     s_body: Vector3<f64>,
     o_body: Vector3<f64>,
     range_m: f64,
@@ -81,8 +80,11 @@ impl SpectraScene {
             .ok_or(SpectraSceneError::PhaseUnreachable {
                 phase_deg: sc.start_phase_deg,
             })?;
-        let stable_start_s =
-            find_stable_start(&geometry, sun_lon_rad, sc.stable_start_phase_deg.to_radians())?;
+        let stable_start_s = find_stable_start(
+            &geometry,
+            sun_lon_rad,
+            sc.stable_start_phase_deg.to_radians(),
+        )?;
         let preset = match sc.materials {
             MaterialPresetName::Physical => MaterialPreset::Physical,
             MaterialPresetName::PaperLike => MaterialPreset::PaperLike,
@@ -120,7 +122,10 @@ impl SpectraScene {
             seed,
         };
         if let Some(snr) = sc.snr {
-            for (w, count) in [(Window::Stable, sc.stable_samples), (Window::Motion, sc.motion_frames)] {
+            for (w, count) in [
+                (Window::Stable, sc.stable_samples),
+                (Window::Motion, sc.motion_frames),
+            ] {
                 let mut sum = [0.0; MAX_BANDS];
                 for i in 0..count {
                     let c = scene.clean(w, i)?;
@@ -158,6 +163,19 @@ impl SpectraScene {
         }
     }
 
+    /// Simulated time of sample k since the scenario start [ns] (without computing the sample).
+    pub fn t_ns(&self, k: u64) -> u64 {
+        let (window, index) = self.window_of(k);
+        let t_s = match window {
+            Window::Stable => {
+                self.stable_start_s
+                    + index as f64 * (-self.stable_start_s / self.stable_samples as f64)
+            }
+            Window::Motion => index as f64 * self.frame_interval_s,
+        };
+        ((t_s - self.stable_start_s) * 1e9).round().max(0.0) as u64
+    }
+
     fn clean(&self, window: Window, index: u64) -> Result<Clean, SpectraSceneError> {
         let (t_s, attitude) = match window {
             Window::Stable => {
@@ -166,7 +184,8 @@ impl SpectraScene {
             }
             Window::Motion => (
                 index as f64 * self.frame_interval_s,
-                self.convention.matrix(self.rate_deg_per_frame, index as f64),
+                self.convention
+                    .matrix(self.rate_deg_per_frame, index as f64),
             ),
         };
         let g = self
@@ -191,7 +210,6 @@ impl SpectraScene {
             *f *= self.band_width_nm;
         }
         Ok(Clean {
-            t_s,
             s_body: g.s_body,
             o_body: g.o_body,
             range_m: g.range_m,
@@ -239,15 +257,21 @@ impl SpectraScene {
                 truth.attitude_body_rest[3 * r + col] = c.attitude[(r, col)];
             }
         }
-        let t_ns = ((c.t_s - self.stable_start_s) * 1e9).round().max(0.0) as u64;
-        Ok((sp, truth, t_ns))
+        Ok((sp, truth, self.t_ns(k)))
     }
 }
 
 /// Walks back from the motion start through the minimum-phase pass to the time the phase was
 /// `phase_rad` on the falling branch, then refines by bisection.
-fn find_stable_start(g: &HoverGeometry, sun_lon: f64, phase_rad: f64) -> Result<f64, SpectraSceneError> {
-    let phase = |t: f64| g.phase_angle_rad(t, sun_lon).ok_or(SpectraSceneError::Degenerate { t_s: t });
+fn find_stable_start(
+    g: &HoverGeometry,
+    sun_lon: f64,
+    phase_rad: f64,
+) -> Result<f64, SpectraSceneError> {
+    let phase = |t: f64| {
+        g.phase_angle_rad(t, sun_lon)
+            .ok_or(SpectraSceneError::Degenerate { t_s: t })
+    };
     let mut prev = phase(0.0)?;
     let mut passed_minimum = false;
     let mut t = 0.0;

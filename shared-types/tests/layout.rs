@@ -1,0 +1,169 @@
+//! Pins the wire layout: size, alignment and every field offset of every message, and the
+//! versioned type names. A change here is a contract change: bump `CONTRACT_VERSION`.
+
+use std::mem::{align_of, offset_of, size_of};
+
+use iceoryx2::prelude::ZeroCopySend;
+use shared_types::*;
+
+#[test]
+fn meta_layout() {
+    assert_eq!((size_of::<Meta>(), align_of::<Meta>()), (32, 8));
+    assert_eq!(offset_of!(Meta, seq), 0);
+    assert_eq!(offset_of!(Meta, t_ns), 8);
+    assert_eq!(offset_of!(Meta, send_mono_ns), 16);
+    assert_eq!(offset_of!(Meta, contract_version), 24);
+    assert_eq!(offset_of!(Meta, producer), 28);
+}
+
+#[test]
+fn frame_header_layout() {
+    assert_eq!(
+        (size_of::<FrameHeader>(), align_of::<FrameHeader>()),
+        (80, 8)
+    );
+    assert_eq!(offset_of!(FrameHeader, frame_index), 32);
+    assert_eq!(offset_of!(FrameHeader, exposure_start_ns), 40);
+    assert_eq!(offset_of!(FrameHeader, exposure_ns), 48);
+    assert_eq!(offset_of!(FrameHeader, interval_ns), 56);
+    assert_eq!(offset_of!(FrameHeader, pixels_xxh3), 64);
+    assert_eq!(offset_of!(FrameHeader, width_px), 72);
+    assert_eq!(offset_of!(FrameHeader, height_px), 76);
+}
+
+#[test]
+fn spectrum_layout() {
+    assert_eq!((size_of::<Spectrum>(), align_of::<Spectrum>()), (1656, 8));
+    assert_eq!(offset_of!(Spectrum, frame_index), 32);
+    assert_eq!(offset_of!(Spectrum, window), 40);
+    assert_eq!(offset_of!(Spectrum, n_bands), 44);
+    assert_eq!(offset_of!(Spectrum, sun_body), 48);
+    assert_eq!(offset_of!(Spectrum, observer_body), 72);
+    assert_eq!(offset_of!(Spectrum, range_m), 96);
+    assert_eq!(offset_of!(Spectrum, phase_rad), 104);
+    assert_eq!(offset_of!(Spectrum, wavelength_nm), 112);
+    assert_eq!(offset_of!(Spectrum, flux_w), 112 + 512);
+    assert_eq!(offset_of!(Spectrum, sigma_w), 112 + 1024);
+    assert_eq!(offset_of!(Spectrum, content_xxh3), 112 + 1536);
+}
+
+#[test]
+fn truth_layout() {
+    assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (920, 8));
+    assert_eq!(offset_of!(Truth, kind), 32);
+    assert_eq!(offset_of!(Truth, n_debris), 36);
+    assert_eq!(offset_of!(Truth, frame_index), 40);
+    assert_eq!(offset_of!(Truth, debris_state_lvlh), 48);
+    assert_eq!(offset_of!(Truth, attitude_body_rest), 48 + 768);
+    assert_eq!(offset_of!(Truth, rate_deg_per_frame), 888);
+    assert_eq!(offset_of!(Truth, window), 912);
+}
+
+#[test]
+fn range_layout() {
+    assert_eq!(
+        (size_of::<RangeRequest>(), align_of::<RangeRequest>()),
+        (64, 8)
+    );
+    assert_eq!(offset_of!(RangeRequest, request_id), 32);
+    assert_eq!(offset_of!(RangeRequest, azimuth_rad), 40);
+    assert_eq!(offset_of!(RangeRequest, elevation_rad), 48);
+    assert_eq!(offset_of!(RangeRequest, track_id), 56);
+    assert_eq!(
+        (size_of::<RangeResponse>(), align_of::<RangeResponse>()),
+        (56, 8)
+    );
+    assert_eq!(offset_of!(RangeResponse, request_id), 32);
+    assert_eq!(offset_of!(RangeResponse, range_m), 40);
+    assert_eq!(offset_of!(RangeResponse, status), 48);
+    assert_eq!(offset_of!(RangeResponse, track_id), 52);
+}
+
+#[test]
+fn housekeeping_layout() {
+    assert_eq!(
+        (size_of::<TopicCounters>(), align_of::<TopicCounters>()),
+        (96, 8)
+    );
+    assert_eq!(offset_of!(TopicCounters, published), 8);
+    assert_eq!(offset_of!(TopicCounters, received), 16);
+    assert_eq!(offset_of!(TopicCounters, dropped), 24);
+    assert_eq!(offset_of!(TopicCounters, next_seq), 88);
+    assert_eq!((size_of::<Heartbeat>(), align_of::<Heartbeat>()), (816, 8));
+    assert_eq!(offset_of!(Heartbeat, pid), 32);
+    assert_eq!(offset_of!(Heartbeat, state), 36);
+    assert_eq!(offset_of!(Heartbeat, last_latency_ns), 40);
+    assert_eq!(offset_of!(Heartbeat, topics), 48);
+    assert_eq!((size_of::<Ack>(), align_of::<Ack>()), (48, 8));
+    assert_eq!(offset_of!(Ack, topic), 32);
+    assert_eq!(offset_of!(Ack, consumer), 36);
+    assert_eq!(offset_of!(Ack, next_seq), 40);
+    assert_eq!((size_of::<Control>(), align_of::<Control>()), (56, 8));
+    assert_eq!(offset_of!(Control, command), 32);
+    assert_eq!(offset_of!(Control, target), 36);
+    assert_eq!(offset_of!(Control, arg), 40);
+}
+
+#[test]
+fn type_names_carry_the_contract_version() {
+    let v = format!("glint.v{CONTRACT_VERSION}.");
+    // SAFETY: `type_name` only returns the static name given by the derive macro.
+    let names = unsafe {
+        [
+            <Meta as ZeroCopySend>::type_name(),
+            <FrameHeader as ZeroCopySend>::type_name(),
+            <Spectrum as ZeroCopySend>::type_name(),
+            <Truth as ZeroCopySend>::type_name(),
+            <RangeRequest as ZeroCopySend>::type_name(),
+            <RangeResponse as ZeroCopySend>::type_name(),
+            <Heartbeat as ZeroCopySend>::type_name(),
+            <TopicCounters as ZeroCopySend>::type_name(),
+            <Ack as ZeroCopySend>::type_name(),
+            <Control as ZeroCopySend>::type_name(),
+        ]
+    };
+    for name in names {
+        assert!(name.starts_with(&v), "{name} does not start with {v}");
+    }
+}
+
+#[test]
+fn spectrum_validation_rejects_corruption() {
+    let mut s = Spectrum {
+        meta: Meta::new(0, 0, 0, ServiceId::Sensor),
+        n_bands: 2,
+        sun_body: [1.0, 0.0, 0.0],
+        observer_body: [0.0, 0.0, 1.0],
+        range_m: 2.1e6,
+        ..Default::default()
+    };
+    s.wavelength_nm[..2].copy_from_slice(&[650.0, 660.0]);
+    s.flux_w[..2].copy_from_slice(&[1e-14, 2e-14]);
+    s.seal();
+    assert_eq!(s.check(), Ok(()));
+    let mut bad = s;
+    bad.flux_w[1] = f64::NAN;
+    assert_eq!(bad.check().unwrap_err().field, "spectrum.flux_w");
+    let mut bad = s;
+    bad.flux_w[0] *= 1.0 + 1e-12; // a flipped bit, hash no longer matches
+    assert_eq!(bad.check().unwrap_err().field, "spectrum.content_xxh3");
+    let mut bad = s;
+    bad.n_bands = 65;
+    assert_eq!(bad.check().unwrap_err().field, "spectrum.n_bands");
+    let mut bad = s;
+    bad.meta.contract_version = 99;
+    assert_eq!(bad.check().unwrap_err().field, "meta.contract_version");
+}
+
+#[test]
+fn frame_header_validation_checks_payload_length() {
+    let h = FrameHeader {
+        meta: Meta::new(0, 0, 0, ServiceId::Sensor),
+        width_px: 32,
+        height_px: 16,
+        exposure_ns: 1,
+        ..Default::default()
+    };
+    assert!(h.validate(512).is_ok());
+    assert_eq!(h.validate(511).unwrap_err().field, "frame.payload");
+}

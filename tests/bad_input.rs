@@ -1,0 +1,101 @@
+//! Bad input gets a clear error and exit code 2, never a panic.
+
+mod common;
+
+use common::*;
+
+fn write(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn base() -> String {
+    std::fs::read_to_string(scenario("debris-geo.toml")).unwrap()
+}
+
+#[test]
+fn malformed_scenarios_exit_2_naming_file_and_field() {
+    let dir = temp_dir("bad");
+    let cases = [
+        (
+            "unknown.toml",
+            base().replace("fov_deg = 10.0", "fov_deg = 10.0\nfocal = 3"),
+            "camera.focal",
+        ),
+        (
+            "type.toml",
+            base().replace("frames = 50", "frames = \"many\""),
+            "camera.frames",
+        ),
+        (
+            "range.toml",
+            base().replace("psf_sigma_px = 0.8", "psf_sigma_px = 50.0"),
+            "camera.psf_sigma_px",
+        ),
+        (
+            "nan.toml",
+            base().replace("fov_deg = 10.0", "fov_deg = nan"),
+            "camera.fov_deg",
+        ),
+        (
+            "syntax.toml",
+            "name = \"x\"\n[camera\n".to_string(),
+            "camera",
+        ),
+    ];
+    for (name, text, field) in cases {
+        let file = write(&dir, name, &text);
+        for sub in ["validate", "run"] {
+            let mut cmd = glint();
+            cmd.arg(sub).arg(&file);
+            if sub == "run" {
+                cmd.arg("--out").arg(dir.join("never"));
+            }
+            let out = cmd.output().unwrap();
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{sub} {name}: {err}");
+            assert!(
+                err.contains(name),
+                "{sub} {name}: error does not name the file: {err}"
+            );
+            assert!(
+                err.contains(field),
+                "{sub} {name}: error does not name {field}: {err}"
+            );
+            assert!(!err.contains("panicked"), "{err}");
+        }
+    }
+    assert!(
+        !dir.join("never").exists(),
+        "a bad scenario must not start a run"
+    );
+    let missing = glint()
+        .arg("validate")
+        .arg(dir.join("nope.toml"))
+        .output()
+        .unwrap();
+    assert_eq!(missing.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn shipped_scenarios_validate() {
+    for name in [
+        "default.toml",
+        "debris-geo.toml",
+        "geo-hover-yspin.toml",
+        "geo-hover-zspin.toml",
+    ] {
+        let out = glint()
+            .arg("validate")
+            .arg(scenario(name))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}

@@ -1,0 +1,83 @@
+//! Helpers for the system tests: run the real `glint` binary, read its report.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+pub fn glint() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_glint"))
+}
+
+pub fn scenario(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenarios")
+        .join(name)
+}
+
+/// A fresh directory for one test's outputs.
+pub fn temp_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir()
+        .join("glint-tests")
+        .join(format!("{}-{tag}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+pub struct RunResult {
+    pub output: Output,
+    pub dir: PathBuf,
+    pub report: Value,
+}
+
+/// `glint run [scenario] --out dir [--seed N]`, and the parsed report.
+pub fn run(scenario: Option<&Path>, dir: &Path, extra: &[&str]) -> RunResult {
+    let mut cmd = glint();
+    cmd.arg("run");
+    if let Some(s) = scenario {
+        cmd.arg(s);
+    }
+    cmd.arg("--out").arg(dir).args(extra);
+    let output = cmd.output().expect("spawning glint");
+    let text = std::fs::read_to_string(dir.join("report.json")).unwrap_or_else(|e| {
+        panic!(
+            "no report.json ({e}); stderr:\n{}",
+            String::from_utf8_lossy(&output.stderr)
+        )
+    });
+    RunResult {
+        output,
+        dir: dir.to_path_buf(),
+        report: serde_json::from_str(&text).unwrap(),
+    }
+}
+
+/// The report without what legitimately differs between two runs: the run identity, timings,
+/// process ids.
+pub fn deterministic_part(report: &Value) -> Value {
+    let mut r = report.clone();
+    let obj = r.as_object_mut().unwrap();
+    obj.remove("run");
+    obj.remove("timing");
+    if let Some(services) = obj.get_mut("services").and_then(|s| s.as_array_mut()) {
+        for s in services {
+            s.as_object_mut().unwrap().remove("pid");
+        }
+    }
+    r
+}
+
+/// `/dev/shm` entries of a prefix.
+pub fn shm_left(prefix: &str) -> Vec<String> {
+    std::fs::read_dir("/dev/shm")
+        .map(|d| {
+            d.flatten()
+                .map(|e| e.file_name().to_string_lossy().to_string())
+                .filter(|n| n.starts_with(prefix))
+                .collect()
+        })
+        .unwrap_or_default()
+}
