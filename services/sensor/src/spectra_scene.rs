@@ -133,8 +133,9 @@ impl SpectraScene {
                         *s += f;
                     }
                 }
-                for b in 0..scene.n_bands {
-                    scene.sigma_w[w as usize][b] = sum[b] / count as f64 / snr;
+                let n = scene.n_bands;
+                for (sigma, total) in scene.sigma_w[w as usize][..n].iter_mut().zip(&sum[..n]) {
+                    *sigma = total / count as f64 / snr;
                 }
             }
         }

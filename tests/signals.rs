@@ -1,0 +1,95 @@
+//! A service survives SIGSTOP + SIGCONT (iceoryx2 raises `Interrupt` on SIGCONT; the loop must
+//! not treat it as a stop), keeps heartbeating afterwards, and exits 0 on a `Shutdown` control
+//! message. Real process, real shared memory.
+
+mod common;
+
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+
+use common::*;
+use glint_runtime::ports::{Inbox, Outbox};
+use glint_runtime::{open_node, remove_shm, shm_entries};
+use shared_types::topics::{control_service, create_all, heartbeat_service};
+use shared_types::{Command, Control, Heartbeat, ServiceId, TopicId};
+
+struct KillOnDrop(std::process::Child);
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn heartbeats_within(hb: &mut Inbox<Heartbeat>, window: Duration) -> usize {
+    let t0 = Instant::now();
+    let mut n = 0;
+    while t0.elapsed() < window {
+        hb.drain(|r| {
+            n += (r.msg.meta.producer == ServiceId::Sensor as u32) as usize;
+            Ok(())
+        })
+        .unwrap();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    n
+}
+
+#[test]
+fn sigstop_sigcont_does_not_end_a_service_and_shutdown_does() {
+    let prefix = format!("glt{}s_", std::process::id() % 100_000);
+    {
+        let node = open_node(&prefix, "test-orchestrator").unwrap();
+        let _services = create_all(&node).unwrap();
+        let (mut hb, _l) =
+            Inbox::<Heartbeat>::open(&node, TopicId::Heartbeat, &heartbeat_service(&node).unwrap())
+                .unwrap();
+        let mut control = Outbox::open(
+            &node,
+            TopicId::Control,
+            &control_service(&node).unwrap(),
+            ServiceId::Orchestrator,
+        )
+        .unwrap();
+        let mut sensor = KillOnDrop(
+            glint()
+                .args(["service", "sensor", "--prefix", &prefix, "--scenario"])
+                .arg(scenario("debris-geo.toml"))
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap(),
+        );
+        let pid = sensor.0.id() as i32;
+        assert!(heartbeats_within(&mut hb, Duration::from_millis(600)) > 0, "no heartbeat");
+
+        // SAFETY: signalling our own child.
+        unsafe { libc::kill(pid, libc::SIGSTOP) };
+        std::thread::sleep(Duration::from_millis(300));
+        let _ = heartbeats_within(&mut hb, Duration::from_millis(50)); // drain what was queued
+        unsafe { libc::kill(pid, libc::SIGCONT) };
+        std::thread::sleep(Duration::from_millis(100));
+        assert!(sensor.0.try_wait().unwrap().is_none(), "SIGCONT ended the service");
+        assert!(
+            heartbeats_within(&mut hb, Duration::from_millis(600)) > 0,
+            "no heartbeat after SIGCONT"
+        );
+
+        let shutdown = Control {
+            command: Command::Shutdown as u32,
+            target: ServiceId::Sensor as u32,
+            ..Default::default()
+        };
+        control.send(shutdown, 0).unwrap();
+        let t0 = Instant::now();
+        let status = loop {
+            if let Some(s) = sensor.0.try_wait().unwrap() {
+                break s;
+            }
+            assert!(t0.elapsed() < Duration::from_secs(5), "Shutdown did not stop the service");
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        assert!(status.success(), "{status}");
+    }
+    remove_shm(&prefix);
+    assert!(shm_entries(&prefix).is_empty());
+}
