@@ -40,6 +40,8 @@ pub struct Consumer {
     /// Send → receive latency of every spectrum [ns].
     pub spectrum_latency_ns: Vec<u64>,
     pub truths: Vec<Truth>,
+    /// Received spectra, reduced for the light-curve plot: (stream index, band centres, flux).
+    pub light_curve: Vec<(u64, [f64; 3], [f64; 3])>,
     pub seen: BTreeMap<ServiceId, Seen>,
     /// Messages on each consumed topic the run must account for.
     pub expected: BTreeMap<TopicId, u64>,
@@ -95,6 +97,7 @@ impl Consumer {
                 frame_latency_ns: vec![],
                 spectrum_latency_ns: vec![],
                 truths: vec![],
+                light_curve: vec![],
                 seen: BTreeMap::new(),
                 expected,
                 acked: BTreeMap::new(),
@@ -134,9 +137,18 @@ impl Consumer {
         }
         if let Some(spectra) = self.spectra.as_mut() {
             let (digest, lat) = (&mut self.spectrum_digest, &mut self.spectrum_latency_ns);
+            let curve = &mut self.light_curve;
             spectra.drain(|r| {
                 digest.update(&r.msg.content_xxh3.to_le_bytes());
                 lat.push(r.latency_ns);
+                let m = r.msg;
+                let n = m.n_bands as usize;
+                let pick = [0, n / 2, n - 1];
+                curve.push((
+                    m.meta.seq,
+                    pick.map(|i| m.wavelength_nm[i]),
+                    pick.map(|i| m.flux_w[i]),
+                ));
                 Ok(())
             })?;
             let next = spectra.stats.next_seq;

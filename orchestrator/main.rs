@@ -7,6 +7,7 @@
 
 mod consume;
 mod deploy;
+mod plots;
 mod progress;
 mod report;
 mod run;

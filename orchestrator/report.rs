@@ -46,6 +46,7 @@ pub struct RunFacts {
     pub outcome: Outcome,
     pub frame_latency_ns: Vec<u64>,
     pub spectrum_latency_ns: Vec<u64>,
+    pub light_curve: Vec<(u64, [f64; 3], [f64; 3])>,
     pub range_requests: u64,
     pub wall_s: f64,
     pub prefix: String,
@@ -115,6 +116,7 @@ impl RunFacts {
             outcome,
             frame_latency_ns: consumer.frame_latency_ns.clone(),
             spectrum_latency_ns: consumer.spectrum_latency_ns.clone(),
+            light_curve: consumer.light_curve.clone(),
             range_requests: consumer
                 .reported(ServiceId::Sensor, TopicId::Range)
                 .map_or(0, |c| c.received + c.dropped.iter().sum::<u64>()),
@@ -369,6 +371,11 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
             ns.len()
         );
         s.push_str(&latency_histogram(ns));
+        let _ = writeln!(
+            s,
+            "\n![{label} latency](latency-{}.svg)",
+            label.to_lowercase()
+        );
     }
     s
 }
@@ -380,5 +387,43 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
     std::fs::write(dir.join("report.json"), text).context("writing report.json")?;
     std::fs::write(dir.join("summary.md"), summary_md(scenario, facts, &j))
         .context("writing summary.md")?;
+    for (name, ns) in [
+        ("frame", &facts.frame_latency_ns),
+        ("spectrum", &facts.spectrum_latency_ns),
+    ] {
+        if ns.is_empty() {
+            continue;
+        }
+        let us: Vec<f64> = ns.iter().map(|v| *v as f64 / 1e3).collect();
+        crate::plots::log_histogram(
+            &dir.join(format!("latency-{name}.svg")),
+            &format!("{name} latency, sensor send → orchestrator receive"),
+            "latency [µs] (log scale)",
+            &us,
+        )?;
+    }
+    if let Some((_, bands, _)) = facts.light_curve.first() {
+        let colors = [crate::plots::BLUE, crate::plots::GREEN, crate::plots::RED];
+        let labels: Vec<String> = bands.iter().map(|b| format!("{b:.0} nm")).collect();
+        let series: Vec<crate::plots::Series> = (0..3)
+            .map(|i| crate::plots::Series {
+                label: &labels[i],
+                points: facts
+                    .light_curve
+                    .iter()
+                    .map(|(k, _, f)| (*k as f64, f[i]))
+                    .collect(),
+                color: colors[i],
+                markers: false,
+            })
+            .collect();
+        crate::plots::line_chart(
+            &dir.join("light-curve.svg"),
+            "Received spectra: band-integrated flux (stable window, then motion)",
+            "sample (stream order)",
+            "flux [W]",
+            &series,
+        )?;
+    }
     Ok(facts.success())
 }

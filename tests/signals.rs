@@ -41,9 +41,12 @@ fn sigstop_sigcont_does_not_end_a_service_and_shutdown_does() {
     {
         let node = open_node(&prefix, "test-orchestrator").unwrap();
         let _services = create_all(&node).unwrap();
-        let (mut hb, _l) =
-            Inbox::<Heartbeat>::open(&node, TopicId::Heartbeat, &heartbeat_service(&node).unwrap())
-                .unwrap();
+        let (mut hb, _l) = Inbox::<Heartbeat>::open(
+            &node,
+            TopicId::Heartbeat,
+            &heartbeat_service(&node).unwrap(),
+        )
+        .unwrap();
         let mut control = Outbox::open(
             &node,
             TopicId::Control,
@@ -60,7 +63,10 @@ fn sigstop_sigcont_does_not_end_a_service_and_shutdown_does() {
                 .unwrap(),
         );
         let pid = sensor.0.id() as i32;
-        assert!(heartbeats_within(&mut hb, Duration::from_millis(600)) > 0, "no heartbeat");
+        assert!(
+            heartbeats_within(&mut hb, Duration::from_millis(600)) > 0,
+            "no heartbeat"
+        );
 
         // SAFETY: signalling our own child.
         unsafe { libc::kill(pid, libc::SIGSTOP) };
@@ -68,7 +74,10 @@ fn sigstop_sigcont_does_not_end_a_service_and_shutdown_does() {
         let _ = heartbeats_within(&mut hb, Duration::from_millis(50)); // drain what was queued
         unsafe { libc::kill(pid, libc::SIGCONT) };
         std::thread::sleep(Duration::from_millis(100));
-        assert!(sensor.0.try_wait().unwrap().is_none(), "SIGCONT ended the service");
+        assert!(
+            sensor.0.try_wait().unwrap().is_none(),
+            "SIGCONT ended the service"
+        );
         assert!(
             heartbeats_within(&mut hb, Duration::from_millis(600)) > 0,
             "no heartbeat after SIGCONT"
@@ -85,7 +94,10 @@ fn sigstop_sigcont_does_not_end_a_service_and_shutdown_does() {
             if let Some(s) = sensor.0.try_wait().unwrap() {
                 break s;
             }
-            assert!(t0.elapsed() < Duration::from_secs(5), "Shutdown did not stop the service");
+            assert!(
+                t0.elapsed() < Duration::from_secs(5),
+                "Shutdown did not stop the service"
+            );
             std::thread::sleep(Duration::from_millis(10));
         };
         assert!(status.success(), "{status}");

@@ -9,7 +9,10 @@ use glint_sensor::spectra_scene::SpectraScene;
 use shared_types::Scenario;
 
 fn bench(c: &mut Criterion) {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenarios/geo-hover-yspin.toml");
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenarios/geo-hover-yspin.toml"
+    );
     let mut sc = Scenario::from_file(std::path::Path::new(path)).expect("scenario");
     let spectra = sc.spectra.as_mut().expect("spectra section");
     spectra.snr = Some(10.0);

@@ -1,0 +1,153 @@
+//! Charts for the run directory, as SVG (no font files needed: text is emitted as SVG text).
+//! One generic line/scatter chart and one histogram; the report decides what to draw.
+
+use std::path::Path;
+
+use anyhow::{anyhow, Result};
+use plotters::prelude::*;
+
+/// One series of a line chart.
+pub struct Series<'a> {
+    pub label: &'a str,
+    pub points: Vec<(f64, f64)>,
+    pub color: RGBColor,
+    /// Draw markers instead of a line.
+    pub markers: bool,
+}
+
+pub const BLUE: RGBColor = RGBColor(31, 119, 180);
+pub const GREEN: RGBColor = RGBColor(44, 160, 44);
+pub const RED: RGBColor = RGBColor(214, 39, 40);
+
+fn bounds(series: &[Series]) -> ((f64, f64), (f64, f64)) {
+    let mut x = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut y = (f64::INFINITY, f64::NEG_INFINITY);
+    for s in series {
+        for &(px, py) in &s.points {
+            if px.is_finite() && py.is_finite() {
+                x = (x.0.min(px), x.1.max(px));
+                y = (y.0.min(py), y.1.max(py));
+            }
+        }
+    }
+    let pad = |(lo, hi): (f64, f64)| {
+        if !lo.is_finite() {
+            return (0.0, 1.0);
+        }
+        let span = (hi - lo)
+            .abs()
+            .max(hi.abs().max(lo.abs()) * 1e-9)
+            .max(1e-300);
+        (lo - 0.05 * span, hi + 0.05 * span)
+    };
+    (pad(x), pad(y))
+}
+
+/// Writes a line chart to `path`.
+pub fn line_chart(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+) -> Result<()> {
+    let root = SVGBackend::new(path, (900, 500)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("{e:?}"))?;
+    let ((x0, x1), (y0, y1)) = bounds(series);
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(80)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|e| anyhow!("{e:?}"))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .draw()
+        .map_err(|e| anyhow!("{e:?}"))?;
+    for s in series {
+        let color = s.color;
+        let pts: Vec<(f64, f64)> = s
+            .points
+            .iter()
+            .copied()
+            .filter(|(a, b)| a.is_finite() && b.is_finite())
+            .collect();
+        if s.markers {
+            chart
+                .draw_series(pts.iter().map(|&p| Circle::new(p, 2, color.filled())))
+                .map_err(|e| anyhow!("{e:?}"))?
+                .label(s.label)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 3, color.filled()));
+        } else {
+            chart
+                .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+                .map_err(|e| anyhow!("{e:?}"))?
+                .label(s.label)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                });
+        }
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| anyhow!("{e:?}"))?;
+    root.present().map_err(|e| anyhow!("{e:?}"))?;
+    Ok(())
+}
+
+/// Histogram of `values` over log10-spaced bins, drawn as bars (x in log10 units).
+pub fn log_histogram(path: &Path, title: &str, x_label: &str, values: &[f64]) -> Result<()> {
+    let logs: Vec<f64> = values
+        .iter()
+        .filter(|v| **v > 0.0)
+        .map(|v| v.log10())
+        .collect();
+    if logs.is_empty() {
+        return Ok(());
+    }
+    let lo = logs.iter().cloned().fold(f64::INFINITY, f64::min).floor();
+    let hi = logs
+        .iter()
+        .cloned()
+        .fold(f64::NEG_INFINITY, f64::max)
+        .ceil()
+        .max(lo + 1.0);
+    let bins = ((hi - lo) * 10.0).round().max(1.0) as usize;
+    let width = (hi - lo) / bins as f64;
+    let mut counts = vec![0u32; bins];
+    for l in &logs {
+        let i = (((l - lo) / width) as usize).min(bins - 1);
+        counts[i] += 1;
+    }
+    let max = *counts.iter().max().unwrap_or(&1) as f64;
+    let root = SVGBackend::new(path, (900, 400)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("{e:?}"))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(lo..hi, 0.0..max * 1.1)
+        .map_err(|e| anyhow!("{e:?}"))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc("count")
+        .x_label_formatter(&|v| format!("{:.3}", 10f64.powf(*v)))
+        .draw()
+        .map_err(|e| anyhow!("{e:?}"))?;
+    chart
+        .draw_series(counts.iter().enumerate().map(|(i, c)| {
+            let x0 = lo + i as f64 * width;
+            Rectangle::new([(x0, 0.0), (x0 + width * 0.9, *c as f64)], BLUE.filled())
+        }))
+        .map_err(|e| anyhow!("{e:?}"))?;
+    root.present().map_err(|e| anyhow!("{e:?}"))?;
+    Ok(())
+}
