@@ -73,10 +73,12 @@ pub enum TopicId {
     Control = 4,
     Ack = 5,
     Range = 6,
+    Detections = 7,
+    Tracks = 8,
 }
 
 impl TopicId {
-    pub const ALL: [TopicId; 7] = [
+    pub const ALL: [TopicId; 9] = [
         TopicId::Frame,
         TopicId::Spectrum,
         TopicId::Truth,
@@ -84,6 +86,8 @@ impl TopicId {
         TopicId::Control,
         TopicId::Ack,
         TopicId::Range,
+        TopicId::Detections,
+        TopicId::Tracks,
     ];
 
     /// Short name used in reports (`topics.<name>`).
@@ -96,6 +100,8 @@ impl TopicId {
             TopicId::Control => "control",
             TopicId::Ack => "ack",
             TopicId::Range => "range",
+            TopicId::Detections => "detections",
+            TopicId::Tracks => "tracks",
         }
     }
 
@@ -120,6 +126,8 @@ const ACK_BUFFER: usize = 256;
 /// History kept for late joiners (a restarted consumer catches up from it).
 pub const FRAME_HISTORY: usize = FRAME_BUFFER;
 pub const SPECTRUM_HISTORY: usize = SPECTRUM_BUFFER;
+pub const DETECTIONS_BUFFER: usize = 16;
+pub const TRACKS_BUFFER: usize = 16;
 
 /// Subscribers per data topic: orchestrator, one consumer service, one restart replacement, one tool.
 const MAX_DATA_SUBSCRIBERS: usize = 4;
@@ -225,6 +233,28 @@ pub fn truth_service(node: &IpcNode) -> Result<PubSubService<Truth>, OpenError> 
     )
 }
 
+pub fn detections_service(node: &IpcNode) -> Result<PubSubService<Detections>, OpenError> {
+    pubsub(
+        node,
+        TopicId::Detections,
+        2,
+        MAX_DATA_SUBSCRIBERS,
+        DETECTIONS_BUFFER,
+        DETECTIONS_BUFFER,
+    )
+}
+
+pub fn tracks_service(node: &IpcNode) -> Result<PubSubService<Tracks>, OpenError> {
+    pubsub(
+        node,
+        TopicId::Tracks,
+        2,
+        MAX_DATA_SUBSCRIBERS,
+        TRACKS_BUFFER,
+        0,
+    )
+}
+
 pub fn heartbeat_service(node: &IpcNode) -> Result<PubSubService<Heartbeat>, OpenError> {
     pubsub(node, TopicId::Heartbeat, MAX_PEERS, 4, HEARTBEAT_BUFFER, 0)
 }
@@ -282,6 +312,8 @@ pub fn create_all(node: &IpcNode) -> Result<Vec<Box<dyn std::any::Any>>, OpenErr
         Box::new(control_service(node)?),
         Box::new(ack_service(node)?),
         Box::new(range_service(node)?),
+        Box::new(detections_service(node)?),
+        Box::new(tracks_service(node)?),
     ];
     for t in TopicId::ALL {
         keep.push(Box::new(event_service(node, t, false)?));

@@ -49,7 +49,7 @@ fn spectrum_layout() {
 
 #[test]
 fn truth_layout() {
-    assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (920, 8));
+    assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (1176, 8));
     assert_eq!(offset_of!(Truth, kind), 32);
     assert_eq!(offset_of!(Truth, n_debris), 36);
     assert_eq!(offset_of!(Truth, frame_index), 40);
@@ -57,6 +57,40 @@ fn truth_layout() {
     assert_eq!(offset_of!(Truth, attitude_body_rest), 48 + 768);
     assert_eq!(offset_of!(Truth, rate_deg_per_frame), 888);
     assert_eq!(offset_of!(Truth, window), 912);
+    assert_eq!(offset_of!(Truth, n_false), 916);
+    assert_eq!(offset_of!(Truth, false_targets_px), 920);
+}
+
+#[test]
+fn detections_and_tracks_layout() {
+    assert_eq!((size_of::<Detection>(), align_of::<Detection>()), (104, 8));
+    assert_eq!(offset_of!(Detection, x_px), 8);
+    assert_eq!(offset_of!(Detection, end_x_px), 24);
+    assert_eq!(offset_of!(Detection, area_px), 40);
+    assert_eq!(offset_of!(Detection, azimuth_rad), 88);
+    assert_eq!(
+        (size_of::<Detections>(), align_of::<Detections>()),
+        (64 + 32 * 104, 8)
+    );
+    assert_eq!(offset_of!(Detections, frame_index), 32);
+    assert_eq!(offset_of!(Detections, exposure_end_ns), 40);
+    assert_eq!(offset_of!(Detections, n), 48);
+    assert_eq!(offset_of!(Detections, items), 64);
+    assert_eq!(
+        (size_of::<TrackEstimate>(), align_of::<TrackEstimate>()),
+        (440, 8)
+    );
+    assert_eq!(offset_of!(TrackEstimate, azimuth_meas_rad), 16);
+    assert_eq!(offset_of!(TrackEstimate, range_meas_m), 48);
+    assert_eq!(offset_of!(TrackEstimate, state_lvlh), 72);
+    assert_eq!(offset_of!(TrackEstimate, covariance), 120);
+    assert_eq!(offset_of!(TrackEstimate, direct_position_m), 408);
+    assert_eq!(offset_of!(TrackEstimate, ekf_valid), 432);
+    assert_eq!(
+        (size_of::<Tracks>(), align_of::<Tracks>()),
+        (48 + 16 * 440, 8)
+    );
+    assert_eq!(offset_of!(Tracks, items), 48);
 }
 
 #[test]
@@ -120,6 +154,10 @@ fn type_names_carry_the_contract_version() {
             <TopicCounters as ZeroCopySend>::type_name(),
             <Ack as ZeroCopySend>::type_name(),
             <Control as ZeroCopySend>::type_name(),
+            <Detection as ZeroCopySend>::type_name(),
+            <Detections as ZeroCopySend>::type_name(),
+            <TrackEstimate as ZeroCopySend>::type_name(),
+            <Tracks as ZeroCopySend>::type_name(),
         ]
     };
     for name in names {

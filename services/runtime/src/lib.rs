@@ -5,6 +5,7 @@
 //! A service is a pure core plus a thin node loop; this crate is the loop's vocabulary.
 
 pub mod clock;
+pub mod credit;
 pub mod housekeeping;
 pub mod node;
 pub mod ports;
@@ -13,6 +14,7 @@ pub mod stats;
 pub mod waitloop;
 
 pub use clock::mono_ns;
+pub use credit::{AckReader, Credit};
 pub use housekeeping::Housekeeping;
 pub use node::{init_tracing, open_node, remove_shm, shm_entries};
 pub use ports::{Inbox, Outbox};

@@ -125,14 +125,26 @@ impl<T: Message> Inbox<T> {
     /// returns `Err(reason)` to drop an accepted message with a counted reason.
     pub fn drain(
         &mut self,
+        handle: impl FnMut(Received<'_, T>) -> Result<(), DropReason>,
+    ) -> Result<usize> {
+        self.drain_up_to(usize::MAX, handle)
+    }
+
+    /// As [`Inbox::drain`], taking at most `limit` samples (the rest stay queued).
+    pub fn drain_up_to(
+        &mut self,
+        limit: usize,
         mut handle: impl FnMut(Received<'_, T>) -> Result<(), DropReason>,
     ) -> Result<usize> {
         let mut n = 0;
-        while let Some(sample) = self
-            .subscriber
-            .receive()
-            .map_err(|e| anyhow!("receive on {}: {e:?}", self.stats.topic.name()))?
-        {
+        while n < limit {
+            let Some(sample) = self
+                .subscriber
+                .receive()
+                .map_err(|e| anyhow!("receive on {}: {e:?}", self.stats.topic.name()))?
+            else {
+                break;
+            };
             n += 1;
             let msg: &T = sample.payload();
             if let Err(r) = msg.check() {
@@ -246,14 +258,26 @@ impl FrameInbox {
     /// Receives every queued frame and hands header + pixels (read in place) to `handle`.
     pub fn drain(
         &mut self,
+        handle: impl FnMut(&FrameHeader, &[u16], u64) -> Result<(), DropReason>,
+    ) -> Result<usize> {
+        self.drain_up_to(usize::MAX, handle)
+    }
+
+    /// As [`FrameInbox::drain`], taking at most `limit` frames (the rest stay queued).
+    pub fn drain_up_to(
+        &mut self,
+        limit: usize,
         mut handle: impl FnMut(&FrameHeader, &[u16], u64) -> Result<(), DropReason>,
     ) -> Result<usize> {
         let mut n = 0;
-        while let Some(sample) = self
-            .subscriber
-            .receive()
-            .map_err(|e| anyhow!("frame receive: {e:?}"))?
-        {
+        while n < limit {
+            let Some(sample) = self
+                .subscriber
+                .receive()
+                .map_err(|e| anyhow!("frame receive: {e:?}"))?
+            else {
+                break;
+            };
             n += 1;
             let header = *sample.user_header();
             let latency_ns = mono_ns().saturating_sub(header.meta.send_mono_ns);

@@ -129,19 +129,29 @@ impl DebrisScene {
                 });
             }
         }
-        if self.false_frames.contains(&frame_index) {
-            let mut rng = Xoshiro256pp::new(self.seed, FALSE_TARGET_STREAM + frame_index);
-            let (w, h) = (self.camera.width_px as f64, self.camera.height_px as f64);
-            let span = |len: f64, u: f64| {
-                FALSE_TARGET_MARGIN_PX + u * (len - 2.0 * FALSE_TARGET_MARGIN_PX).max(1.0)
-            };
-            for _ in 0..self.false_count {
-                let x = span(w, rng.next_open01());
-                let y = span(h, rng.next_open01());
-                out.push(Streak::point(x, y, self.false_signal_dn));
-            }
+        for (x, y) in self.false_targets(frame_index) {
+            out.push(Streak::point(x, y, self.false_signal_dn));
         }
         out
+    }
+
+    /// Pixel positions of the false targets rendered into frame k (seeded, reproducible).
+    pub fn false_targets(&self, frame_index: u64) -> Vec<(f64, f64)> {
+        if !self.false_frames.contains(&frame_index) {
+            return vec![];
+        }
+        let mut rng = Xoshiro256pp::new(self.seed, FALSE_TARGET_STREAM + frame_index);
+        let (w, h) = (self.camera.width_px as f64, self.camera.height_px as f64);
+        let span = |len: f64, u: f64| {
+            FALSE_TARGET_MARGIN_PX + u * (len - 2.0 * FALSE_TARGET_MARGIN_PX).max(1.0)
+        };
+        (0..self.false_count)
+            .map(|_| {
+                let x = span(w, rng.next_open01());
+                let y = span(h, rng.next_open01());
+                (x, y)
+            })
+            .collect()
     }
 
     /// Renders frame k in place into `out` (width × height pixels, row-major).
@@ -165,6 +175,11 @@ impl DebrisScene {
         for i in 0..self.debris_count() {
             let s = self.state_at(i, t);
             truth.debris_state_lvlh[i].copy_from_slice(s.as_slice());
+        }
+        let false_targets = self.false_targets(frame_index);
+        truth.n_false = false_targets.len().min(MAX_DEBRIS) as u32;
+        for (slot, (x, y)) in truth.false_targets_px.iter_mut().zip(false_targets) {
+            *slot = [x, y];
         }
         truth
     }

@@ -2,20 +2,18 @@
 //! in sim-clock mode as fast as the consumers' acknowledgements allow (lockstep, nothing
 //! dropped), in realtime mode paced by the wall clock — while answering laser-range requests.
 
-use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use glint_runtime::ports::{FrameOutbox, Inbox, Outbox};
+use glint_runtime::ports::{FrameOutbox, Outbox};
 use glint_runtime::rpc::RangeServer;
-use glint_runtime::{mono_ns, open_node, run_loop, Exit, Housekeeping, Step};
+use glint_runtime::{open_node, run_loop, AckReader, Credit, Exit, Housekeeping, Step};
 use shared_types::scenario::Clock;
 use shared_types::topics::{
-    ack_service, frame_service, spectrum_service, truth_service, FRAME_BUFFER, SPECTRUM_BUFFER,
-    TRUTH_BUFFER,
+    frame_service, spectrum_service, truth_service, FRAME_BUFFER, SPECTRUM_BUFFER, TRUTH_BUFFER,
 };
 use shared_types::{
-    deployment, Ack, Command, Heartbeat, RangeResponse, RangeStatus, Scenario, ServiceId, TopicId,
+    deployment, Command, Heartbeat, RangeResponse, RangeStatus, Scenario, ServiceId, TopicId,
 };
 
 use crate::debris_scene::DebrisScene;
@@ -27,35 +25,10 @@ use crate::spectra_scene::SpectraScene;
 const BATCH: usize = 8;
 const LASER_STREAM: u64 = 1 << 56;
 
-/// Credit bookkeeping of one produced topic (sim-clock lockstep).
-struct Credit {
-    window: u64,
-    acked: BTreeMap<ServiceId, u64>,
-}
-
-impl Credit {
-    fn new(window: usize, consumers: Vec<ServiceId>) -> Self {
-        Credit {
-            window: window as u64,
-            acked: consumers.into_iter().map(|c| (c, 0)).collect(),
-        }
-    }
-    fn allows(&self, published: u64) -> bool {
-        self.acked
-            .values()
-            .all(|&a| published.saturating_sub(a) < self.window)
-    }
-    fn record(&mut self, consumer: ServiceId, next_seq: u64) {
-        if let Some(a) = self.acked.get_mut(&consumer) {
-            *a = (*a).max(next_seq);
-        }
-    }
-}
-
 pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     let node = open_node(prefix, "sensor")?;
     let (mut hk, control_listener) = Housekeeping::open(&node, ServiceId::Sensor)?;
-    let (mut acks, ack_listener) = Inbox::<Ack>::open(&node, TopicId::Ack, &ack_service(&node)?)?;
+    let (mut acks, ack_listener) = AckReader::open(&node)?;
     let (mut range, range_listener) = RangeServer::open(&node, ServiceId::Sensor)?;
     let mut truth_out = Outbox::open(
         &node,
@@ -152,20 +125,11 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                 _ => {}
             }
         }
-        acks.drain(|r| {
-            let a = r.msg;
-            if let (Some(topic), Some(consumer)) =
-                (TopicId::from_u32(a.topic), ServiceId::from_u32(a.consumer))
-            {
-                match topic {
-                    TopicId::Frame => frame_credit.record(consumer, a.next_seq),
-                    TopicId::Spectrum => spectrum_credit.record(consumer, a.next_seq),
-                    TopicId::Truth => truth_credit.record(consumer, a.next_seq),
-                    _ => {}
-                }
-            }
-            Ok(())
-        })?;
+        acks.poll(&mut [
+            (TopicId::Frame, &mut frame_credit),
+            (TopicId::Spectrum, &mut spectrum_credit),
+            (TopicId::Truth, &mut truth_credit),
+        ])?;
         range.serve(|req| answer_range(&debris, &laser, scenario.seed, req))?;
 
         let mut next_wake: Option<Duration> = None;
@@ -280,7 +244,6 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     if exit == Exit::Terminated {
         tracing::info!("sensor terminated by signal");
     }
-    let _ = mono_ns();
     Ok(())
 }
 

@@ -1,0 +1,97 @@
+//! Sim-clock credit (docs/adr/0001): a producer publishes message `k` on a topic only while
+//! `k − acked < window` for every consumer of that topic, so no subscriber buffer overflows.
+
+use std::collections::BTreeMap;
+
+use anyhow::Result;
+use iceoryx2::port::listener::Listener;
+use shared_types::topics::{ack_service, Ipc, IpcNode};
+use shared_types::{Ack, ServiceId, TopicId};
+
+use crate::ports::Inbox;
+
+/// Credit of one produced topic.
+#[derive(Debug, Clone)]
+pub struct Credit {
+    window: u64,
+    acked: BTreeMap<ServiceId, u64>,
+}
+
+impl Credit {
+    pub fn new(window: usize, consumers: Vec<ServiceId>) -> Self {
+        Credit {
+            window: window as u64,
+            acked: consumers.into_iter().map(|c| (c, 0)).collect(),
+        }
+    }
+
+    /// May message number `published` (0-based) be sent now?
+    pub fn allows(&self, published: u64) -> bool {
+        self.acked
+            .values()
+            .all(|&a| published.saturating_sub(a) < self.window)
+    }
+
+    /// How many more messages may be sent now.
+    pub fn available(&self, published: u64) -> u64 {
+        self.acked
+            .values()
+            .map(|&a| (a + self.window).saturating_sub(published))
+            .min()
+            .unwrap_or(u64::MAX)
+    }
+
+    pub fn record(&mut self, consumer: ServiceId, next_seq: u64) {
+        if let Some(a) = self.acked.get_mut(&consumer) {
+            *a = (*a).max(next_seq);
+        }
+    }
+}
+
+/// Reads the `ack` topic and feeds the credits of the topics this service produces.
+pub struct AckReader {
+    inbox: Inbox<Ack>,
+}
+
+impl AckReader {
+    pub fn open(node: &IpcNode) -> Result<(Self, Listener<Ipc>)> {
+        let (inbox, l) = Inbox::open(node, TopicId::Ack, &ack_service(node)?)?;
+        Ok((AckReader { inbox }, l))
+    }
+
+    /// Applies every pending ack to the matching credit in `credits`.
+    pub fn poll(&mut self, credits: &mut [(TopicId, &mut Credit)]) -> Result<()> {
+        self.inbox.drain(|r| {
+            let a = r.msg;
+            if let (Some(topic), Some(consumer)) =
+                (TopicId::from_u32(a.topic), ServiceId::from_u32(a.consumer))
+            {
+                for (t, c) in credits.iter_mut() {
+                    if *t == topic {
+                        c.record(consumer, a.next_seq);
+                    }
+                }
+            }
+            Ok(())
+        })?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn credit_is_the_slowest_consumers_window() {
+        let mut c = Credit::new(4, vec![ServiceId::Detector, ServiceId::Orchestrator]);
+        assert_eq!(c.available(0), 4);
+        assert!(c.allows(3) && !c.allows(4));
+        c.record(ServiceId::Detector, 3);
+        assert!(!c.allows(4), "the orchestrator has not acked");
+        c.record(ServiceId::Orchestrator, 2);
+        assert_eq!(c.available(4), 2);
+        c.record(ServiceId::Tracker, 100); // not a consumer of this topic: ignored
+        assert_eq!(c.available(4), 2);
+    }
+}
