@@ -11,6 +11,7 @@ mod plots;
 mod progress;
 mod report;
 mod run;
+mod score_debris;
 
 use std::io::IsTerminal;
 use std::path::PathBuf;

@@ -215,6 +215,82 @@ pub struct CameraScenario {
     pub false_targets: FalseTargets,
     #[serde(default)]
     pub laser: LaserScenario,
+    #[serde(default)]
+    pub detector: DetectorScenario,
+    #[serde(default)]
+    pub tracker: TrackerScenario,
+}
+
+/// Detector and inter-frame matcher settings ([002] §3.3–3.4; math.md gives the [ASSUMP]
+/// defaults the paper leaves out).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DetectorScenario {
+    /// Foreground threshold: background + k·σ (σ = 1.4826·MAD of the frame), 1–100.
+    pub threshold_k_sigma: f64,
+    /// Smallest connected component kept [px], 1–10000.
+    pub min_area_px: u32,
+    /// Matching gate T_m as a fraction of the previous area, 0.01–10.
+    pub area_tol_frac: f64,
+    /// Matching gate T_a as a fraction of the previous semi-major axis, 0.01–10.
+    pub semi_axis_tol_frac: f64,
+    /// Matching gate T_θ [deg], 0.1–90 (skipped for near-round blobs).
+    pub theta_tol_deg: f64,
+    /// Matching gate T_e, 0.001–1.
+    pub ecc_tol: f64,
+    /// δ_l of the centroid gate, eq (8) [px], 0–100.
+    pub gate_margin_px: f64,
+    /// Frames a matched object may go undetected before its track is dropped, 0–100.
+    pub max_coast_frames: u32,
+}
+
+impl Default for DetectorScenario {
+    fn default() -> Self {
+        DetectorScenario {
+            threshold_k_sigma: 5.0,
+            min_area_px: 3,
+            area_tol_frac: 0.2,
+            semi_axis_tol_frac: 0.2,
+            theta_tol_deg: 5.0,
+            ecc_tol: 0.05,
+            gate_margin_px: 3.0,
+            max_coast_frames: 2,
+        }
+    }
+}
+
+/// Tracker settings ([002] §3.6–3.8).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrackerScenario {
+    /// 1σ noise of a detection's line of sight assumed by the filters [px], 0.001–10.
+    pub angle_sigma_px: f64,
+    /// Angle-filter process noise √q_a [rad/s²], 0–1 (math.md §3.6: ≈ 1e-3).
+    pub angle_accel_rad_s2: f64,
+    /// EKF process noise σ_a [m s^-1.5], 0–100 (math.md §3.8: 1e-3).
+    pub ekf_accel_sigma: f64,
+    /// Consecutive hits that confirm a track, 1–100.
+    pub confirm_hits: u32,
+    /// Consecutive misses that delete a track, 1–100.
+    pub delete_misses: u32,
+    /// Fire the laser at confirmed tracks.
+    pub laser: bool,
+    /// Wall-clock wait for a laser echo before the filter goes on with angles only [ms], 1–60000.
+    pub range_timeout_ms: u64,
+}
+
+impl Default for TrackerScenario {
+    fn default() -> Self {
+        TrackerScenario {
+            angle_sigma_px: 0.1,
+            angle_accel_rad_s2: 1e-3,
+            ekf_accel_sigma: 1e-3,
+            confirm_hits: 2,
+            delete_misses: 3,
+            laser: true,
+            range_timeout_ms: 1000,
+        }
+    }
 }
 
 fn default_background() -> f64 {
@@ -508,6 +584,72 @@ fn check_camera(c: &mut Checker, cam: &CameraScenario) {
         100.0,
     );
     c.range("camera.laser.delay_s", cam.laser.delay_s, 0.0, 1.0);
+    let d = &cam.detector;
+    c.range(
+        "camera.detector.threshold_k_sigma",
+        d.threshold_k_sigma,
+        1.0,
+        100.0,
+    );
+    c.range_u(
+        "camera.detector.min_area_px",
+        d.min_area_px as u64,
+        1,
+        10_000,
+    );
+    c.range("camera.detector.area_tol_frac", d.area_tol_frac, 0.01, 10.0);
+    c.range(
+        "camera.detector.semi_axis_tol_frac",
+        d.semi_axis_tol_frac,
+        0.01,
+        10.0,
+    );
+    c.range("camera.detector.theta_tol_deg", d.theta_tol_deg, 0.1, 90.0);
+    c.range("camera.detector.ecc_tol", d.ecc_tol, 0.001, 1.0);
+    c.range(
+        "camera.detector.gate_margin_px",
+        d.gate_margin_px,
+        0.0,
+        100.0,
+    );
+    c.range_u(
+        "camera.detector.max_coast_frames",
+        d.max_coast_frames as u64,
+        0,
+        100,
+    );
+    let t = &cam.tracker;
+    c.range(
+        "camera.tracker.angle_sigma_px",
+        t.angle_sigma_px,
+        0.001,
+        10.0,
+    );
+    c.range(
+        "camera.tracker.angle_accel_rad_s2",
+        t.angle_accel_rad_s2,
+        0.0,
+        1.0,
+    );
+    c.range(
+        "camera.tracker.ekf_accel_sigma",
+        t.ekf_accel_sigma,
+        0.0,
+        100.0,
+    );
+    c.range_u("camera.tracker.confirm_hits", t.confirm_hits as u64, 1, 100);
+    c.range_u(
+        "camera.tracker.delete_misses",
+        t.delete_misses as u64,
+        1,
+        100,
+    );
+    c.range_u(
+        "camera.tracker.range_timeout_ms",
+        t.range_timeout_ms,
+        1,
+        60_000,
+    );
 }
 
 fn check_spectra(c: &mut Checker, sp: &SpectraScenario) {
