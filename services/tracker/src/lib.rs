@@ -1,0 +1,46 @@
+//! glint-tracker: the pure core of the seed-002 debris tracker (docs/math.md §3.6–3.8).
+//!
+//! No IPC, no clock: every time is passed in (`t_s`, seconds of scenario time).
+//!
+//! - [`angle_filter`]: the position–velocity Kalman filter on (α, β) (§3.6, eqs 11–15, fixed Φ
+//!   and H), initialised from two frames;
+//! - [`pointing`]: laser pointing with delay prediction and the beam success check (§3.7, eq 16);
+//! - [`ekf`]: the CW extended Kalman filter on the LVLH_N relative state with (α, β, r) or
+//!   angles-only updates (§3.8, eqs 17–28), NEES;
+//! - [`track`]: per-track life cycle (tentative → confirmed → deleted) owning both filters.
+
+pub mod angle_filter;
+pub mod ekf;
+pub mod pointing;
+pub mod track;
+
+pub use angle_filter::{AngleEstimate, AngleFilter, AngleFilterConfig, AngleMeasurement};
+pub use ekf::{CwEkf, CwEkfConfig, EkfEstimate, RangeFix};
+pub use pointing::{predict_pointing, PointingCommand};
+pub use track::{TrackManager, TrackManagerConfig, TrackObservation, TrackReport, TrackStatus};
+
+/// A configuration value outside its allowed range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field} = {value} is out of range: allowed {allowed}")]
+pub struct ConfigError {
+    pub field: &'static str,
+    pub value: String,
+    pub allowed: &'static str,
+}
+
+impl ConfigError {
+    pub(crate) fn new(
+        field: &'static str,
+        value: impl std::fmt::Display,
+        allowed: &'static str,
+    ) -> Self {
+        Self {
+            field,
+            value: value.to_string(),
+            allowed,
+        }
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod test_rng;
