@@ -10,12 +10,12 @@ use glint_runtime::ports::{FrameInbox, Inbox, Outbox};
 use glint_runtime::TopicStats;
 use iceoryx2::port::listener::Listener;
 use shared_types::topics::{
-    ack_service, control_service, frame_service, heartbeat_service, spectrum_service,
-    truth_service, Ipc, IpcNode,
+    ack_service, control_service, detections_service, frame_service, heartbeat_service,
+    spectrum_service, tracks_service, truth_service, Ipc, IpcNode,
 };
 use shared_types::{
-    deployment, Ack, Command, Control, Heartbeat, Scenario, ServiceId, Spectrum, TopicCounters,
-    TopicId, Truth,
+    deployment, Ack, Command, Control, Detections, Heartbeat, Scenario, ServiceId, Spectrum,
+    TopicCounters, TopicId, Tracks, Truth,
 };
 use xxhash_rust::xxh3::Xxh3;
 
@@ -29,6 +29,8 @@ pub struct Consumer {
     pub frames: Option<FrameInbox>,
     pub spectra: Option<Inbox<Spectrum>>,
     pub truth: Inbox<Truth>,
+    pub detections: Option<Inbox<Detections>>,
+    pub tracks: Option<Inbox<Tracks>>,
     heartbeats: Inbox<Heartbeat>,
     control: Outbox<Control>,
     acks: Outbox<Ack>,
@@ -40,6 +42,13 @@ pub struct Consumer {
     /// Send → receive latency of every spectrum [ns].
     pub spectrum_latency_ns: Vec<u64>,
     pub truths: Vec<Truth>,
+    pub detection_msgs: Vec<Detections>,
+    pub track_msgs: Vec<Tracks>,
+    /// Pixels of one frame kept for the annotated picture (frame index, width, height, pixels).
+    pub snapshot: Option<(u64, u32, u32, Vec<u16>)>,
+    snapshot_frame: u64,
+    detections_digest: Xxh3,
+    tracks_digest: Xxh3,
     /// Received spectra, reduced for the light-curve plot: (stream index, band centres, flux).
     pub light_curve: Vec<(u64, [f64; 3], [f64; 3])>,
     pub seen: BTreeMap<ServiceId, Seen>,
@@ -55,6 +64,8 @@ pub struct Listeners {
     pub truth: Listener<Ipc>,
     pub frame: Option<Listener<Ipc>>,
     pub spectrum: Option<Listener<Ipc>>,
+    pub detections: Option<Listener<Ipc>>,
+    pub tracks: Option<Listener<Ipc>>,
 }
 
 impl Consumer {
@@ -62,7 +73,11 @@ impl Consumer {
         let me = ServiceId::Orchestrator;
         let consumes = |t| deployment::consumers(scenario, t).contains(&me);
         let (frames, frame_l) = if consumes(TopicId::Frame) {
-            let (i, l) = FrameInbox::open(node, &frame_service(node)?)?;
+            let (mut i, l) = FrameInbox::open(node, &frame_service(node)?)?;
+            // When the detector reads the pixels, the orchestrator reads headers only (accounting
+            // and the digest); the detector verifies the pixel checksum.
+            i.verify_checksum =
+                !deployment::consumers(scenario, TopicId::Frame).contains(&ServiceId::Detector);
             (Some(i), Some(l))
         } else {
             (None, None)
@@ -74,11 +89,29 @@ impl Consumer {
             (None, None)
         };
         let (truth, truth_l) = Inbox::open(node, TopicId::Truth, &truth_service(node)?)?;
+        let (detections, detections_l) = if consumes(TopicId::Detections) {
+            let (i, l) = Inbox::open(node, TopicId::Detections, &detections_service(node)?)?;
+            (Some(i), Some(l))
+        } else {
+            (None, None)
+        };
+        let (tracks, tracks_l) = if consumes(TopicId::Tracks) {
+            let (i, l) = Inbox::open(node, TopicId::Tracks, &tracks_service(node)?)?;
+            (Some(i), Some(l))
+        } else {
+            (None, None)
+        };
         let (heartbeats, hb_l) = Inbox::open(node, TopicId::Heartbeat, &heartbeat_service(node)?)?;
         let control = Outbox::open(node, TopicId::Control, &control_service(node)?, me)?;
         let acks = Outbox::open(node, TopicId::Ack, &ack_service(node)?, me)?;
         let mut expected = BTreeMap::new();
-        for t in [TopicId::Frame, TopicId::Spectrum, TopicId::Truth] {
+        for t in [
+            TopicId::Frame,
+            TopicId::Spectrum,
+            TopicId::Truth,
+            TopicId::Detections,
+            TopicId::Tracks,
+        ] {
             if consumes(t) {
                 expected.insert(t, deployment::expected_messages(scenario, t));
             }
@@ -88,6 +121,8 @@ impl Consumer {
                 frames,
                 spectra,
                 truth,
+                detections,
+                tracks,
                 heartbeats,
                 control,
                 acks,
@@ -97,6 +132,12 @@ impl Consumer {
                 frame_latency_ns: vec![],
                 spectrum_latency_ns: vec![],
                 truths: vec![],
+                detection_msgs: vec![],
+                track_msgs: vec![],
+                snapshot: None,
+                snapshot_frame: 1,
+                detections_digest: Xxh3::new(),
+                tracks_digest: Xxh3::new(),
                 light_curve: vec![],
                 seen: BTreeMap::new(),
                 expected,
@@ -107,6 +148,8 @@ impl Consumer {
                 truth: truth_l,
                 frame: frame_l,
                 spectrum: spectrum_l,
+                detections: detections_l,
+                tracks: tracks_l,
             },
         ))
     }
@@ -126,10 +169,14 @@ impl Consumer {
         self.poll_heartbeats()?;
         if let Some(frames) = self.frames.as_mut() {
             let (digest, lat) = (&mut self.frame_digest, &mut self.frame_latency_ns);
-            frames.drain(|h, _pixels, latency_ns| {
+            let (snap, want) = (&mut self.snapshot, self.snapshot_frame);
+            frames.drain(|h, pixels, latency_ns| {
                 digest.update(&h.meta.seq.to_le_bytes());
                 digest.update(&h.pixels_xxh3.to_le_bytes());
                 lat.push(latency_ns);
+                if h.frame_index == want {
+                    *snap = Some((h.frame_index, h.width_px, h.height_px, pixels.to_vec()));
+                }
                 Ok(())
             })?;
             let next = frames.stats.next_seq;
@@ -153,6 +200,26 @@ impl Consumer {
             })?;
             let next = spectra.stats.next_seq;
             self.ack(TopicId::Spectrum, next)?;
+        }
+        if let Some(inbox) = self.detections.as_mut() {
+            let (digest, keep) = (&mut self.detections_digest, &mut self.detection_msgs);
+            inbox.drain(|r| {
+                hash_pod(digest, r.msg);
+                keep.push(*r.msg);
+                Ok(())
+            })?;
+            let next = inbox.stats.next_seq;
+            self.ack(TopicId::Detections, next)?;
+        }
+        if let Some(inbox) = self.tracks.as_mut() {
+            let (digest, keep) = (&mut self.tracks_digest, &mut self.track_msgs);
+            inbox.drain(|r| {
+                hash_pod(digest, r.msg);
+                keep.push(*r.msg);
+                Ok(())
+            })?;
+            let next = inbox.stats.next_seq;
+            self.ack(TopicId::Tracks, next)?;
         }
         let (digest, truths) = (&mut self.truth_digest, &mut self.truths);
         self.truth.drain(|r| {
@@ -183,6 +250,9 @@ impl Consumer {
         let seen = &mut self.seen;
         self.heartbeats.drain(|r| {
             if let Some(id) = ServiceId::from_u32(r.msg.meta.producer) {
+                if !seen.contains_key(&id) {
+                    tracing::debug!(service = id.name(), state = r.msg.state, "first heartbeat");
+                }
                 seen.insert(
                     id,
                     Seen {
@@ -222,6 +292,12 @@ impl Consumer {
             v.push(&s.stats);
         }
         v.push(&self.truth.stats);
+        if let Some(d) = &self.detections {
+            v.push(&d.stats);
+        }
+        if let Some(t) = &self.tracks {
+            v.push(&t.stats);
+        }
         v
     }
 
@@ -249,6 +325,12 @@ impl Consumer {
             m.insert(TopicId::Spectrum, self.spectrum_digest.digest());
         }
         m.insert(TopicId::Truth, self.truth_digest.digest());
+        if self.detections.is_some() {
+            m.insert(TopicId::Detections, self.detections_digest.digest());
+        }
+        if self.tracks.is_some() {
+            m.insert(TopicId::Tracks, self.tracks_digest.digest());
+        }
         m
     }
 
@@ -262,4 +344,17 @@ impl Consumer {
                 .copied()
         })
     }
+}
+
+/// Folds a message's content into a digest, leaving out its send time (the only field that
+/// differs between two runs of the same scenario and seed).
+fn hash_pod<T: shared_types::Message>(digest: &mut Xxh3, msg: &T) {
+    let mut copy = *msg;
+    copy.meta_mut().send_mono_ns = 0;
+    // SAFETY: the wire types are #[repr(C)] with explicit padding fields, so every byte of the
+    // copy is initialised; reading them as bytes is sound.
+    let bytes = unsafe {
+        std::slice::from_raw_parts(&copy as *const T as *const u8, std::mem::size_of::<T>())
+    };
+    digest.update(bytes);
 }

@@ -8,10 +8,13 @@
 mod consume;
 mod deploy;
 mod plots;
+mod png;
 mod progress;
 mod report;
+mod report_debris;
 mod run;
 mod score_debris;
+mod tools;
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -50,9 +53,14 @@ enum Cmd {
     },
     /// Check a scenario file; report every problem with its field and allowed range.
     Validate { scenario: PathBuf },
+    /// Offline tools: algorithm stages on files, no IPC.
+    Tool {
+        #[command(subcommand)]
+        tool: ToolCmd,
+    },
     /// Run one service in this process (the orchestrator spawns these).
     Service {
-        /// sensor
+        /// sensor | detector | tracker
         name: String,
         /// Shared-memory prefix of the deployment.
         #[arg(long)]
@@ -60,6 +68,27 @@ enum Cmd {
         /// The resolved scenario file of the run.
         #[arg(long)]
         scenario: PathBuf,
+    },
+}
+
+#[derive(Subcommand)]
+enum ToolCmd {
+    /// Detect objects in a 16-bit binary PGM (P5); prints JSON.
+    Detect {
+        frame: PathBuf,
+        /// Absolute threshold [DN] instead of background + 5σ.
+        #[arg(long)]
+        threshold: Option<u16>,
+    },
+    /// Render one camera frame of a scenario into a 16-bit PGM.
+    Render {
+        scenario: PathBuf,
+        #[arg(long, default_value_t = 0)]
+        frame: u64,
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long)]
+        seed: Option<u64>,
     },
 }
 
@@ -130,6 +159,34 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Cmd::Tool { tool } => {
+            let result = match tool {
+                ToolCmd::Detect { frame, threshold } => {
+                    tools::detect(&frame, threshold).map(|json| println!("{json}"))
+                }
+                ToolCmd::Render {
+                    scenario,
+                    frame,
+                    out,
+                    seed,
+                } => match Scenario::from_file(&scenario) {
+                    Ok(mut sc) => {
+                        if let Some(s) = seed {
+                            sc.seed = s;
+                        }
+                        tools::render(&sc, frame, &out)
+                    }
+                    Err(e) => Err(anyhow::anyhow!("{e}")),
+                },
+            };
+            match result {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: {e:#}");
+                    ExitCode::from(2)
+                }
+            }
+        }
         Cmd::Service {
             name,
             prefix,
@@ -145,8 +202,12 @@ fn main() -> ExitCode {
             };
             let result = match ServiceId::from_name(&name) {
                 Some(ServiceId::Sensor) => glint_sensor::node::run(&prefix, &sc),
+                Some(ServiceId::Detector) => glint_detector::node::run(&prefix, &sc),
+                Some(ServiceId::Tracker) => glint_tracker::node::run(&prefix, &sc),
                 _ => {
-                    eprintln!("error: unknown service '{name}' (available: sensor)");
+                    eprintln!(
+                        "error: unknown service '{name}' (available: sensor, detector, tracker)"
+                    );
                     return ExitCode::from(2);
                 }
             };

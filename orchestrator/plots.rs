@@ -18,6 +18,7 @@ pub struct Series<'a> {
 pub const BLUE: RGBColor = RGBColor(31, 119, 180);
 pub const GREEN: RGBColor = RGBColor(44, 160, 44);
 pub const RED: RGBColor = RGBColor(214, 39, 40);
+pub const ORANGE: RGBColor = RGBColor(255, 127, 14);
 
 fn bounds(series: &[Series]) -> ((f64, f64), (f64, f64)) {
     let mut x = (f64::INFINITY, f64::NEG_INFINITY);

@@ -39,7 +39,17 @@ pub struct TopicFact {
     pub consumers: BTreeMap<String, Option<ConsumerFact>>,
 }
 
+/// What the debris pictures need besides the score.
+pub struct DebrisFacts {
+    pub score: crate::score_debris::DebrisScore,
+    pub camera: glint_physics::camera::PinholeCamera,
+    pub snapshot: Option<(u64, u32, u32, Vec<u16>)>,
+    pub detections: Vec<shared_types::Detections>,
+    pub truths: Vec<shared_types::Truth>,
+}
+
 pub struct RunFacts {
+    pub debris: Option<DebrisFacts>,
     pub services: Vec<ServiceFact>,
     pub topics: BTreeMap<TopicId, TopicFact>,
     pub failure: Option<String>,
@@ -53,6 +63,15 @@ pub struct RunFacts {
     pub scenario_file: String,
     pub shm_removed: usize,
     pub shm_leftover: Vec<String>,
+}
+
+/// The service that publishes a topic.
+fn producer_of(t: TopicId) -> ServiceId {
+    match t {
+        TopicId::Detections => ServiceId::Detector,
+        TopicId::Tracks => ServiceId::Tracker,
+        _ => ServiceId::Sensor,
+    }
 }
 
 fn consumer_fact(c: TopicCounters) -> ConsumerFact {
@@ -81,7 +100,13 @@ impl RunFacts {
             .collect();
         let digests = consumer.digests();
         let mut topics = BTreeMap::new();
-        for t in [TopicId::Frame, TopicId::Spectrum, TopicId::Truth] {
+        for t in [
+            TopicId::Frame,
+            TopicId::Detections,
+            TopicId::Tracks,
+            TopicId::Spectrum,
+            TopicId::Truth,
+        ] {
             let expected = deployment::expected_messages(scenario, t);
             if expected == 0 {
                 continue;
@@ -103,13 +128,38 @@ impl RunFacts {
                 t,
                 TopicFact {
                     expected,
-                    published: consumer.reported(ServiceId::Sensor, t).map(|c| c.published),
+                    published: consumer.reported(producer_of(t), t).map(|c| c.published),
                     digest: digests.get(&t).copied(),
                     consumers,
                 },
             );
         }
+        let debris = scenario.camera.as_ref().map(|cam| {
+            let camera = glint_detector::node::camera(cam);
+            let a_m = cam.orbit_semi_major_axis_km * 1e3;
+            let n_rad_s = (glint_physics::orbit::MU_EARTH_M3_S2 / (a_m * a_m * a_m)).sqrt();
+            let frame_truths: Vec<shared_types::Truth> = consumer
+                .truths
+                .iter()
+                .filter(|t| t.kind == shared_types::Truth::KIND_FRAME)
+                .copied()
+                .collect();
+            DebrisFacts {
+                score: crate::score_debris::score(
+                    &camera,
+                    n_rad_s,
+                    &frame_truths,
+                    &consumer.detection_msgs,
+                    &consumer.track_msgs,
+                ),
+                camera,
+                snapshot: consumer.snapshot.clone(),
+                detections: consumer.detection_msgs.clone(),
+                truths: frame_truths,
+            }
+        });
         RunFacts {
+            debris,
             services,
             topics,
             failure,
@@ -199,7 +249,13 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
             0.0
         }
     };
+    let (detection, tracking) = match &f.debris {
+        Some(d) => crate::report_debris::json(&d.score),
+        None => (Value::Null, Value::Null),
+    };
     json!({
+        "detection": detection,
+        "tracking": tracking,
         "glint_version": env!("CARGO_PKG_VERSION"),
         "contract_version": shared_types::CONTRACT_VERSION,
         "scenario": {
@@ -353,6 +409,12 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
         f.shm_removed,
         f.shm_leftover.len()
     );
+    if let Some(d) = &f.debris {
+        s.push_str(&crate::report_debris::markdown(&d.score));
+    }
+    if !f.light_curve.is_empty() {
+        let _ = writeln!(s, "\n## Light curve\n\n![light curve](light-curve.svg)");
+    }
     for (label, ns) in [
         ("Frame", &f.frame_latency_ns),
         ("Spectrum", &f.spectrum_latency_ns),
@@ -400,6 +462,16 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
             &format!("{name} latency, sensor send → orchestrator receive"),
             "latency [µs] (log scale)",
             &us,
+        )?;
+    }
+    if let Some(d) = &facts.debris {
+        crate::report_debris::plots(
+            dir,
+            &d.score,
+            &d.camera,
+            d.snapshot.as_ref(),
+            &d.detections,
+            &d.truths,
         )?;
     }
     if let Some((_, bands, _)) = facts.light_curve.first() {

@@ -92,7 +92,14 @@ fn deploy_and_run(
     if let Some(l) = &listeners.frame {
         inputs.push((l, None));
     }
-    if let Some(l) = &listeners.spectrum {
+    for l in [
+        &listeners.spectrum,
+        &listeners.detections,
+        &listeners.tracks,
+    ]
+    .into_iter()
+    .flatten()
+    {
         inputs.push((l, None));
     }
     let hb_deadline = Duration::from_millis(limits.heartbeat_deadline_ms);

@@ -9,6 +9,7 @@
 use std::collections::BTreeMap;
 
 use glint_physics::camera::{angles_from_position, PinholeCamera};
+use glint_physics::cw::propagate_lvlhn;
 use nalgebra::{Matrix6, Vector3, Vector6};
 use serde::Serialize;
 use shared_types::{Detections, Tracks, Truth};
@@ -96,8 +97,12 @@ fn wrap_rad(a: f64) -> f64 {
 }
 
 /// Scores a run. `truths` are frame truths (kind 0) in any order.
+///
+/// `n_rad_s` is the observer's mean motion, used to carry a frame's truth to the time of an EKF
+/// state (the laser echo).
 pub fn score(
     camera: &PinholeCamera,
+    n_rad_s: f64,
     truths: &[Truth],
     detections: &[Detections],
     tracks: &[Tracks],
@@ -199,17 +204,34 @@ pub fn score(
             frames_tracked += 1;
             let x_true = Vector6::from_column_slice(&t.debris_state_lvlh[i]);
             let (az_t, el_t) = angles_from_position(x_true.fixed_rows::<3>(0).into_owned());
+            // Truth at the time of the state estimate (the echo when a range was applied).
+            let dt_s = (est.state_t_ns as f64 - t.meta.t_ns as f64) * 1e-9;
+            let x_true_state = if dt_s.abs() > 0.0 {
+                propagate_lvlhn(x_true, n_rad_s, dt_s)
+            } else {
+                x_true
+            };
             let deg = f64::to_degrees;
             az_m.push(deg(wrap_rad(est.azimuth_meas_rad - az_t)));
             el_m.push(deg(est.elevation_meas_rad - el_t));
-            az_f.push(deg(wrap_rad(est.azimuth_filt_rad - az_t)));
-            el_f.push(deg(est.elevation_filt_rad - el_t));
+            if est.angles_valid == 1 {
+                az_f.push(deg(wrap_rad(est.azimuth_filt_rad - az_t)));
+                el_f.push(deg(est.elevation_filt_rad - el_t));
+            }
             s.t_s.push(t.meta.t_ns as f64 * 1e-9);
             s.azimuth_meas_deg.push(deg(est.azimuth_meas_rad));
-            s.azimuth_filt_deg.push(deg(est.azimuth_filt_rad));
+            s.azimuth_filt_deg.push(if est.angles_valid == 1 {
+                deg(est.azimuth_filt_rad)
+            } else {
+                f64::NAN
+            });
             s.azimuth_true_deg.push(deg(az_t));
             s.elevation_meas_deg.push(deg(est.elevation_meas_rad));
-            s.elevation_filt_deg.push(deg(est.elevation_filt_rad));
+            s.elevation_filt_deg.push(if est.angles_valid == 1 {
+                deg(est.elevation_filt_rad)
+            } else {
+                f64::NAN
+            });
             s.elevation_true_deg.push(deg(el_t));
             if est.range_status != u32::MAX {
                 shots += 1;
@@ -227,14 +249,14 @@ pub fn score(
             if est.ekf_valid == 1 {
                 let x = Vector6::from_column_slice(&est.state_lvlh);
                 let p = Matrix6::from_row_slice(&est.covariance);
-                let e = x - x_true;
+                let e = x - x_true_state;
                 if let Some(pinv) = p.try_inverse() {
                     nees.push((e.transpose() * pinv * e)[(0, 0)]);
                 }
                 s.pos_err_m.push(e.fixed_rows::<3>(0).norm());
                 s.pos_3sigma_m
                     .push(3.0 * (p[(0, 0)] + p[(1, 1)] + p[(2, 2)]).max(0.0).sqrt());
-                last = Some((x, x_true));
+                last = Some((x, x_true_state));
             }
         }
         let (pos_final, vel_final) = last.map_or((f64::NAN, f64::NAN), |(x, xt)| {
@@ -344,7 +366,7 @@ mod tests {
             detections(1, &[(x + 1.0, y), (500.0, 500.0)]),
             detections(2, &[]),
         ];
-        let s = score(&cam, &truths, &dets, &[]);
+        let s = score(&cam, 7.29e-5, &truths, &dets, &[]);
         assert_eq!(s.detection.true_positives, 1);
         assert_eq!(s.detection.false_positives, 1);
         assert_eq!(s.detection.missed, 1);
@@ -382,12 +404,14 @@ mod tests {
             elevation_meas_rad: el,
             azimuth_filt_rad: az,
             elevation_filt_rad: el,
+            angles_valid: 1,
             state_lvlh: [pos[0] + 1.0, pos[1], pos[2], 1.0, 0.0, 0.0],
             covariance: cov,
             ekf_valid: 1,
+            state_t_ns: truths[1].meta.t_ns,
             ..Default::default()
         };
-        let s = score(&cam, &truths, &dets, &[tr]);
+        let s = score(&cam, 7.29e-5, &truths, &dets, &[tr]);
         let t = &s.targets[0];
         assert_eq!(t.track_id, Some(7));
         assert!(t.azimuth_err_deg_rms_filtered.abs() < 1e-12);

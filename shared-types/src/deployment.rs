@@ -6,15 +6,26 @@ use crate::topics::{ServiceId, TopicId};
 
 /// Services the orchestrator spawns for a scenario, in start order.
 pub fn services(scenario: &Scenario) -> Vec<ServiceId> {
-    let _ = scenario;
-    vec![ServiceId::Sensor]
+    let mut v = vec![ServiceId::Sensor];
+    if scenario.camera.is_some() {
+        v.extend([ServiceId::Detector, ServiceId::Tracker]);
+    }
+    v
 }
 
 /// Consumers whose acknowledgement a producer waits for in sim-clock mode (and whose counters
 /// the report checks).
 pub fn consumers(scenario: &Scenario, topic: TopicId) -> Vec<ServiceId> {
     match topic {
-        TopicId::Frame if scenario.camera.is_some() => vec![ServiceId::Orchestrator],
+        // The orchestrator reads frame headers only (accounting and the digest); the detector
+        // reads the pixels.
+        TopicId::Frame if scenario.camera.is_some() => {
+            vec![ServiceId::Detector, ServiceId::Orchestrator]
+        }
+        TopicId::Detections if scenario.camera.is_some() => {
+            vec![ServiceId::Tracker, ServiceId::Orchestrator]
+        }
+        TopicId::Tracks if scenario.camera.is_some() => vec![ServiceId::Orchestrator],
         TopicId::Spectrum if scenario.spectra.is_some() => vec![ServiceId::Orchestrator],
         TopicId::Truth => vec![ServiceId::Orchestrator],
         _ => vec![],
@@ -29,7 +40,7 @@ pub fn expected_messages(scenario: &Scenario, topic: TopicId) -> u64 {
         .as_ref()
         .map_or(0, |s| s.stable_samples + s.motion_frames);
     match topic {
-        TopicId::Frame => frames,
+        TopicId::Frame | TopicId::Detections | TopicId::Tracks => frames,
         TopicId::Spectrum => spectra,
         TopicId::Truth => frames + spectra,
         _ => 0,

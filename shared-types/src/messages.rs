@@ -450,7 +450,8 @@ pub struct TrackEstimate {
     pub status: u32,
     /// [`RangeStatus`] of this frame's laser shot, or `u32::MAX` if none was fired.
     pub range_status: u32,
-    pub _pad: u32,
+    /// `1` when the angle filter is initialised and the `*_filt_rad` angles are valid.
+    pub angles_valid: u32,
     /// Measured and filtered line of sight [rad].
     pub azimuth_meas_rad: f64,
     pub elevation_meas_rad: f64,
@@ -470,6 +471,9 @@ pub struct TrackEstimate {
     /// `1` when the EKF is initialised and `state_lvlh` is valid.
     pub ekf_valid: u32,
     pub _pad2: u32,
+    /// Time of `state_lvlh` and `direct_position_m` [ns of simulated time]: the laser echo
+    /// when a range was applied this frame, else the end of the exposure.
+    pub state_t_ns: u64,
 }
 
 impl Default for TrackEstimate {
@@ -478,7 +482,7 @@ impl Default for TrackEstimate {
             track_id: 0,
             status: 0,
             range_status: u32::MAX,
-            _pad: 0,
+            angles_valid: 0,
             azimuth_meas_rad: 0.0,
             elevation_meas_rad: 0.0,
             azimuth_filt_rad: 0.0,
@@ -491,6 +495,7 @@ impl Default for TrackEstimate {
             direct_position_m: [0.0; 3],
             ekf_valid: 0,
             _pad2: 0,
+            state_t_ns: 0,
         }
     }
 }

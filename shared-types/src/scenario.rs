@@ -221,8 +221,11 @@ pub struct CameraScenario {
     pub tracker: TrackerScenario,
 }
 
-/// Detector and inter-frame matcher settings ([002] §3.3–3.4; math.md gives the [ASSUMP]
-/// defaults the paper leaves out).
+/// Detector and inter-frame matcher settings ([002] §3.3–3.4). The paper gives no thresholds;
+/// math.md's starting values (T_m 0.2, T_a 0.2, T_θ 5°, T_e 0.05) lose the short (1–10 px)
+/// streaks of the [002] scene, whose eccentricity varies by ±0.3 and orientation by ±10° from
+/// frame to frame under read noise, so the defaults here are wider; the centroid gate (eq 8)
+/// does the discriminating.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct DetectorScenario {
@@ -238,6 +241,9 @@ pub struct DetectorScenario {
     pub theta_tol_deg: f64,
     /// Matching gate T_e, 0.001–1.
     pub ecc_tol: f64,
+    /// Blobs with eccentricity below this are "round": no θ gate, and no e gate when both blobs
+    /// are round (θ and e are noise for near-round blobs), 0–1.
+    pub round_ecc: f64,
     /// δ_l of the centroid gate, eq (8) [px], 0–100.
     pub gate_margin_px: f64,
     /// Frames a matched object may go undetected before its track is dropped, 0–100.
@@ -249,10 +255,11 @@ impl Default for DetectorScenario {
         DetectorScenario {
             threshold_k_sigma: 5.0,
             min_area_px: 3,
-            area_tol_frac: 0.2,
-            semi_axis_tol_frac: 0.2,
-            theta_tol_deg: 5.0,
-            ecc_tol: 0.05,
+            area_tol_frac: 0.3,
+            semi_axis_tol_frac: 0.3,
+            theta_tol_deg: 20.0,
+            ecc_tol: 0.3,
+            round_ecc: 0.7,
             gate_margin_px: 3.0,
             max_coast_frames: 2,
         }
@@ -263,9 +270,12 @@ impl Default for DetectorScenario {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrackerScenario {
-    /// 1σ noise of a detection's line of sight assumed by the filters [px], 0.001–10.
+    /// 1σ noise of a detection's line of sight assumed by the filters [px], 0.001–10. The
+    /// default matches the centroid accuracy measured on the [002] scene (0.01–0.03 px).
     pub angle_sigma_px: f64,
-    /// Angle-filter process noise √q_a [rad/s²], 0–1 (math.md §3.6: ≈ 1e-3).
+    /// Angle-filter process noise √q_a [rad/s²], 0–1. math.md §3.6 suggests ≈ 1e-3; the line-of-
+    /// sight accelerations of the [002] debris reach several 1e-3 rad/s², and at 1e-3 the
+    /// filter lags behind its own measurements, so the default is 1e-2.
     pub angle_accel_rad_s2: f64,
     /// EKF process noise σ_a [m s^-1.5], 0–100 (math.md §3.8: 1e-3).
     pub ekf_accel_sigma: f64,
@@ -282,8 +292,8 @@ pub struct TrackerScenario {
 impl Default for TrackerScenario {
     fn default() -> Self {
         TrackerScenario {
-            angle_sigma_px: 0.1,
-            angle_accel_rad_s2: 1e-3,
+            angle_sigma_px: 0.03,
+            angle_accel_rad_s2: 1e-2,
             ekf_accel_sigma: 1e-3,
             confirm_hits: 2,
             delete_misses: 3,
@@ -606,6 +616,7 @@ fn check_camera(c: &mut Checker, cam: &CameraScenario) {
     );
     c.range("camera.detector.theta_tol_deg", d.theta_tol_deg, 0.1, 90.0);
     c.range("camera.detector.ecc_tol", d.ecc_tol, 0.001, 1.0);
+    c.range("camera.detector.round_ecc", d.round_ecc, 0.0, 1.0);
     c.range(
         "camera.detector.gate_margin_px",
         d.gate_margin_px,

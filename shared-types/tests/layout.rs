@@ -78,7 +78,7 @@ fn detections_and_tracks_layout() {
     assert_eq!(offset_of!(Detections, items), 64);
     assert_eq!(
         (size_of::<TrackEstimate>(), align_of::<TrackEstimate>()),
-        (440, 8)
+        (448, 8)
     );
     assert_eq!(offset_of!(TrackEstimate, azimuth_meas_rad), 16);
     assert_eq!(offset_of!(TrackEstimate, range_meas_m), 48);
@@ -86,9 +86,10 @@ fn detections_and_tracks_layout() {
     assert_eq!(offset_of!(TrackEstimate, covariance), 120);
     assert_eq!(offset_of!(TrackEstimate, direct_position_m), 408);
     assert_eq!(offset_of!(TrackEstimate, ekf_valid), 432);
+    assert_eq!(offset_of!(TrackEstimate, state_t_ns), 440);
     assert_eq!(
         (size_of::<Tracks>(), align_of::<Tracks>()),
-        (48 + 16 * 440, 8)
+        (48 + 16 * 448, 8)
     );
     assert_eq!(offset_of!(Tracks, items), 48);
 }

@@ -14,6 +14,7 @@ pub mod angles;
 pub mod background;
 pub mod matching;
 pub mod moments;
+pub mod node;
 pub mod pgm;
 pub mod segment;
 

@@ -75,6 +75,7 @@ impl Housekeeping {
             ..Default::default()
         };
         self.heartbeat.send(hb, t_ns)?;
+        tracing::trace!(state = self.state, "heartbeat");
         Ok(())
     }
 

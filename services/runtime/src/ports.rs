@@ -64,9 +64,11 @@ impl<T: Message> Outbox<T> {
         let seq = self.stats.published;
         *msg.meta_mut() = Meta::new(seq, t_ns, mono_ns(), self.producer);
         msg.seal();
-        self.publisher
+        let delivered = self
+            .publisher
             .send_copy(msg)
             .map_err(|e| anyhow!("send on {}: {e:?}", self.stats.topic.name()))?;
+        tracing::trace!(topic = self.stats.topic.name(), seq, delivered, "sent");
         self.stats.published += 1;
         self.notifier
             .notify_with_custom_event_id(EVENT_DATA)
@@ -153,7 +155,8 @@ impl<T: Message> Inbox<T> {
                 self.last_reject = Some(r);
                 continue;
             }
-            if self.stats.observe_seq(msg.meta().seq) == SeqVerdict::Stale {
+            let (producer, seq) = (msg.meta().producer, msg.meta().seq);
+            if self.stats.observe(producer, seq) == SeqVerdict::Stale {
                 continue;
             }
             let latency_ns = mono_ns().saturating_sub(msg.meta().send_mono_ns);

@@ -13,8 +13,11 @@ pub struct TopicStats {
     /// Consumer side: messages accepted.
     pub received: u64,
     pub dropped: [u64; DROP_REASONS],
-    /// Next expected sequence number (everything below is accounted for).
+    /// Next expected sequence number (everything below is accounted for). On a topic with one
+    /// producer (every data topic) this is that producer's; many-to-one topics (heartbeat, ack)
+    /// are accounted per producer in `per_producer`.
     pub next_seq: u64,
+    per_producer: Vec<(u32, u64)>,
 }
 
 /// What the consumer should do with a message after sequence accounting.
@@ -34,19 +37,35 @@ impl TopicStats {
             received: 0,
             dropped: [0; DROP_REASONS],
             next_seq: 0,
+            per_producer: Vec::new(),
         }
     }
 
-    /// Accounts for the arrival of `seq`: gaps before it become `Overflow` drops.
+    /// Accounts for the arrival of `seq` from the topic's single producer: gaps before it
+    /// become `Overflow` drops.
     pub fn observe_seq(&mut self, seq: u64) -> SeqVerdict {
-        if seq < self.next_seq {
+        self.observe(0, seq)
+    }
+
+    /// Accounts for the arrival of `seq` from `producer` (sequence numbers are per producer).
+    pub fn observe(&mut self, producer: u32, seq: u64) -> SeqVerdict {
+        let slot = match self.per_producer.iter().position(|(p, _)| *p == producer) {
+            Some(i) => i,
+            None => {
+                self.per_producer.push((producer, 0));
+                self.per_producer.len() - 1
+            }
+        };
+        let next = &mut self.per_producer[slot].1;
+        if seq < *next {
             self.dropped[DropReason::Stale as usize] += 1;
             return SeqVerdict::Stale;
         }
-        if seq > self.next_seq {
-            self.dropped[DropReason::Overflow as usize] += seq - self.next_seq;
+        if seq > *next {
+            self.dropped[DropReason::Overflow as usize] += seq - *next;
         }
-        self.next_seq = seq + 1;
+        *next = seq + 1;
+        self.next_seq = *next;
         SeqVerdict::Accept
     }
 
@@ -79,6 +98,18 @@ impl TopicStats {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn producers_are_accounted_separately() {
+        let mut s = TopicStats::new(TopicId::Heartbeat);
+        for (producer, seq) in [(1, 0), (2, 0), (1, 1), (2, 1), (2, 2), (1, 2)] {
+            assert_eq!(s.observe(producer, seq), SeqVerdict::Accept);
+            s.accept();
+        }
+        assert_eq!(s.received, 6);
+        assert_eq!(s.dropped_total(), 0);
+        assert_eq!(s.observe(2, 1), SeqVerdict::Stale);
+    }
 
     #[test]
     fn gaps_and_duplicates_are_counted() {

@@ -11,6 +11,7 @@
 
 pub mod angle_filter;
 pub mod ekf;
+pub mod node;
 pub mod pointing;
 pub mod track;
 
