@@ -370,6 +370,8 @@ pub struct Detection {
     /// Line of sight of the end point (eq 10) [rad].
     pub azimuth_rad: f64,
     pub elevation_rad: f64,
+    /// 1σ of that line of sight [rad], from the blob's centroid uncertainty (0 = unknown).
+    pub sigma_rad: f64,
 }
 
 impl Detection {
@@ -432,6 +434,7 @@ impl Detections {
                 d.flux_dn,
                 d.azimuth_rad,
                 d.elevation_rad,
+                d.sigma_rad,
             ] {
                 finite(v, "detections.items")?;
             }

@@ -63,14 +63,15 @@ fn truth_layout() {
 
 #[test]
 fn detections_and_tracks_layout() {
-    assert_eq!((size_of::<Detection>(), align_of::<Detection>()), (104, 8));
+    assert_eq!((size_of::<Detection>(), align_of::<Detection>()), (112, 8));
     assert_eq!(offset_of!(Detection, x_px), 8);
     assert_eq!(offset_of!(Detection, end_x_px), 24);
     assert_eq!(offset_of!(Detection, area_px), 40);
     assert_eq!(offset_of!(Detection, azimuth_rad), 88);
+    assert_eq!(offset_of!(Detection, sigma_rad), 104);
     assert_eq!(
         (size_of::<Detections>(), align_of::<Detections>()),
-        (64 + 32 * 104, 8)
+        (64 + 32 * 112, 8)
     );
     assert_eq!(offset_of!(Detections, frame_index), 32);
     assert_eq!(offset_of!(Detections, exposure_end_ns), 40);

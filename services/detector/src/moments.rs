@@ -193,6 +193,24 @@ impl Blob {
     }
 
     /// The ellipse of the requested moment set.
+    /// 1σ of the intensity-weighted centroid \[px\] (RMS of the x and y errors), propagated from
+    /// per-pixel noise: background σ_bg \[DN\] on every pixel of the blob plus shot noise of the
+    /// signal, `var(x̄) = (σ_bg² Σ(x−x̄)² + Σ s (x−x̄)²/g) / F²`, with F the flux \[DN\] and g the
+    /// gain \[e⁻/DN\]. The sums come from the binary and weighted second moments.
+    pub fn centroid_sigma_px(&self, background_sigma_dn: f64, gain_e_per_dn: f64) -> f64 {
+        let f = self.weighted.m00;
+        if !(f > 0.0 && gain_e_per_dn > 0.0) {
+            return f64::NAN;
+        }
+        // Σ over the blob of squared offsets, summed over x and y: for an ellipse with semi-axes
+        // a, b the per-axis variances are a²/4 and b²/4 (trace is rotation-invariant).
+        let trace = |e: &Ellipse| (e.a_px * e.a_px + e.b_px * e.b_px) / 4.0;
+        let bin = self.binary();
+        let sum_bg = background_sigma_dn.powi(2) * bin.m00 * trace(&bin);
+        let sum_shot = f * trace(&self.weighted) / gain_e_per_dn;
+        ((sum_bg + sum_shot) / (f * f) / 2.0).sqrt()
+    }
+
     pub fn ellipse(&self, set: FeatureSet) -> Ellipse {
         match set {
             FeatureSet::Binary => self.binary(),

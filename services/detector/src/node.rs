@@ -57,12 +57,21 @@ pub fn camera(cam: &CameraScenario) -> PinholeCamera {
 }
 
 /// Builds the wire message of one frame from the matcher's result.
+/// Eq (9) extrapolates the end point from two centroids: u_t = (1+k) u_c − k u_c' with
+/// k = t_ep / (2 (t_ep + t_in)), so its variance is ((1+k)² + k²) times a centroid's.
+fn end_point_sigma_factor(exposure_s: f64, interval_s: f64) -> f64 {
+    let k = exposure_s / (2.0 * (exposure_s + interval_s));
+    ((1.0 + k).powi(2) + k * k).sqrt()
+}
+
 pub fn to_message(
     camera: &PinholeCamera,
     blobs: &[Blob],
     m: &MatchResult,
     frame_index: u64,
     exposure_end_ns: u64,
+    background_sigma_dn: f64,
+    end_point_factor: f64,
 ) -> Detections {
     let mut out = Detections {
         frame_index,
@@ -80,6 +89,9 @@ pub fn to_message(
             continue;
         };
         let los = line_of_sight(camera, md.end_point_px[0], md.end_point_px[1]);
+        // Gain 1 e⁻/DN: the sensor's renderer uses it; a real camera would configure it.
+        let sigma_px = b.centroid_sigma_px(background_sigma_dn, 1.0) * end_point_factor;
+        let sigma_rad = sigma_px * camera.ifov_rad();
         let mut flags = Detection::FLAG_MATCHED;
         if b.touches_border {
             flags |= Detection::FLAG_BORDER;
@@ -102,6 +114,11 @@ pub fn to_message(
             flux_dn: b.flux_dn,
             azimuth_rad: los.azimuth_rad,
             elevation_rad: los.elevation_rad,
+            sigma_rad: if sigma_rad.is_finite() {
+                sigma_rad
+            } else {
+                0.0
+            },
         };
         out.n += 1;
     }
@@ -135,6 +152,7 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     let mut matcher = Matcher::new(match_cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
     let camera = camera(cam);
     let (w, h) = (cam.width_px as usize, cam.height_px as usize);
+    let end_factor = end_point_sigma_factor(cam.exposure_s, cam.interval_s);
     hk.state = Heartbeat::READY;
     let mut send_error: Option<anyhow::Error> = None;
 
@@ -173,6 +191,8 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                 &result,
                 header.frame_index,
                 header.meta.t_ns,
+                found.background.sigma_dn,
+                end_factor,
             );
             last_t_ns = header.meta.t_ns;
             if let Err(e) = out.send(msg, header.meta.t_ns) {

@@ -245,6 +245,16 @@ impl AngleFilter {
 
     /// Predicts to the measurement time and applies it (eqs 13–15, Joseph form).
     pub fn update(&mut self, z: &AngleMeasurement) -> Result<AngleUpdate, FilterError> {
+        self.update_with_sigma(z, None)
+    }
+
+    /// As [`AngleFilter::update`] with this measurement's own 1σ \[rad\] (e.g. from the
+    /// detection's centroid uncertainty) instead of the configured one.
+    pub fn update_with_sigma(
+        &mut self,
+        z: &AngleMeasurement,
+        sigma_rad: Option<f64>,
+    ) -> Result<AngleUpdate, FilterError> {
         if !(z.azimuth_rad.is_finite() && z.elevation_rad.is_finite()) {
             return Err(FilterError::NonFinite {
                 what: "measurement",
@@ -252,7 +262,10 @@ impl AngleFilter {
         }
         let (x, p) = self.predicted(z.t_s)?;
         let h = observation();
-        let r = Matrix2::identity() * self.config.measurement_sigma_rad.powi(2);
+        let sigma = sigma_rad
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .unwrap_or(self.config.measurement_sigma_rad);
+        let r = Matrix2::identity() * sigma.powi(2);
         let s = h * p * h.transpose() + r;
         let s_inv = s
             .cholesky()

@@ -359,12 +359,22 @@ impl CwEkf {
 
     /// Predicts to the measurement time and applies α and β only (no range reply).
     pub fn update_angles(&mut self, m: &AngleMeasurement) -> Result<EkfUpdate, EkfError> {
+        self.update_angles_with_sigma(m, None)
+    }
+
+    /// As [`CwEkf::update_angles`] with this measurement's own 1σ \[rad\] for α and β.
+    pub fn update_angles_with_sigma(
+        &mut self,
+        m: &AngleMeasurement,
+        sigma_rad: Option<f64>,
+    ) -> Result<EkfUpdate, EkfError> {
         let z = SVector::<f64, 2>::new(m.azimuth_rad, m.elevation_rad);
+        let sigma = sigma_rad.filter(|v| v.is_finite() && *v > 0.0);
         let r = SMatrix::<f64, 2, 2>::new(
-            self.config.sigma_azimuth_rad.powi(2),
+            sigma.unwrap_or(self.config.sigma_azimuth_rad).powi(2),
             0.0,
             0.0,
-            self.config.sigma_elevation_rad.powi(2),
+            sigma.unwrap_or(self.config.sigma_elevation_rad).powi(2),
         );
         let nu = self.apply::<2>(m.t_s, z, r)?;
         Ok(EkfUpdate {

@@ -68,6 +68,7 @@ impl FrameWork<'_> {
                 elevation_rad: det.elevation_rad,
                 range_m: None,
                 range_t_s: None,
+                sigma_rad: (det.sigma_rad > 0.0).then_some(det.sigma_rad),
             })
             .collect();
         let outcome = self.tm.process_frame(&observations);

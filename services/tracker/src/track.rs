@@ -73,6 +73,9 @@ pub struct TrackObservation {
     /// measurement with delay-predicted pointing, §3.7); `None` = same time as the angles.
     #[serde(default)]
     pub range_t_s: Option<f64>,
+    /// 1σ of these angles \[rad\] when known per detection; `None` = the configured value.
+    #[serde(default)]
+    pub sigma_rad: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -192,6 +195,7 @@ impl Track {
         &mut self,
         cfg: &AngleFilterConfig,
         z: AngleMeasurement,
+        sigma_rad: Option<f64>,
     ) -> Option<TrackFault> {
         let Some(filter) = self.angle_filter.as_mut() else {
             match self.pending_angles.take() {
@@ -211,7 +215,7 @@ impl Track {
             }
             return None;
         };
-        match filter.update(&z) {
+        match filter.update_with_sigma(&z, sigma_rad) {
             Ok(_) => None,
             Err(e @ FilterError::TimeReversed { .. }) => {
                 Some(self.fault(FilterKind::Angle, FaultAction::Skipped, e.to_string()))
@@ -403,6 +407,7 @@ impl TrackManager {
                 elevation_rad: x[2],
                 range_m: Some(range_m),
                 range_t_s: Some(t_s),
+                sigma_rad: None,
             };
             track.observe_range(&cfg, t_s, range_m, &obs, &mut faults);
         }
@@ -436,7 +441,7 @@ impl TrackManager {
                 elevation_rad: obs.elevation_rad,
             };
             out.faults
-                .extend(track.observe_angles(&cfg.angle_filter, z));
+                .extend(track.observe_angles(&cfg.angle_filter, z, obs.sigma_rad));
             track.observe_ekf(&cfg.ekf, obs, &mut out.faults);
             if !out.updated.contains(&obs.track_id) {
                 track.hits = track.hits.saturating_add(1);

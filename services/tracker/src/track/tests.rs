@@ -22,6 +22,7 @@ fn observe(id: u64, x: &Vector6<f64>, t: f64, with_range: bool, rng: &mut Rng) -
         elevation_rad: h[1] + 1.7e-4 * rng.gaussian(),
         range_m: with_range.then(|| h[2] + 0.1 / 3.0 * rng.gaussian()),
         range_t_s: None,
+        sigma_rad: None,
     }
 }
 
@@ -45,6 +46,7 @@ fn delayed_laser_range_is_applied_at_its_own_time() {
             elevation_rad: h[1] + 1.7e-4 * rng.gaussian(),
             range_m: Some(r_echo),
             range_t_s: Some(t_echo),
+            sigma_rad: None,
         };
         let out = tm.process_frame(&[obs]);
         assert!(out.faults.is_empty(), "{:?}", out.faults);
