@@ -1,0 +1,115 @@
+//! The [002] debris scenario across sensor, detector and tracker processes, scored against
+//! truth by the orchestrator; and the offline detect tool on rendered and broken files.
+
+mod common;
+
+use common::*;
+
+#[test]
+fn debris_scenario_meets_its_targets_across_processes() {
+    let dir = temp_dir("debris");
+    let r = run(Some(&scenario("debris-geo.toml")), &dir, &[]);
+    assert!(
+        r.output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&r.output.stderr)
+    );
+    let rep = &r.report;
+    let names: Vec<&str> = rep["services"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["sensor", "detector", "tracker"]);
+    for t in ["frame", "detections", "tracks", "truth"] {
+        assert_eq!(rep["topics"][t]["published"], 50, "{t}");
+    }
+    let d = &rep["detection"];
+    assert_eq!(d["precision"], 1.0, "{d}");
+    assert_eq!(d["recall"], 1.0, "{d}");
+    assert_eq!(d["false_targets"], 2);
+    assert_eq!(d["false_targets_rejected"], 2);
+    let targets = rep["tracking"]["targets"].as_array().unwrap();
+    assert_eq!(targets.len(), 4, "all four debris");
+    for t in targets {
+        let f = |k: &str| {
+            t[k].as_f64()
+                .unwrap_or_else(|| panic!("{k} missing in {t}"))
+        };
+        assert!(t["track_id"].is_u64(), "{t}");
+        assert!(f("frames_tracked") >= 48.0, "{t}");
+        assert!(f("azimuth_err_deg_rms_filtered") <= 1e-3, "{t}");
+        assert!(f("elevation_err_deg_rms_filtered") <= 1e-3, "{t}");
+        assert!(f("pos_err_m_final") <= 0.5, "{t}");
+        assert!(f("vel_err_mps_final") <= 0.5, "{t}");
+        assert!(f("nees_mean").is_finite(), "{t}");
+        assert!(
+            f("laser_hits") >= 0.9 * f("laser_shots") && f("laser_shots") >= 40.0,
+            "{t}"
+        );
+    }
+    for pic in [
+        "debris-angles.svg",
+        "debris-ekf.svg",
+        "frame-annotated.svg",
+        "frame-0001.png",
+    ] {
+        assert!(dir.join(pic).exists(), "{pic}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn offline_detect_finds_the_rendered_debris_and_rejects_bad_files() {
+    let dir = temp_dir("tool-detect");
+    let frame = dir.join("f0.pgm");
+    let out = glint()
+        .args(["tool", "render"])
+        .arg(scenario("debris-geo.toml"))
+        .args(["--frame", "0", "--out"])
+        .arg(&frame)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = glint()
+        .args(["tool", "detect"])
+        .arg(&frame)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // Frame 0 of debris-geo: 4 debris streaks and 2 false targets.
+    let dets = j["detections"].as_array().unwrap();
+    assert_eq!(dets.len(), 6, "{j}");
+    for d in dets {
+        for k in ["x", "y", "area", "a", "b", "theta_rad", "eccentricity"] {
+            assert!(d[k].is_number(), "{k} in {d}");
+        }
+        assert!(d["a"].as_f64() >= d["b"].as_f64());
+    }
+    // Broken inputs: exit 2 with a message naming the problem, never a panic.
+    let cases: [(&str, &[u8], &str); 3] = [
+        ("magic.pgm", b"P2\n2 2\n65535\n1 2 3 4\n", "magic"),
+        ("short.pgm", b"P5\n4 4\n65535\n\x00\x01", "short"),
+        ("maxval.pgm", b"P5\n2 2\n0\n\x00\x00\x00\x00", "maxval"),
+    ];
+    for (name, bytes, word) in cases {
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let out = glint().args(["tool", "detect"]).arg(&p).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).to_lowercase();
+        assert_eq!(out.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains(name) && err.contains(word), "{name}: {err}");
+        assert!(!err.contains("panicked"));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
