@@ -242,7 +242,7 @@ pub fn score(
             {
                 direct.push(
                     (Vector3::from_column_slice(&est.direct_position_m)
-                        - x_true.fixed_rows::<3>(0))
+                        - x_true_state.fixed_rows::<3>(0))
                     .norm(),
                 );
             }

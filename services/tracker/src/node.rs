@@ -126,6 +126,7 @@ impl FrameWork<'_> {
                             if resp.status == RangeStatus::Hit as u32 {
                                 est.range_meas_m = resp.range_m;
                                 let echo_s = resp.meta.t_ns as f64 * 1e-9;
+                                est.state_t_ns = resp.meta.t_ns;
                                 for f in self.tm.apply_range(id, echo_s, resp.range_m) {
                                     tracing::warn!(track = id, "range: {}", f.message);
                                 }
