@@ -609,6 +609,157 @@ pub struct RangeResponse {
     pub track_id: u32,
 }
 
+/// A solve call to the inversion ([000] three-stage solve).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[type_name("glint.v1.SolveRequest")]
+#[repr(C)]
+pub struct SolveRequest {
+    pub meta: Meta,
+    pub request_id: u64,
+    /// 1 = reconstruct (stable window), 2 = band selection, 3 = attitude rates (motion window).
+    pub stage: u32,
+    /// [`SolveRequest::FLAG_JOINT`]: also fit stage 3 on all bands jointly.
+    pub flags: u32,
+}
+
+impl SolveRequest {
+    pub const FLAG_JOINT: u32 = 1;
+
+    pub fn validate(&self) -> Result<(), Reject> {
+        self.meta.validate()?;
+        if !(1..=3).contains(&self.stage) {
+            return Err(Reject::new("solve_request.stage", "not 1, 2 or 3"));
+        }
+        Ok(())
+    }
+}
+
+/// Outcome of a solve call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum SolveStatus {
+    Ok = 0,
+    /// The window this stage needs is not complete yet (or an earlier stage has not run).
+    NotReady = 1,
+    /// The geometry does not determine the rates (no glint); no number is given.
+    Unobservable = 2,
+    /// The solver failed (diverged, singular).
+    Failed = 3,
+    /// The request was malformed.
+    Rejected = 4,
+}
+
+impl SolveStatus {
+    pub fn from_u32(v: u32) -> Option<Self> {
+        [
+            Self::Ok,
+            Self::NotReady,
+            Self::Unobservable,
+            Self::Failed,
+            Self::Rejected,
+        ]
+        .into_iter()
+        .find(|s| *s as u32 == v)
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ok => "ok",
+            Self::NotReady => "not_ready",
+            Self::Unobservable => "unobservable",
+            Self::Failed => "failed",
+            Self::Rejected => "rejected",
+        }
+    }
+}
+
+/// The inversion's answer; every stage fills what it computed (NaN elsewhere).
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("glint.v1.SolveResponse")]
+#[repr(C)]
+pub struct SolveResponse {
+    pub meta: Meta,
+    pub request_id: u64,
+    pub stage: u32,
+    /// [`SolveStatus`] as u32.
+    pub status: u32,
+    pub n_bands: u32,
+    /// Index of the chosen band λ* (stage 2 and 3).
+    pub chosen_band: u32,
+    pub wavelength_nm: [f64; MAX_BANDS],
+    /// Stage 1: relative reconstruction error per band.
+    pub recon_err: [f64; MAX_BANDS],
+    /// Stage 2: separation degree σ(λ) per band.
+    pub separation: [f64; MAX_BANDS],
+    /// Stage 3 at λ*: rates [deg/frame] and their covariance (row-major).
+    pub p_deg_per_frame: [f64; 3],
+    pub p_covariance: [f64; 9],
+    /// Stage 3 on all bands jointly (NaN when not requested).
+    pub p_joint_deg_per_frame: [f64; 3],
+    pub p_joint_covariance: [f64; 9],
+    /// Fisher information at the solution: eigenvalues (ascending) and eigenvectors (columns).
+    pub fisher_eigenvalues: [f64; 3],
+    pub fisher_eigenvectors: [f64; 9],
+    /// 1σ bound along each eigen-direction [deg/frame].
+    pub bound_1sigma_deg_per_frame: [f64; 3],
+    /// Final normalised cost, LM iterations, starts tried.
+    pub cost: f64,
+    pub iterations: u32,
+    pub starts: u32,
+    /// Bit i set when eigen-direction i is observable (its bound below the threshold).
+    pub observable_mask: u32,
+    pub stable_samples: u32,
+    pub motion_samples: u32,
+    pub _pad: u32,
+}
+
+impl Default for SolveResponse {
+    fn default() -> Self {
+        SolveResponse {
+            meta: Meta::default(),
+            request_id: 0,
+            stage: 0,
+            status: SolveStatus::Failed as u32,
+            n_bands: 0,
+            chosen_band: 0,
+            wavelength_nm: [0.0; MAX_BANDS],
+            recon_err: [f64::NAN; MAX_BANDS],
+            separation: [f64::NAN; MAX_BANDS],
+            p_deg_per_frame: [f64::NAN; 3],
+            p_covariance: [f64::NAN; 9],
+            p_joint_deg_per_frame: [f64::NAN; 3],
+            p_joint_covariance: [f64::NAN; 9],
+            fisher_eigenvalues: [f64::NAN; 3],
+            fisher_eigenvectors: [f64::NAN; 9],
+            bound_1sigma_deg_per_frame: [f64::NAN; 3],
+            cost: f64::NAN,
+            iterations: 0,
+            starts: 0,
+            observable_mask: 0,
+            stable_samples: 0,
+            motion_samples: 0,
+            _pad: 0,
+        }
+    }
+}
+
+impl SolveResponse {
+    pub fn validate(&self) -> Result<(), Reject> {
+        self.meta.validate()?;
+        if SolveStatus::from_u32(self.status).is_none() {
+            return Err(Reject::new("solve_response.status", "unknown status"));
+        }
+        if self.n_bands as usize > MAX_BANDS
+            || (self.n_bands > 0 && self.chosen_band >= self.n_bands)
+        {
+            return Err(Reject::new(
+                "solve_response.n_bands/chosen_band",
+                "out of range",
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Reasons a consumer drops a message; index into [`Heartbeat::dropped`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(usize)]
@@ -801,6 +952,8 @@ impl Message for Spectrum {
 message!(Truth, |m: &Truth| m.validate());
 message!(Detections, |m: &Detections| m.validate());
 message!(Tracks, |m: &Tracks| m.validate());
+message!(SolveRequest, |m: &SolveRequest| m.validate());
+message!(SolveResponse, |m: &SolveResponse| m.validate());
 message!(RangeRequest, |m: &RangeRequest| m.validate());
 message!(RangeResponse, |m: &RangeResponse| m.meta.validate());
 message!(Heartbeat, |m: &Heartbeat| m.validate());

@@ -75,10 +75,11 @@ pub enum TopicId {
     Range = 6,
     Detections = 7,
     Tracks = 8,
+    Solve = 9,
 }
 
 impl TopicId {
-    pub const ALL: [TopicId; 9] = [
+    pub const ALL: [TopicId; 10] = [
         TopicId::Frame,
         TopicId::Spectrum,
         TopicId::Truth,
@@ -88,6 +89,7 @@ impl TopicId {
         TopicId::Range,
         TopicId::Detections,
         TopicId::Tracks,
+        TopicId::Solve,
     ];
 
     /// Short name used in reports (`topics.<name>`).
@@ -102,6 +104,7 @@ impl TopicId {
             TopicId::Range => "range",
             TopicId::Detections => "detections",
             TopicId::Tracks => "tracks",
+            TopicId::Solve => "solve",
         }
     }
 
@@ -172,6 +175,7 @@ pub type FrameService = publish_subscribe::PortFactory<Ipc, [u16], FrameHeader>;
 pub type PubSubService<T> = publish_subscribe::PortFactory<Ipc, T, ()>;
 pub type EventService = event::PortFactory<Ipc>;
 pub type RangeService = request_response::PortFactory<Ipc, RangeRequest, (), RangeResponse, ()>;
+pub type SolveService = request_response::PortFactory<Ipc, SolveRequest, (), SolveResponse, ()>;
 
 /// Opens (or creates) the frame topic: `[u16]` pixels with a [`FrameHeader`].
 pub fn frame_service(node: &IpcNode) -> Result<FrameService, OpenError> {
@@ -283,6 +287,22 @@ pub fn range_service(node: &IpcNode) -> Result<RangeService, OpenError> {
         .map_err(|e| err(t, e))
 }
 
+/// The inversion's solve calls: request/response, served by the inversion.
+pub fn solve_service(node: &IpcNode) -> Result<SolveService, OpenError> {
+    let t = TopicId::Solve;
+    node.service_builder(&name(t)?)
+        .request_response::<SolveRequest, SolveResponse>()
+        .max_servers(2)
+        .max_clients(2)
+        .max_nodes(MAX_NODES)
+        .max_active_requests_per_client(2)
+        .max_response_buffer_size(2)
+        .enable_safe_overflow_for_requests(false)
+        .enable_safe_overflow_for_responses(false)
+        .open_or_create_with_attributes(&contract_verifier(t)?)
+        .map_err(|e| err(t, e))
+}
+
 /// The wake-up event paired with a topic. For request/response topics, `reply = true` names the
 /// server→client direction.
 pub fn event_service(node: &IpcNode, t: TopicId, reply: bool) -> Result<EventService, OpenError> {
@@ -318,6 +338,8 @@ pub fn create_all(node: &IpcNode) -> Result<Vec<Box<dyn std::any::Any>>, OpenErr
     for t in TopicId::ALL {
         keep.push(Box::new(event_service(node, t, false)?));
     }
+    keep.push(Box::new(solve_service(node)?));
     keep.push(Box::new(event_service(node, TopicId::Range, true)?));
+    keep.push(Box::new(event_service(node, TopicId::Solve, true)?));
     Ok(keep)
 }

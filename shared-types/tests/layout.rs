@@ -207,3 +207,30 @@ fn frame_header_validation_checks_payload_length() {
     assert!(h.validate(512).is_ok());
     assert_eq!(h.validate(511).unwrap_err().field, "frame.payload");
 }
+
+#[test]
+fn solve_layout() {
+    assert_eq!(
+        (size_of::<SolveRequest>(), align_of::<SolveRequest>()),
+        (48, 8)
+    );
+    assert_eq!(offset_of!(SolveRequest, request_id), 32);
+    assert_eq!(offset_of!(SolveRequest, stage), 40);
+    assert_eq!(offset_of!(SolveRequest, flags), 44);
+    assert_eq!(
+        (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
+        (1936, 8)
+    );
+    assert_eq!(offset_of!(SolveResponse, status), 44);
+    assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
+    assert_eq!(offset_of!(SolveResponse, wavelength_nm), 56);
+    assert_eq!(offset_of!(SolveResponse, recon_err), 568);
+    assert_eq!(offset_of!(SolveResponse, separation), 1080);
+    assert_eq!(offset_of!(SolveResponse, p_deg_per_frame), 1592);
+    assert_eq!(offset_of!(SolveResponse, p_covariance), 1616);
+    assert_eq!(offset_of!(SolveResponse, p_joint_deg_per_frame), 1688);
+    assert_eq!(offset_of!(SolveResponse, fisher_eigenvalues), 1784);
+    assert_eq!(offset_of!(SolveResponse, bound_1sigma_deg_per_frame), 1880);
+    assert_eq!(offset_of!(SolveResponse, cost), 1904);
+    assert_eq!(offset_of!(SolveResponse, motion_samples), 1928);
+}

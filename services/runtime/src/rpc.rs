@@ -1,6 +1,7 @@
-//! The laser rangefinder over request/response, with event wake-ups both ways (request/response
-//! ports are not waitable). Clients always wait with a timeout and clean up dead nodes while
-//! waiting, so a crashed server ends the wait instead of hanging it.
+//! Request/response with event wake-ups both ways (request/response ports are not waitable):
+//! the laser rangefinder (tracker → sensor) and the solve calls (orchestrator → inversion).
+//! Clients always wait with a timeout and clean up dead nodes while waiting, so a crashed
+//! server ends the wait instead of hanging it.
 
 use std::time::{Duration, Instant};
 
@@ -9,58 +10,118 @@ use iceoryx2::port::client::Client;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::server::Server;
-use shared_types::topics::{event_service, range_service, Ipc, IpcNode, EVENT_DATA};
-use shared_types::{Message, Meta, RangeRequest, RangeResponse, RangeStatus, ServiceId, TopicId};
+use iceoryx2::service::port_factory::request_response::PortFactory;
+use shared_types::topics::{event_service, range_service, solve_service, Ipc, IpcNode, EVENT_DATA};
+use shared_types::{
+    DropReason, Message, Meta, RangeRequest, RangeResponse, ServiceId, SolveRequest, SolveResponse,
+    TopicId,
+};
 
 use crate::clock::mono_ns;
 use crate::stats::TopicStats;
 
-pub struct RangeServer {
-    server: Server<Ipc, RangeRequest, (), RangeResponse, ()>,
+/// The iceoryx2 service of a request/response pair.
+pub type RpcService<Req, Resp> = PortFactory<Ipc, Req, (), Resp, ()>;
+
+/// A request type and its response type on one topic.
+pub trait Rpc {
+    type Req: Message + Default;
+    type Resp: Message + Default;
+    const TOPIC: TopicId;
+    fn service(node: &IpcNode) -> Result<RpcService<Self::Req, Self::Resp>>;
+    /// The id a request carries (echoed in its response).
+    fn set_request_id(req: &mut Self::Req, id: u64);
+    /// The answer to a request that failed validation.
+    fn rejected(req: &Self::Req) -> Self::Resp;
+}
+
+/// The laser rangefinder.
+pub struct Range;
+impl Rpc for Range {
+    type Req = RangeRequest;
+    type Resp = RangeResponse;
+    const TOPIC: TopicId = TopicId::Range;
+    fn service(node: &IpcNode) -> Result<RpcService<RangeRequest, RangeResponse>> {
+        Ok(range_service(node)?)
+    }
+    fn set_request_id(req: &mut RangeRequest, id: u64) {
+        req.request_id = id;
+    }
+    fn rejected(req: &RangeRequest) -> RangeResponse {
+        RangeResponse {
+            request_id: req.request_id,
+            status: shared_types::RangeStatus::Rejected as u32,
+            track_id: req.track_id,
+            ..Default::default()
+        }
+    }
+}
+
+/// The inversion's solve calls.
+pub struct Solve;
+impl Rpc for Solve {
+    type Req = SolveRequest;
+    type Resp = SolveResponse;
+    const TOPIC: TopicId = TopicId::Solve;
+    fn service(node: &IpcNode) -> Result<RpcService<SolveRequest, SolveResponse>> {
+        Ok(solve_service(node)?)
+    }
+    fn set_request_id(req: &mut SolveRequest, id: u64) {
+        req.request_id = id;
+    }
+    fn rejected(req: &SolveRequest) -> SolveResponse {
+        SolveResponse {
+            request_id: req.request_id,
+            stage: req.stage,
+            status: shared_types::SolveStatus::Rejected as u32,
+            ..Default::default()
+        }
+    }
+}
+
+pub struct RpcServer<R: Rpc> {
+    server: Server<Ipc, R::Req, (), R::Resp, ()>,
     reply: Notifier<Ipc>,
     producer: ServiceId,
     /// `received`/`dropped` count requests; `published` counts responses.
     pub stats: TopicStats,
 }
 
-impl RangeServer {
+impl<R: Rpc> RpcServer<R> {
     /// Opens the server; the returned listener wakes the loop on new requests.
     pub fn open(node: &IpcNode, producer: ServiceId) -> Result<(Self, Listener<Ipc>)> {
-        let svc = range_service(node)?;
-        let server = svc
+        let name = R::TOPIC.name();
+        let server = R::service(node)?
             .server_builder()
             .create()
-            .map_err(|e| anyhow!("range server: {e:?}"))?;
-        let reply = event_service(node, TopicId::Range, true)?
+            .map_err(|e| anyhow!("{name} server: {e:?}"))?;
+        let reply = event_service(node, R::TOPIC, true)?
             .notifier_builder()
             .create()
-            .map_err(|e| anyhow!("range reply notifier: {e:?}"))?;
-        let listener = event_service(node, TopicId::Range, false)?
+            .map_err(|e| anyhow!("{name} reply notifier: {e:?}"))?;
+        let listener = event_service(node, R::TOPIC, false)?
             .listener_builder()
             .create()
-            .map_err(|e| anyhow!("range request listener: {e:?}"))?;
+            .map_err(|e| anyhow!("{name} request listener: {e:?}"))?;
         Ok((
-            RangeServer {
+            RpcServer {
                 server,
                 reply,
                 producer,
-                stats: TopicStats::new(TopicId::Range),
+                stats: TopicStats::new(R::TOPIC),
             },
             listener,
         ))
     }
 
     /// Answers every pending request with `answer(request) -> (response, t_ns)`. Malformed
-    /// requests are counted and answered with `RangeStatus::Rejected`.
-    pub fn serve(
-        &mut self,
-        mut answer: impl FnMut(&RangeRequest) -> (RangeResponse, u64),
-    ) -> Result<usize> {
+    /// requests are counted and answered with the rejection response.
+    pub fn serve(&mut self, mut answer: impl FnMut(&R::Req) -> (R::Resp, u64)) -> Result<usize> {
         let mut n = 0;
         while let Some(active) = self
             .server
             .receive()
-            .map_err(|e| anyhow!("range receive: {e:?}"))?
+            .map_err(|e| anyhow!("{} receive: {e:?}", R::TOPIC.name()))?
         {
             n += 1;
             let req = *active.payload();
@@ -70,63 +131,58 @@ impl RangeServer {
                     answer(&req)
                 }
                 Err(_) => {
-                    self.stats.drop_for(shared_types::DropReason::Malformed);
-                    let r = RangeResponse {
-                        request_id: req.request_id,
-                        status: RangeStatus::Rejected as u32,
-                        track_id: req.track_id,
-                        ..Default::default()
-                    };
-                    (r, req.meta.t_ns)
+                    self.stats.drop_for(DropReason::Malformed);
+                    (R::rejected(&req), req.meta().t_ns)
                 }
             };
-            resp.meta = Meta::new(self.stats.published, t_ns, mono_ns(), self.producer);
+            *resp.meta_mut() = Meta::new(self.stats.published, t_ns, mono_ns(), self.producer);
+            resp.seal();
             active
                 .send_copy(resp)
-                .map_err(|e| anyhow!("range respond: {e:?}"))?;
+                .map_err(|e| anyhow!("{} respond: {e:?}", R::TOPIC.name()))?;
             self.stats.published += 1;
             self.reply
                 .notify_with_custom_event_id(EVENT_DATA)
-                .map_err(|e| anyhow!("range reply notify: {e:?}"))?;
+                .map_err(|e| anyhow!("{} reply notify: {e:?}", R::TOPIC.name()))?;
         }
         Ok(n)
     }
 }
 
-pub struct RangeClient {
-    client: Client<Ipc, RangeRequest, (), RangeResponse, ()>,
+pub struct RpcClient<R: Rpc> {
+    client: Client<Ipc, R::Req, (), R::Resp, ()>,
     request: Notifier<Ipc>,
     reply: Listener<Ipc>,
     producer: ServiceId,
     next_id: u64,
 }
 
-/// Outcome of [`RangeClient::call`].
+/// Outcome of [`RpcClient::call`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum CallOutcome {
-    Answered(RangeResponse),
+pub enum CallOutcome<T> {
+    Answered(T),
     /// No answer within the timeout.
     TimedOut,
     /// The server disappeared (dead-node cleanup disconnected the request).
     Disconnected,
 }
 
-impl RangeClient {
+impl<R: Rpc> RpcClient<R> {
     pub fn open(node: &IpcNode, producer: ServiceId) -> Result<Self> {
-        let svc = range_service(node)?;
-        let client = svc
+        let name = R::TOPIC.name();
+        let client = R::service(node)?
             .client_builder()
             .create()
-            .map_err(|e| anyhow!("range client: {e:?}"))?;
-        let request = event_service(node, TopicId::Range, false)?
+            .map_err(|e| anyhow!("{name} client: {e:?}"))?;
+        let request = event_service(node, R::TOPIC, false)?
             .notifier_builder()
             .create()
-            .map_err(|e| anyhow!("range request notifier: {e:?}"))?;
-        let reply = event_service(node, TopicId::Range, true)?
+            .map_err(|e| anyhow!("{name} request notifier: {e:?}"))?;
+        let reply = event_service(node, R::TOPIC, true)?
             .listener_builder()
             .create()
-            .map_err(|e| anyhow!("range reply listener: {e:?}"))?;
-        Ok(RangeClient {
+            .map_err(|e| anyhow!("{name} reply listener: {e:?}"))?;
+        Ok(RpcClient {
             client,
             request,
             reply,
@@ -140,25 +196,27 @@ impl RangeClient {
     pub fn call(
         &mut self,
         node: &IpcNode,
-        mut req: RangeRequest,
+        mut req: R::Req,
         t_ns: u64,
         timeout: Duration,
-    ) -> Result<CallOutcome> {
-        req.request_id = self.next_id;
-        req.meta = Meta::new(self.next_id, t_ns, mono_ns(), self.producer);
+    ) -> Result<CallOutcome<R::Resp>> {
+        R::set_request_id(&mut req, self.next_id);
+        *req.meta_mut() = Meta::new(self.next_id, t_ns, mono_ns(), self.producer);
+        req.seal();
         self.next_id += 1;
+        let name = R::TOPIC.name();
         let pending = self
             .client
             .send_copy(req)
-            .map_err(|e| anyhow!("range request: {e:?}"))?;
+            .map_err(|e| anyhow!("{name} request: {e:?}"))?;
         self.request
             .notify_with_custom_event_id(EVENT_DATA)
-            .map_err(|e| anyhow!("range request notify: {e:?}"))?;
+            .map_err(|e| anyhow!("{name} request notify: {e:?}"))?;
         let t0 = Instant::now();
         loop {
             if let Some(r) = pending
                 .receive()
-                .map_err(|e| anyhow!("range reply: {e:?}"))?
+                .map_err(|e| anyhow!("{name} reply: {e:?}"))?
             {
                 return Ok(CallOutcome::Answered(*r.payload()));
             }
@@ -169,12 +227,14 @@ impl RangeClient {
             if left.is_zero() {
                 return Ok(CallOutcome::TimedOut);
             }
-            let woke = self
-                .reply
+            self.reply
                 .timed_wait(|_| {}, left.min(Duration::from_millis(50)))
-                .map_err(|e| anyhow!("range reply wait: {e:?}"))?;
-            let _ = woke;
+                .map_err(|e| anyhow!("{name} reply wait: {e:?}"))?;
             node.try_cleanup_dead_nodes();
         }
     }
 }
+
+/// The laser's server and client.
+pub type RangeServer = RpcServer<Range>;
+pub type RangeClient = RpcClient<Range>;
