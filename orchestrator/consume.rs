@@ -51,6 +51,8 @@ pub struct Consumer {
     tracks_digest: Xxh3,
     /// Received spectra, reduced for the light-curve plot: (stream index, band centres, flux).
     pub light_curve: Vec<(u64, [f64; 3], [f64; 3])>,
+    /// Every received spectrum (exported as `observations.csv`).
+    pub spectra_msgs: Vec<Spectrum>,
     pub seen: BTreeMap<ServiceId, Seen>,
     /// Messages on each consumed topic the run must account for.
     pub expected: BTreeMap<TopicId, u64>,
@@ -139,6 +141,7 @@ impl Consumer {
                 detections_digest: Xxh3::new(),
                 tracks_digest: Xxh3::new(),
                 light_curve: vec![],
+                spectra_msgs: vec![],
                 seen: BTreeMap::new(),
                 expected,
                 acked: BTreeMap::new(),
@@ -184,8 +187,9 @@ impl Consumer {
         }
         if let Some(spectra) = self.spectra.as_mut() {
             let (digest, lat) = (&mut self.spectrum_digest, &mut self.spectrum_latency_ns);
-            let curve = &mut self.light_curve;
+            let (curve, keep) = (&mut self.light_curve, &mut self.spectra_msgs);
             spectra.drain(|r| {
+                keep.push(*r.msg);
                 digest.update(&r.msg.content_xxh3.to_le_bytes());
                 lat.push(r.latency_ns);
                 let m = r.msg;

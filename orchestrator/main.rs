@@ -7,13 +7,16 @@
 
 mod consume;
 mod deploy;
+mod observations;
 mod plots;
 mod png;
 mod progress;
 mod report;
 mod report_debris;
+mod report_inversion;
 mod run;
 mod score_debris;
+mod sequence;
 mod tools;
 
 use std::io::IsTerminal;
@@ -53,6 +56,16 @@ enum Cmd {
     },
     /// Check a scenario file; report every problem with its field and allowed range.
     Validate { scenario: PathBuf },
+    /// The three-stage attitude solve on an observation file (format: README).
+    Invert {
+        observations: PathBuf,
+        /// Write `inversion.json` here (default: print only).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Skip the joint multi-band fit.
+        #[arg(long)]
+        no_joint: bool,
+    },
     /// Offline tools: algorithm stages on files, no IPC.
     Tool {
         #[command(subcommand)]
@@ -60,7 +73,7 @@ enum Cmd {
     },
     /// Run one service in this process (the orchestrator spawns these).
     Service {
-        /// sensor | detector | tracker
+        /// sensor | detector | tracker | inversion
         name: String,
         /// Shared-memory prefix of the deployment.
         #[arg(long)]
@@ -159,6 +172,32 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Cmd::Invert {
+            observations,
+            out,
+            no_joint,
+        } => match tools::invert(&observations, !no_joint) {
+            Ok((json, text)) => {
+                print!("{text}");
+                if let Some(dir) = out {
+                    let written = std::fs::create_dir_all(&dir).and_then(|_| {
+                        std::fs::write(
+                            dir.join("inversion.json"),
+                            serde_json::to_string_pretty(&json).unwrap_or_default() + "\n",
+                        )
+                    });
+                    if let Err(e) = written {
+                        eprintln!("error: {}: {e}", dir.display());
+                        return ExitCode::from(1);
+                    }
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e:#}");
+                ExitCode::from(2)
+            }
+        },
         Cmd::Tool { tool } => {
             let result = match tool {
                 ToolCmd::Detect { frame, threshold } => {
@@ -204,9 +243,10 @@ fn main() -> ExitCode {
                 Some(ServiceId::Sensor) => glint_sensor::node::run(&prefix, &sc),
                 Some(ServiceId::Detector) => glint_detector::node::run(&prefix, &sc),
                 Some(ServiceId::Tracker) => glint_tracker::node::run(&prefix, &sc),
+                Some(ServiceId::Inversion) => glint_inversion::node::run(&prefix, &sc),
                 _ => {
                     eprintln!(
-                        "error: unknown service '{name}' (available: sensor, detector, tracker)"
+                        "error: unknown service '{name}' (available: sensor, detector, tracker, inversion)"
                     );
                     return ExitCode::from(2);
                 }

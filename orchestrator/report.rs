@@ -50,6 +50,8 @@ pub struct DebrisFacts {
 
 pub struct RunFacts {
     pub debris: Option<DebrisFacts>,
+    pub solve: Vec<shared_types::SolveResponse>,
+    pub spectra: Vec<shared_types::Spectrum>,
     pub services: Vec<ServiceFact>,
     pub topics: BTreeMap<TopicId, TopicFact>,
     pub failure: Option<String>,
@@ -86,6 +88,7 @@ impl RunFacts {
         consumer: &Consumer,
         children: &[ServiceProcess],
         scenario: &Scenario,
+        solve: Vec<shared_types::SolveResponse>,
         failure: Option<String>,
         outcome: Outcome,
     ) -> Self {
@@ -160,6 +163,8 @@ impl RunFacts {
         });
         RunFacts {
             debris,
+            solve,
+            spectra: consumer.spectra_msgs.clone(),
             services,
             topics,
             failure,
@@ -253,7 +258,12 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
         Some(d) => crate::report_debris::json(&d.score),
         None => (Value::Null, Value::Null),
     };
+    let inversion = match &scenario.spectra {
+        Some(sp) => crate::report_inversion::json(sp, &f.solve),
+        None => Value::Null,
+    };
     json!({
+        "inversion": inversion,
         "detection": detection,
         "tracking": tracking,
         "glint_version": env!("CARGO_PKG_VERSION"),
@@ -412,6 +422,9 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     if let Some(d) = &f.debris {
         s.push_str(&crate::report_debris::markdown(&d.score));
     }
+    if let Some(sp) = &scenario.spectra {
+        s.push_str(&crate::report_inversion::markdown(sp, &f.solve));
+    }
     if !f.light_curve.is_empty() {
         let _ = writeln!(s, "\n## Light curve\n\n![light curve](light-curve.svg)");
     }
@@ -462,6 +475,14 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
             &format!("{name} latency, sensor send → orchestrator receive"),
             "latency [µs] (log scale)",
             &us,
+        )?;
+    }
+    if let Some(sp) = &scenario.spectra {
+        crate::report_inversion::plots(dir, &facts.solve)?;
+        crate::observations::write(
+            &dir.join("observations.csv"),
+            &facts.spectra,
+            Some(sp.rate_deg_per_frame),
         )?;
     }
     if let Some(d) = &facts.debris {

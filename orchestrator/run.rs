@@ -72,6 +72,7 @@ fn deploy_and_run(
     let node = open_node(prefix, "orchestrator")?;
     let _services = shared_types::topics::create_all(&node)?;
     let (mut consumer, listeners) = Consumer::open(&node, scenario)?;
+    let mut sequencer = crate::sequence::Sequencer::open(&node, scenario)?;
 
     let log_dir = out_dir.join("logs");
     let mut children: Vec<ServiceProcess> = vec![];
@@ -131,7 +132,17 @@ fn deploy_and_run(
                 return Ok(Step::Stop);
             }
         }
-        if phase == Phase::Running && consumer.complete() {
+        if phase == Phase::Running {
+            if let Some(seq) = sequencer.as_mut() {
+                seq.step(&node, &consumer)?;
+                if let Some(f) = &seq.failure {
+                    failure = Some(f.clone());
+                    return Ok(Step::Stop);
+                }
+            }
+        }
+        let solved = sequencer.as_ref().is_none_or(|s| s.done());
+        if phase == Phase::Running && consumer.complete() && solved {
             t_done = Some(Instant::now());
             phase = Phase::Done;
             return Ok(Step::Stop);
@@ -195,6 +206,10 @@ fn deploy_and_run(
         &consumer,
         &children,
         scenario,
+        sequencer
+            .as_ref()
+            .map(|s| s.responses.clone())
+            .unwrap_or_default(),
         failure,
         Outcome {
             startup_s: t_running.map_or(0.0, |t| (t - t_start).as_secs_f64()),
@@ -205,6 +220,7 @@ fn deploy_and_run(
         bail!("a child survived the stop ladder");
     }
     drop(children);
+    drop(sequencer);
     drop(consumer);
     drop(listeners);
     drop(node);

@@ -10,6 +10,9 @@ pub fn services(scenario: &Scenario) -> Vec<ServiceId> {
     if scenario.camera.is_some() {
         v.extend([ServiceId::Detector, ServiceId::Tracker]);
     }
+    if scenario.spectra.is_some() {
+        v.push(ServiceId::Inversion);
+    }
     v
 }
 
@@ -26,7 +29,9 @@ pub fn consumers(scenario: &Scenario, topic: TopicId) -> Vec<ServiceId> {
             vec![ServiceId::Tracker, ServiceId::Orchestrator]
         }
         TopicId::Tracks if scenario.camera.is_some() => vec![ServiceId::Orchestrator],
-        TopicId::Spectrum if scenario.spectra.is_some() => vec![ServiceId::Orchestrator],
+        TopicId::Spectrum if scenario.spectra.is_some() => {
+            vec![ServiceId::Inversion, ServiceId::Orchestrator]
+        }
         TopicId::Truth => vec![ServiceId::Orchestrator],
         _ => vec![],
     }

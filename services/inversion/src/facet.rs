@@ -1,0 +1,407 @@
+//! Masked two-facet basis of eqs (11)–(12) and (20) with analytic derivatives (docs/math.md
+//! §1.2–1.3, §1.6).
+//!
+//! For a facet with unit normal n, Sun s and observer o (unit vectors in the rotated body frame
+//! s' = R s, o' = R o), with `a = n·s`, `b = n·o`, `u = s + o`, `h = u/‖u‖`, `c = cos τ = n·h`:
+//!
+//! ```text
+//! G_0 = [a]_+[b]_+ / π                         (diffuse, β_0 = 1/π)
+//! G_m = [a]_+[b]_+ β_m = D(c; μ_m)/4            (lobes, m = 1..=10; 0 unless a > 0 and b > 0)
+//! D(c; μ) = exp(−t/μ²)/(π μ² c⁴),  t = tan²τ = (1 − c²)/c²
+//! dD/dc   = D · (2/(μ² c³) − 4/c)
+//! ∂c/∂s = ∂c/∂o = (n − c h)/‖u‖,   ∂c/∂n = h
+//! ∂G_0/∂s = b n/π,  ∂G_0/∂o = a n/π,  ∂G_0/∂n = (b s + a o)/π
+//! β_m = D/(4ab):  ∇β_m = β_m (D'/D ∇c − ∇a/a − ∇b/b)
+//! ```
+//!
+//! The visibility clamp makes G piecewise smooth: inside the lit-and-visible region the formulas
+//! above hold; outside, G and its derivatives are 0. (G_m jumps at the horizon because the masked
+//! lobe does not vanish there; the derivative is the one-sided one of the active branch.)
+//!
+//! The only approximation: a lobe with `t/μ² > LOBE_EXP_CUTOFF` (= 60) is set to 0; it contributes
+//! less than e⁻⁶⁰ ≈ 9e-27 of its own peak `1/(4πμ²)`.
+
+use glint_physics::brdf::LOBE_WIDTHS_TABLE4;
+use glint_physics::two_facet::TERMS_PER_FACET;
+use nalgebra::Vector3;
+use std::f64::consts::{FRAC_1_PI, PI};
+
+/// Basis terms per facet (diffuse + 10 lobes).
+pub const TERMS: usize = TERMS_PER_FACET;
+
+/// Lobes with `tan²τ/μ²` above this are treated as 0 (relative size < e⁻⁶⁰).
+pub const LOBE_EXP_CUTOFF: f64 = 60.0;
+
+/// Number of lobes M.
+pub const LOBES: usize = LOBE_WIDTHS_TABLE4.len();
+
+/// 1/μ_m².
+const INV_MU2: [f64; LOBES] = {
+    let mut out = [0.0; LOBES];
+    let mut m = 0;
+    while m < LOBES {
+        out[m] = 1.0 / (LOBE_WIDTHS_TABLE4[m] * LOBE_WIDTHS_TABLE4[m]);
+        m += 1;
+    }
+    out
+};
+
+/// The widths the power chain below relies on (1/μ² = 10⁴, 2500, 625, 400, ·, ·, 100, 25, ·, 4).
+const CHAIN_WIDTHS: [f64; LOBES] = [0.01, 0.02, 0.04, 0.05, 0.07, 0.08, 0.10, 0.20, 0.30, 0.50];
+
+const CHAIN_APPLIES: bool = {
+    let mut same = true;
+    let mut m = 0;
+    while m < LOBES {
+        same &= LOBE_WIDTHS_TABLE4[m] == CHAIN_WIDTHS[m];
+        m += 1;
+    }
+    same
+};
+
+/// `exp(−t/μ_m²)` for every lobe (t = tan²τ ≥ 0); 0 where `t/μ_m² > LOBE_EXP_CUTOFF`.
+///
+/// For the Table-4 widths five `exp` calls suffice: with e₂₅ = exp(−25t),
+/// e₁₀₀ = e₂₅⁴, e₄₀₀ = e₁₀₀⁴, e₆₂₅ = e₂₅²⁵, e₂₅₀₀ = e₆₂₅⁴, e₁₀₀₀₀ = e₂₅₀₀⁴ (relative rounding
+/// ≲ 400 ulp ≈ 5e-14 on e₁₀₀₀₀, which is only used while ≥ e⁻⁶⁰).
+pub fn lobe_exponentials(tan2: f64) -> [f64; LOBES] {
+    let mut out = [0.0; LOBES];
+    if CHAIN_APPLIES {
+        let e25 = (-25.0 * tan2).exp();
+        let x4 = (e25 * e25) * (e25 * e25);
+        let x8 = x4 * x4;
+        let x16 = x8 * x8;
+        let e625 = x16 * x8 * e25;
+        let e2500 = (e625 * e625) * (e625 * e625);
+        let chain = [
+            (0, (e2500 * e2500) * (e2500 * e2500)),
+            (1, e2500),
+            (2, e625),
+            (3, (x4 * x4) * (x4 * x4)),
+            (6, x4),
+            (7, e25),
+        ];
+        for (m, v) in chain {
+            out[m] = v;
+        }
+        for m in [4, 5, 8, 9] {
+            out[m] = (-INV_MU2[m] * tan2).exp();
+        }
+    } else {
+        for m in 0..LOBES {
+            out[m] = (-INV_MU2[m] * tan2).exp();
+        }
+    }
+    for m in 0..LOBES {
+        if tan2 * INV_MU2[m] > LOBE_EXP_CUTOFF {
+            out[m] = 0.0;
+        }
+    }
+    out
+}
+
+/// Per-facet Beckmann quantities: D_m/4 and d(D_m/4)/dc for every lobe (0 for inactive lobes,
+/// c ≤ 0, or beyond the cutoff).
+fn quarter_beckmann(
+    cos_tau: f64,
+    active: &[bool],
+    with_derivative: bool,
+) -> ([f64; LOBES], [f64; LOBES]) {
+    let (mut d, mut dd) = ([0.0; LOBES], [0.0; LOBES]);
+    if cos_tau.is_nan() || cos_tau <= 0.0 || !active.iter().any(|&a| a) {
+        return (d, dd);
+    }
+    let c2 = (cos_tau * cos_tau).min(1.0);
+    let inv_c2 = 1.0 / c2;
+    let tan2 = (1.0 - c2) * inv_c2;
+    let e = lobe_exponentials(tan2);
+    let k = 0.25 * inv_c2 * inv_c2 / PI;
+    let inv_c = inv_c2.sqrt();
+    for m in 0..LOBES {
+        if active[m] {
+            d[m] = e[m] * INV_MU2[m] * k;
+            if with_derivative {
+                dd[m] = d[m] * inv_c * (2.0 * INV_MU2[m] * inv_c2 - 4.0);
+            }
+        }
+    }
+    (d, dd)
+}
+
+/// Beckmann `D(c; μ)` and `dD/dc` from `c = cos τ`; `(0, 0)` for c ≤ 0 or beyond the cutoff.
+pub fn beckmann_with_derivative(cos_tau: f64, mu: f64) -> (f64, f64) {
+    if cos_tau.is_nan() || cos_tau <= 0.0 {
+        return (0.0, 0.0);
+    }
+    let c2 = (cos_tau * cos_tau).min(1.0);
+    let mu2 = mu * mu;
+    let arg = (1.0 - c2) / c2 / mu2;
+    if arg > LOBE_EXP_CUTOFF {
+        return (0.0, 0.0);
+    }
+    let d = (-arg).exp() / (PI * mu2 * c2 * c2);
+    let c = c2.sqrt();
+    (d, d * (2.0 / (mu2 * c2 * c) - 4.0 / c))
+}
+
+/// Geometry of a lit and visible facet.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FacetGeometry {
+    /// a = n·s (> 0).
+    pub cos_ns: f64,
+    /// b = n·o (> 0).
+    pub cos_no: f64,
+    /// c = cos τ = n·h.
+    pub cos_tau: f64,
+    /// Unit half vector h = normalize(s + o).
+    pub half: Vector3<f64>,
+    /// 1/‖s + o‖.
+    pub inv_half_norm: f64,
+    /// The facet normal n.
+    pub normal: Vector3<f64>,
+}
+
+impl FacetGeometry {
+    /// `None` unless `n·s > 0`, `n·o > 0` and `s + o ≠ 0` (same rule as the physics crate).
+    pub fn new(n: Vector3<f64>, s: Vector3<f64>, o: Vector3<f64>) -> Option<Self> {
+        let (a, b) = (n.dot(&s), n.dot(&o));
+        if !(a > 0.0 && b > 0.0) {
+            return None;
+        }
+        let u = s + o;
+        let len = u.norm();
+        if !(len > 0.0 && len.is_finite()) {
+            return None;
+        }
+        let half = u / len;
+        Some(Self {
+            cos_ns: a,
+            cos_no: b,
+            cos_tau: n.dot(&half),
+            half,
+            inv_half_norm: 1.0 / len,
+            normal: n,
+        })
+    }
+
+    /// ∂c/∂s = ∂c/∂o = (n − c h)/‖s + o‖.
+    pub fn dcos_tau_dso(&self) -> Vector3<f64> {
+        (self.normal - self.half * self.cos_tau) * self.inv_half_norm
+    }
+
+    /// Masked basis values `G_m`, m = 0..=10, for the terms flagged in `active` (others 0).
+    pub fn basis(&self, active: &[bool; TERMS], out: &mut [f64; TERMS]) {
+        out[0] = if active[0] {
+            self.cos_ns * self.cos_no * FRAC_1_PI
+        } else {
+            0.0
+        };
+        let (d, _) = quarter_beckmann(self.cos_tau, &active[1..], false);
+        out[1..].copy_from_slice(&d);
+    }
+
+    /// Lobe values `D_m/4` and slopes `d(D_m/4)/dc` for the lobes flagged in `active` (M
+    /// entries; the slopes are 0 unless `with_slope`).
+    pub fn quarter_lobes(&self, active: &[bool], with_slope: bool) -> ([f64; LOBES], [f64; LOBES]) {
+        quarter_beckmann(self.cos_tau, active, with_slope)
+    }
+}
+
+/// Gradient of one masked basis term `G_m(n, s, o)` with respect to s, o and n.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TermGradient {
+    /// G_m.
+    pub value: f64,
+    /// ∂G_m/∂s.
+    pub d_s: Vector3<f64>,
+    /// ∂G_m/∂o.
+    pub d_o: Vector3<f64>,
+    /// ∂G_m/∂n.
+    pub d_n: Vector3<f64>,
+}
+
+impl TermGradient {
+    const ZERO: Self = Self {
+        value: 0.0,
+        d_s: Vector3::new(0.0, 0.0, 0.0),
+        d_o: Vector3::new(0.0, 0.0, 0.0),
+        d_n: Vector3::new(0.0, 0.0, 0.0),
+    };
+}
+
+/// `G_m = [n·s]_+[n·o]_+ β_m` and its gradient (m = 0 diffuse, 1..=10 lobes); all zero when the
+/// facet is not lit and visible.
+pub fn masked_term_gradient(
+    n: Vector3<f64>,
+    s: Vector3<f64>,
+    o: Vector3<f64>,
+    m: usize,
+) -> TermGradient {
+    let Some(g) = FacetGeometry::new(n, s, o) else {
+        return TermGradient::ZERO;
+    };
+    let (a, b) = (g.cos_ns, g.cos_no);
+    if m == 0 {
+        return TermGradient {
+            value: a * b * FRAC_1_PI,
+            d_s: n * (b * FRAC_1_PI),
+            d_o: n * (a * FRAC_1_PI),
+            d_n: (s * b + o * a) * FRAC_1_PI,
+        };
+    }
+    let Some(&mu) = LOBE_WIDTHS_TABLE4.get(m - 1) else {
+        return TermGradient::ZERO;
+    };
+    let (d, dd) = beckmann_with_derivative(g.cos_tau, mu);
+    let dc_dso = g.dcos_tau_dso();
+    TermGradient {
+        value: 0.25 * d,
+        d_s: dc_dso * (0.25 * dd),
+        d_o: dc_dso * (0.25 * dd),
+        d_n: g.half * (0.25 * dd),
+    }
+}
+
+/// The unmasked lobe `β_m = D/(4 (n·s)(n·o))` (m = 1..=10) and its gradient w.r.t. s and o.
+pub fn lobe_beta_gradient(
+    n: Vector3<f64>,
+    s: Vector3<f64>,
+    o: Vector3<f64>,
+    m: usize,
+) -> (f64, Vector3<f64>, Vector3<f64>) {
+    let zero = Vector3::zeros();
+    let (Some(g), Some(&mu)) = (
+        FacetGeometry::new(n, s, o),
+        LOBE_WIDTHS_TABLE4.get(m.wrapping_sub(1)),
+    ) else {
+        return (0.0, zero, zero);
+    };
+    let (a, b) = (g.cos_ns, g.cos_no);
+    let (d, dd) = beckmann_with_derivative(g.cos_tau, mu);
+    let beta = d / (4.0 * a * b);
+    let dc = g.dcos_tau_dso();
+    // ∇β = (D' ∇c)/(4ab) − β (∇a/a + ∇b/b); ∇_s a = n, ∇_o b = n.
+    let common = dc * (dd / (4.0 * a * b));
+    (beta, common - n * (beta / a), common - n * (beta / b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glint_physics::brdf::{beckmann_d, lobe_beta};
+    use glint_physics::two_facet::design_row;
+
+    fn geometry() -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
+        (
+            Vector3::new(0.2, 0.1, 1.0).normalize(),
+            Vector3::new(0.3, 0.2, 0.9).normalize(),
+            Vector3::new(-0.25, -0.1, 0.85).normalize(),
+        )
+    }
+
+    #[test]
+    fn values_match_physics_design_row() {
+        let (n, s, o) = geometry();
+        let mut row = [0.0; 22];
+        design_row(n, -n, s, o, &mut row);
+        let g = FacetGeometry::new(n, s, o).expect("visible");
+        let mut out = [0.0; TERMS];
+        g.basis(&[true; TERMS], &mut out);
+        for m in 0..TERMS {
+            // Below the cutoff the physics value is < e⁻⁶⁰ of the lobe peak.
+            let (a, b) = (out[m], row[m]);
+            // (1 − c²) cancels near the specular point, so c's last bit shows up ~1e-13.
+            assert!(
+                (a - b).abs() <= 1e-11 * b.abs() + 1e-22,
+                "{m}: {a:e} vs {b:e}"
+            );
+        }
+        for mu in [0.01, 0.07, 0.5] {
+            let c = 0.995;
+            assert!((beckmann_with_derivative(c, mu).0 - beckmann_d(c, mu)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn lobe_exponentials_match_exp() {
+        const { assert!(CHAIN_APPLIES) };
+        for k in 0..2000 {
+            let t2 = 1e-7 * 1.01f64.powi(k);
+            let e = lobe_exponentials(t2);
+            for m in 0..LOBES {
+                let arg = t2 * INV_MU2[m];
+                let want = if arg > LOBE_EXP_CUTOFF {
+                    0.0
+                } else {
+                    (-arg).exp()
+                };
+                assert!((e[m] - want).abs() <= 1e-12 * want, "t2 {t2} m {m}");
+            }
+        }
+    }
+
+    #[test]
+    fn beckmann_derivative_matches_central_difference() {
+        for mu in LOBE_WIDTHS_TABLE4 {
+            for c in [0.9995, 0.999, 0.99, 0.95, 0.9] {
+                let (d, dd) = beckmann_with_derivative(c, mu);
+                if d == 0.0 {
+                    continue;
+                }
+                let h = 1e-7;
+                let fd = (beckmann_with_derivative(c + h, mu).0
+                    - beckmann_with_derivative(c - h, mu).0)
+                    / (2.0 * h);
+                assert!((fd - dd).abs() <= 1e-5 * dd.abs().max(d), "μ {mu} c {c}");
+            }
+        }
+    }
+
+    /// Central differences of a scalar function along each coordinate of one argument.
+    fn fd_grad(f: impl Fn(Vector3<f64>) -> f64, x: Vector3<f64>) -> Vector3<f64> {
+        let h = 1e-7;
+        Vector3::from_fn(|i, _| {
+            let mut e = Vector3::zeros();
+            e[i] = h;
+            (f(x + e) - f(x - e)) / (2.0 * h)
+        })
+    }
+
+    #[test]
+    fn masked_term_gradients_match_central_differences() {
+        let (n, s, o) = geometry();
+        for m in 0..TERMS {
+            let g = masked_term_gradient(n, s, o, m);
+            let val = |n, s, o| masked_term_gradient(n, s, o, m).value;
+            let scale = g.value.abs().max(1e-3) + g.d_s.norm();
+            let gs = fd_grad(|x| val(n, x, o), s);
+            let go = fd_grad(|x| val(n, s, x), o);
+            let gn = fd_grad(|x| val(x, s, o), n);
+            assert!((gs - g.d_s).norm() <= 1e-5 * scale, "m {m} d_s");
+            assert!((go - g.d_o).norm() <= 1e-5 * scale, "m {m} d_o");
+            assert!((gn - g.d_n).norm() <= 1e-5 * scale, "m {m} d_n");
+        }
+    }
+
+    #[test]
+    fn beta_gradient_matches_physics_and_central_differences() {
+        let (n, s, o) = geometry();
+        for (m, &mu) in LOBE_WIDTHS_TABLE4.iter().enumerate().skip(2) {
+            let (beta, ds, dd) = lobe_beta_gradient(n, s, o, m + 1);
+            assert!((beta - lobe_beta(n, o, s, mu)).abs() <= 1e-12 * beta.max(1e-30));
+            let gs = fd_grad(|x| lobe_beta(n, o, x, mu), s);
+            let go = fd_grad(|x| lobe_beta(n, x, s, mu), o);
+            let scale = beta + ds.norm();
+            assert!((gs - ds).norm() <= 1e-5 * scale, "μ {mu} d_s");
+            assert!((go - dd).norm() <= 1e-5 * scale, "μ {mu} d_o");
+        }
+    }
+
+    #[test]
+    fn invisible_facet_has_zero_gradient() {
+        let (n, s, o) = geometry();
+        let g = masked_term_gradient(-n, s, o, 3);
+        assert_eq!(g, TermGradient::ZERO);
+        assert_eq!(masked_term_gradient(n, s, o, 99), TermGradient::ZERO);
+    }
+}

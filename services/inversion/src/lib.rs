@@ -1,0 +1,127 @@
+//! glint-inversion: the seed-000 three-stage photometric attitude solve (docs/math.md §1).
+//!
+//! Pure numerical code over plain data: no IPC, no clock, no I/O.
+//!
+//! 1. [`stage1`]: per band, NNLS fit of the 22 area×BRDF products x ≥ 0 to the
+//!    three-axis-stable window, `Φ‖T0‖² = G x` (eqs 7–12), and the reconstruction error.
+//! 2. [`stage2`]: separation degree σ(λ) of the body and panel lobes (eqs 13–14) and the band
+//!    λ* = argmax σ.
+//! 3. [`stage3`]: LM fit of the rates p = [w_x, w_y, w_z] \[deg/frame\] to the motion window at
+//!    λ* (eq 20, analytic Jacobian, multi-start), covariance and observability; optionally the
+//!    joint fit of all bands with one p.
+//!
+//! Entry point: [`solve_three_stage`]`(&ObservationSet, &InversionConfig)`. The stages are also
+//! usable alone: [`nnls::nnls`], [`stage1::run_stage1`], [`stage2::run_stage2`],
+//! [`RateProblem`] + [`stage3::fit_multistart`] / [`stage3::fit_single_start`],
+//! [`observability::cramer_rao_bound`]. Benchmark: `benches/solve.rs` (8 bands, 720 + 360
+//! frames).
+//!
+//! Units: the per-band pupil factor E_sun Δλ A_ap is absorbed in the stage-1 coefficients
+//! (see [`stage1`]); stage 3 normalises each band by its mean observed flux. The error metric
+//! of the paper is [`rate_error_metric`] = 100·‖p̂ − p*‖ (deg/frame, printed as "%").
+
+pub mod error;
+pub mod facet;
+pub mod lm;
+pub mod model;
+pub mod nnls;
+pub mod node;
+pub mod observability;
+pub mod observation;
+pub mod rotation;
+mod serde_coeffs;
+pub mod session;
+pub mod stage1;
+pub mod stage2;
+pub mod stage3;
+
+pub use error::{InversionError, NnlsError};
+pub use model::{MotionModelConfig, PanelNormalMode, RateBand, RateProblem};
+pub use observation::{Observation, ObservationSet};
+pub use rotation::AttitudeModel;
+pub use stage1::Stage1Band;
+pub use stage2::Stage2Result;
+pub use stage3::{RateFit, RateSolution, Stage3Config};
+
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+/// Settings of [`solve_three_stage`].
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct InversionConfig {
+    /// Facet normals, panel-normal option, eq-(17) convention, motion epoch.
+    pub model: MotionModelConfig,
+    /// Per-band `E_sun Δλ A_ap` \[W\], to report stage-1 coefficients in m² as well.
+    pub band_scale_w: Option<Vec<f64>>,
+    /// LM, start strategy and observability thresholds.
+    pub stage3: Stage3Config,
+    /// Also fit one p to the stacked residuals of all bands.
+    pub joint_fit: bool,
+}
+
+/// Every figure of the solve (serde-serialisable; non-finite numbers become `null` in JSON).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InversionResult {
+    /// Stage 1 per band: coefficients and ε_rec.
+    pub stage1: Vec<Stage1Band>,
+    /// Stage 2: σ(λ, θ_I), σ(λ) and λ*.
+    pub stage2: Stage2Result,
+    /// λ* \[nm\].
+    pub chosen_wavelength_nm: f64,
+    /// Stage 3 at λ*.
+    pub rate: RateSolution,
+    /// Joint fit over all bands, when enabled.
+    pub joint_rate: Option<RateSolution>,
+}
+
+/// The paper's error metric ε_p = 100·‖p̂ − p*‖₂ (p in deg/frame; §1.6, not relative).
+pub fn rate_error_metric(p_hat_deg_per_frame: [f64; 3], p_true_deg_per_frame: [f64; 3]) -> f64 {
+    let d: f64 = (0..3)
+        .map(|i| (p_hat_deg_per_frame[i] - p_true_deg_per_frame[i]).powi(2))
+        .sum();
+    100.0 * d.sqrt()
+}
+
+/// Runs stages 1–3 (and the joint fit if configured).
+pub fn solve_three_stage(
+    set: &ObservationSet,
+    config: &InversionConfig,
+) -> Result<InversionResult, InversionError> {
+    set.validate()?;
+    let body_normal = Vector3::from(config.model.body_normal);
+    let stage1 = stage1::run_stage1(
+        &set.stable,
+        &set.wavelengths_nm,
+        body_normal,
+        config.band_scale_w.as_deref(),
+    )?;
+    let stage2 = stage2::run_stage2(&stage1)?;
+    let chosen = stage2.chosen_index;
+    let band = |b: usize| RateBand {
+        band_index: b,
+        wavelength_nm: stage1[b].wavelength_nm,
+        coeffs: stage1[b].coeffs,
+    };
+    let problem = RateProblem::new(&set.motion, &[band(chosen)], &config.model)?;
+    let rate = stage3::fit_multistart(&problem, &config.stage3)?;
+    let joint_rate = if config.joint_fit {
+        let bands: Vec<RateBand> = (0..stage1.len()).map(band).collect();
+        let joint = RateProblem::new(&set.motion, &bands, &config.model)?;
+        Some(match rate.fit() {
+            Some(fit) => {
+                stage3::fit_from_starts(&joint, &[fit.rate_deg_per_frame], &config.stage3)?
+            }
+            None => stage3::fit_multistart(&joint, &config.stage3)?,
+        })
+    } else {
+        None
+    };
+    Ok(InversionResult {
+        chosen_wavelength_nm: stage2.chosen_wavelength_nm,
+        stage1,
+        stage2,
+        rate,
+        joint_rate,
+    })
+}

@@ -1,0 +1,205 @@
+//! The inversion's node loop: it keeps the spectra of both windows as they arrive and answers
+//! solve calls (request/response with event wake-ups) stage by stage, as the orchestrator
+//! sequences them. A stage whose window is incomplete answers `NotReady`, never a guess.
+
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use glint_runtime::ports::Inbox;
+use glint_runtime::rpc::{RpcServer, Solve};
+use glint_runtime::{open_node, run_loop, Exit, Housekeeping, Step, Wake};
+use nalgebra::Vector3;
+use shared_types::scenario::{AttitudeConvention, SpectraScenario};
+use shared_types::topics::spectrum_service;
+use shared_types::{
+    Command, Heartbeat, Scenario, ServiceId, SolveRequest, SolveResponse, SolveStatus, Spectrum,
+    TopicId, Window,
+};
+
+use crate::model::MotionModelConfig;
+use crate::rotation::AttitudeModel;
+use crate::session::{Session, StageOutcome};
+use crate::stage3::{RateSolution, Stage3Config};
+use crate::Observation;
+
+/// The motion model the scenario's simulator used (attitude convention; n_b = +X; panel (a)).
+pub fn model_config(sp: &SpectraScenario) -> MotionModelConfig {
+    MotionModelConfig {
+        attitude: match sp.attitude_convention {
+            AttitudeConvention::Verbatim => AttitudeModel::Verbatim,
+            AttitudeConvention::Consistent => AttitudeModel::Consistent,
+        },
+        ..Default::default()
+    }
+}
+
+/// One received spectrum as an observation of the solve.
+pub fn observation(sp: &Spectrum) -> Observation {
+    let n = (sp.n_bands as usize).min(sp.flux_w.len());
+    let sigma: Vec<f64> = sp.sigma_w[..n].to_vec();
+    Observation {
+        frame_index: sp.frame_index,
+        t_s: sp.meta.t_ns as f64 * 1e-9,
+        sun_body: Vector3::from(sp.sun_body),
+        observer_body: Vector3::from(sp.observer_body),
+        range_m: sp.range_m,
+        flux_w: sp.flux_w[..n].to_vec(),
+        // Noise-free data carry σ = 0: leave the weighting to the residuals.
+        sigma_w: if sigma.iter().all(|s| *s > 0.0) {
+            sigma
+        } else {
+            vec![]
+        },
+    }
+}
+
+fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSolution>) {
+    let obs = match rate {
+        RateSolution::Determined(fit) => {
+            out.status = SolveStatus::Ok as u32;
+            out.p_deg_per_frame = fit.rate_deg_per_frame;
+            for r in 0..3 {
+                for c in 0..3 {
+                    out.p_covariance[3 * r + c] = fit.covariance_deg2_per_frame2[r][c];
+                }
+            }
+            out.cost = fit.cost;
+            out.iterations = fit.iterations as u32;
+            out.starts = fit.starts_polished as u32;
+            &fit.observability
+        }
+        RateSolution::Unobservable { observability, .. } => {
+            out.status = SolveStatus::Unobservable as u32;
+            observability
+        }
+    };
+    out.fisher_eigenvalues = obs.information_eigenvalues;
+    for (i, v) in obs.eigenvectors.iter().enumerate() {
+        for (r, component) in v.iter().enumerate() {
+            out.fisher_eigenvectors[3 * r + i] = *component;
+        }
+    }
+    out.bound_1sigma_deg_per_frame = obs.bounds_1sigma_deg_per_frame;
+    out.observable_mask = obs
+        .unobservable
+        .iter()
+        .enumerate()
+        .filter(|(_, u)| !**u)
+        .map(|(i, _)| 1u32 << i)
+        .sum();
+    if let Some(RateSolution::Determined(fit)) = joint {
+        out.p_joint_deg_per_frame = fit.rate_deg_per_frame;
+        for r in 0..3 {
+            for c in 0..3 {
+                out.p_joint_covariance[3 * r + c] = fit.covariance_deg2_per_frame2[r][c];
+            }
+        }
+    }
+}
+
+/// Runs the requested stage on the session and builds the answer.
+pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
+    let mut out = SolveResponse {
+        request_id: req.request_id,
+        stage: req.stage,
+        n_bands: session.set.wavelengths_nm.len() as u32,
+        stable_samples: session.set.stable.len() as u32,
+        motion_samples: session.set.motion.len() as u32,
+        ..Default::default()
+    };
+    for (slot, w) in out
+        .wavelength_nm
+        .iter_mut()
+        .zip(&session.set.wavelengths_nm)
+    {
+        *slot = *w;
+    }
+    let outcome = match req.stage {
+        1 => session.stage1(),
+        2 => session.stage2(),
+        _ => session.stage3(req.flags & SolveRequest::FLAG_JOINT != 0),
+    };
+    match outcome {
+        Ok(StageOutcome::NotReady(why)) => {
+            tracing::info!(stage = req.stage, ?why, "solve: not ready");
+            out.status = SolveStatus::NotReady as u32;
+            return out;
+        }
+        Err(e) => {
+            tracing::warn!(stage = req.stage, error = %e, "solve failed");
+            out.status = SolveStatus::Failed as u32;
+            return out;
+        }
+        Ok(StageOutcome::Done) => out.status = SolveStatus::Ok as u32,
+    }
+    if let Some(s1) = &session.stage1 {
+        for (slot, b) in out.recon_err.iter_mut().zip(s1) {
+            *slot = b.recon_err;
+        }
+    }
+    if let Some(s2) = &session.stage2 {
+        for (slot, b) in out.separation.iter_mut().zip(&s2.bands) {
+            *slot = b.sigma;
+        }
+        out.chosen_band = s2.chosen_index as u32;
+    }
+    if req.stage == 3 {
+        if let Some(rate) = &session.rate {
+            fill_rate(&mut out, rate, session.joint_rate.as_ref());
+        }
+    }
+    out
+}
+
+pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
+    let sp = scenario
+        .spectra
+        .as_ref()
+        .context("the inversion needs a [spectra] section")?;
+    let node = open_node(prefix, "inversion")?;
+    let (mut hk, control_l) = Housekeeping::open(&node, ServiceId::Inversion)?;
+    let (mut spectra, spectra_l) =
+        Inbox::<Spectrum>::open(&node, TopicId::Spectrum, &spectrum_service(&node)?)?;
+    let (mut server, solve_l) = RpcServer::<Solve>::open(&node, ServiceId::Inversion)?;
+    let mut session = Session::new(
+        sp.wavelengths_nm(),
+        sp.stable_samples as usize,
+        sp.motion_frames as usize,
+        model_config(sp),
+        Stage3Config::default(),
+    );
+    hk.state = Heartbeat::READY;
+
+    let inputs = [(&control_l, None), (&spectra_l, None), (&solve_l, None)];
+    let hb = Duration::from_millis(scenario.run.heartbeat_period_ms);
+    let exit = run_loop(&inputs, hb, |wakes| {
+        for cmd in hk.poll_control()? {
+            match cmd {
+                Command::Start => hk.state = Heartbeat::RUNNING,
+                Command::Shutdown => {
+                    hk.state = Heartbeat::STOPPING;
+                    hk.beat(0, &[&spectra.stats, &server.stats])?;
+                    return Ok(Step::Stop);
+                }
+                _ => {}
+            }
+        }
+        let mut last_t_ns = 0;
+        spectra.drain(|r| {
+            hk.last_latency_ns = r.latency_ns;
+            last_t_ns = r.msg.meta.t_ns;
+            session.push(r.msg.window == Window::Motion as u32, observation(r.msg));
+            Ok(())
+        })?;
+        hk.ack(TopicId::Spectrum, spectra.stats.next_seq, last_t_ns)?;
+        server.serve(|req| (answer(&mut session, req), req.meta.t_ns))?;
+        if wakes.contains(&Wake::Tick) {
+            hk.beat(last_t_ns, &[&spectra.stats, &server.stats])?;
+        }
+        Ok(Step::Wait)
+    })?;
+    if exit == Exit::Terminated {
+        tracing::info!("inversion terminated by signal");
+    }
+    Ok(())
+}

@@ -1,0 +1,245 @@
+//! Covariance, observability and the Cramér–Rao bound of the rate fit (docs/math.md §1.6).
+//!
+//! With residuals r = w(y − m) and J = w ∂m/∂p at the solution p̂:
+//!
+//! ```text
+//! F = JᵀJ / s²      s² = 1                        (σ given: J is whitened, F is the Fisher
+//!                                                  information, Cov = F⁻¹ is the CRB at p̂)
+//!                   s² = max(ε/(N − 3), s_min²)   (σ unknown: residual variance in units of Φ̄)
+//! F = V diag(λ_i) Vᵀ (faer self-adjoint eigendecomposition, λ ascending)
+//! bound_i = 1/sqrt(λ_i)  [deg/frame]: the 1σ extent along eigen-direction v_i
+//! Cov = V diag(1/λ_i) Vᵀ
+//! ```
+//!
+//! A direction is unobservable when bound_i > threshold (default 0.25 deg/frame, the size of the
+//! rates themselves). The whole solution is [`Unobservable`](crate::stage3::RateSolution) when
+//! - the light curve has no sensitivity to p: `sqrt(λ_max(JᵀJ)/N)/rms(w) < flat_tol` (relative
+//!   flux change per deg/frame; e.g. no facet lit and visible, no glint);
+//! - JᵀJ is numerically rank deficient: `λ_min ≤ rank_tol · λ_max`;
+//! - or every direction exceeds the threshold.
+//!
+//! CRB helper: `sqrt(diag((JᵀWJ)⁻¹))` at the true p with the observations' σ.
+
+use crate::error::InversionError;
+use crate::lm::normal_equations;
+use crate::model::RateProblem;
+use faer::{Mat, Side};
+use serde::{Deserialize, Serialize};
+
+/// Where the covariance scale comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CovarianceSource {
+    /// The observations' σ (whitened residuals; Cov = (JᵀWJ)⁻¹).
+    GivenSigma,
+    /// Residual variance; `sigma_normalised` = s, the fitted 1σ in units of mean Φ_obs.
+    ResidualVariance {
+        /// s (relative to mean flux), after the floor.
+        sigma_normalised: f64,
+    },
+}
+
+/// Eigen-analysis of the information matrix at the solution.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Observability {
+    /// λ_i of F, ascending \[(deg/frame)⁻²\].
+    pub information_eigenvalues: [f64; 3],
+    /// `eigenvectors[i]` = unit v_i (largest component positive).
+    pub eigenvectors: [[f64; 3]; 3],
+    /// 1/sqrt(λ_i) \[deg/frame\] (∞ when λ_i ≤ 0; serialised as null).
+    pub bounds_1sigma_deg_per_frame: [f64; 3],
+    /// bound_i > threshold.
+    pub unobservable: [bool; 3],
+    /// The threshold used \[deg/frame\].
+    pub threshold_deg_per_frame: f64,
+    /// λ_max/λ_min of JᵀJ.
+    pub condition_number: f64,
+    /// sqrt(λ_max(JᵀJ)/N)/rms(w): relative flux change per deg/frame.
+    pub rms_sensitivity_per_deg_per_frame: f64,
+}
+
+/// Why no rate is reported.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UnobservableReason {
+    /// The model light curve does not change with p (no glint, nothing lit and visible).
+    FlatLightCurve {
+        /// The measured sensitivity.
+        rms_sensitivity: f64,
+    },
+    /// JᵀJ is numerically singular.
+    RankDeficient {
+        /// λ_max/λ_min.
+        condition_number: f64,
+    },
+    /// Every eigen-direction's 1σ bound exceeds the threshold.
+    AllDirectionsAboveThreshold,
+}
+
+/// Thresholds of the classification.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ObservabilityConfig {
+    /// A direction with a larger 1σ bound is unobservable \[deg/frame\] (0.25).
+    pub unobservable_bound_deg_per_frame: f64,
+    /// Flat-light-curve limit on the relative sensitivity \[per deg/frame\] (1e-9).
+    pub flat_tol: f64,
+    /// Rank-deficiency limit on λ_min/λ_max of JᵀJ (1e-13).
+    pub rank_tol: f64,
+    /// Floor s_min on the residual σ relative to mean flux when σ is unknown (1e-9).
+    pub min_sigma_rel: f64,
+}
+
+impl Default for ObservabilityConfig {
+    fn default() -> Self {
+        Self {
+            unobservable_bound_deg_per_frame: 0.25,
+            flat_tol: 1e-9,
+            rank_tol: 1e-13,
+            min_sigma_rel: 1e-9,
+        }
+    }
+}
+
+/// Eigen-decomposition of a symmetric 3×3 matrix: (λ ascending, v_i as rows).
+pub fn symmetric_eigen(a: &[[f64; 3]; 3]) -> Result<([f64; 3], [[f64; 3]; 3]), InversionError> {
+    let m = Mat::from_fn(3, 3, |i, j| 0.5 * (a[i][j] + a[j][i]));
+    let evd = m
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|_| InversionError::LinearAlgebra {
+            what: "self-adjoint eigendecomposition",
+        })?;
+    let (s, u) = (evd.S(), evd.U());
+    let mut vals = [0.0; 3];
+    let mut vecs = [[0.0; 3]; 3];
+    for i in 0..3 {
+        vals[i] = s[i];
+        let mut v = [u[(0, i)], u[(1, i)], u[(2, i)]];
+        let big = v
+            .iter()
+            .copied()
+            .fold(0.0_f64, |m, x| if x.abs() > m.abs() { x } else { m });
+        if big < 0.0 {
+            v = v.map(|x| -x);
+        }
+        vecs[i] = v;
+    }
+    Ok((vals, vecs))
+}
+
+/// `V diag(1/λ) Vᵀ` (∞ entries when some λ ≤ 0).
+pub fn inverse_from_eigen(vals: &[f64; 3], vecs: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut out = [[0.0; 3]; 3];
+    for k in 0..3 {
+        let inv = if vals[k] > 0.0 {
+            1.0 / vals[k]
+        } else {
+            f64::INFINITY
+        };
+        for i in 0..3 {
+            for j in 0..3 {
+                let prod = vecs[k][i] * vecs[k][j];
+                if prod != 0.0 {
+                    out[i][j] += prod * inv;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Analysis at p̂: the covariance, its source and the observability record, or the reason the
+/// solution is unobservable (returned with the same record).
+pub struct Analysis {
+    /// Cov(p) \[(deg/frame)²\].
+    pub covariance: [[f64; 3]; 3],
+    /// Scale source.
+    pub source: CovarianceSource,
+    /// Eigen-analysis.
+    pub observability: Observability,
+    /// `Some` when no rate may be reported.
+    pub unobservable: Option<UnobservableReason>,
+}
+
+/// Covariance and observability at `p` (usually the LM solution).
+pub fn analyse(
+    problem: &RateProblem,
+    p: [f64; 3],
+    config: &ObservabilityConfig,
+) -> Result<Analysis, InversionError> {
+    let n = problem.residual_count();
+    let mut r = vec![0.0; n];
+    let mut jac = vec![[0.0; 3]; n];
+    let cost = problem.residuals_and_jacobian(p, &mut r, &mut jac);
+    let (jtj, _) = normal_equations(&jac, &r);
+    let (s2, source) = if problem.sigma_given() {
+        (1.0, CovarianceSource::GivenSigma)
+    } else {
+        let dof = n.saturating_sub(3).max(1) as f64;
+        let s2 = (cost / dof).max(config.min_sigma_rel.powi(2));
+        let sigma_normalised = s2.sqrt();
+        (s2, CovarianceSource::ResidualVariance { sigma_normalised })
+    };
+    let (raw_vals, vecs) = symmetric_eigen(&jtj)?;
+    let lam_max = raw_vals[2].max(0.0);
+    let condition_number = if raw_vals[0] > 0.0 {
+        lam_max / raw_vals[0]
+    } else {
+        f64::INFINITY
+    };
+    let rms_sensitivity = (lam_max / n as f64).sqrt() / problem.weight_rms();
+    let vals = raw_vals.map(|v| v / s2);
+    let bounds = vals.map(|v| {
+        if v > 0.0 {
+            v.sqrt().recip()
+        } else {
+            f64::INFINITY
+        }
+    });
+    let threshold = config.unobservable_bound_deg_per_frame;
+    let unobservable_dirs = bounds.map(|b| b.is_nan() || b > threshold);
+    let reason = if rms_sensitivity.is_nan() || rms_sensitivity < config.flat_tol {
+        Some(UnobservableReason::FlatLightCurve { rms_sensitivity })
+    } else if raw_vals[0].is_nan() || raw_vals[0] <= config.rank_tol * lam_max {
+        Some(UnobservableReason::RankDeficient { condition_number })
+    } else if unobservable_dirs.iter().all(|&u| u) {
+        Some(UnobservableReason::AllDirectionsAboveThreshold)
+    } else {
+        None
+    };
+    Ok(Analysis {
+        covariance: inverse_from_eigen(&vals, &vecs),
+        source,
+        observability: Observability {
+            information_eigenvalues: vals,
+            eigenvectors: vecs,
+            bounds_1sigma_deg_per_frame: bounds,
+            unobservable: unobservable_dirs,
+            threshold_deg_per_frame: threshold,
+            condition_number,
+            rms_sensitivity_per_deg_per_frame: rms_sensitivity,
+        },
+        unobservable: reason,
+    })
+}
+
+/// Cramér–Rao bound `sqrt(diag((JᵀWJ)⁻¹))` \[deg/frame\] at the true rates, using the
+/// observations' σ (which the problem must carry).
+pub fn cramer_rao_bound(
+    problem: &RateProblem,
+    p_true_deg_per_frame: [f64; 3],
+) -> Result<[f64; 3], InversionError> {
+    if !problem.sigma_given() {
+        return Err(InversionError::MissingSigma {
+            what: "the Cramér–Rao bound",
+        });
+    }
+    let n = problem.residual_count();
+    let mut r = vec![0.0; n];
+    let mut jac = vec![[0.0; 3]; n];
+    problem.residuals_and_jacobian(p_true_deg_per_frame, &mut r, &mut jac);
+    let (fisher, _) = normal_equations(&jac, &r);
+    let (vals, vecs) = symmetric_eigen(&fisher)?;
+    let cov = inverse_from_eigen(&vals, &vecs);
+    Ok([0, 1, 2].map(|i| cov[i][i].sqrt()))
+}

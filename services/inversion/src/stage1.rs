@@ -1,0 +1,172 @@
+//! Stage 1: per-band area×BRDF products from the three-axis-stable window by NNLS (docs/math.md
+//! §1.4, eqs 7–12).
+//!
+//! ```text
+//! Q_j = Φ_j ‖T0_j‖² = G_j x,   x = [P_0..P_10, B_0..B_10] ≥ 0                (7–12)
+//! G_{j,m}    = [n_p·s_j]_+[n_p·o_j]_+ β_m(n_p, o_j, s_j),   n_p = normalize(s_j − (s_j·Y)Y)  (4)
+//! G_{j,11+m} = [n_b·s_j]_+[n_b·o_j]_+ β_m(n_b, o_j, s_j)
+//! ε_rec = ‖Φ − Φ_rec‖₂ / ‖Φ‖₂,   Φ_rec,j = G_j x / ‖T0_j‖²
+//! ```
+//!
+//! Units: the pupil factor is `K = E_sun(λ) Δλ A_ap/‖T0‖²`. `E_sun Δλ A_ap` is constant per band,
+//! so it is absorbed: the fitted coefficients are `x̃ = (E_sun Δλ A_ap)·x`, i.e.
+//! "area × BRDF × (E_sun A_ap Δλ)" \[W·m²\] when Φ is in W and the range in m (Q̃ = Φ‖T0‖²).
+//! Stage 2 ranks bands by ratios, so the factor cancels there, and stage 3 uses x̃ with
+//! `Φ_model = Σ G x̃/‖T0‖²` directly. Given a per-band scale `E_sun Δλ A_ap` \[W/m²·m² = W\],
+//! `x = x̃/scale` is reported too, in m².
+//!
+//! All bands share one design matrix, so the column scaling and the QR compression of the NNLS
+//! are done once ([`NnlsSystem`]).
+
+use crate::error::InversionError;
+use crate::nnls::NnlsSystem;
+use crate::observation::Observation;
+use crate::serde_coeffs;
+use faer::Mat;
+use glint_physics::two_facet::{design_row, panel_normal, TwoFacetCoefficients, TERMS_PER_FACET};
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+/// Columns of G: 2(M + 1) = 22.
+pub const DESIGN_COLUMNS: usize = 2 * TERMS_PER_FACET;
+
+/// Stage-1 result of one band.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Stage1Band {
+    /// Band centre \[nm\].
+    pub wavelength_nm: f64,
+    /// Fitted `x̃ = (E_sun Δλ A_ap)·[P; B]` \[W·m²\] (see the module doc).
+    #[serde(with = "serde_coeffs::Coeffs")]
+    pub coeffs: TwoFacetCoefficients,
+    /// `x̃ / (E_sun Δλ A_ap)` \[m²\] when a band scale was given.
+    #[serde(with = "serde_coeffs::option")]
+    pub coeffs_m2: Option<TwoFacetCoefficients>,
+    /// Relative reconstruction error ‖Φ − Φ_rec‖₂/‖Φ‖₂.
+    pub recon_err: f64,
+    /// NNLS outer iterations.
+    pub nnls_iterations: usize,
+}
+
+/// Eq (4) on each nominal Sun vector; keeps the previous normal when |s·Y| = 1 (starting from
+/// `body_normal`).
+pub fn panel_normals(obs: &[Observation], body_normal: Vector3<f64>) -> Vec<Vector3<f64>> {
+    let mut prev = body_normal;
+    obs.iter()
+        .map(|o| {
+            prev = panel_normal(o.sun_body, prev);
+            prev
+        })
+        .collect()
+}
+
+/// The T × 22 design matrix G of eqs (11)–(12) \[sr⁻¹\].
+pub fn design_matrix(obs: &[Observation], body_normal: Vector3<f64>) -> Mat<f64> {
+    let n_p = panel_normals(obs, body_normal);
+    let mut g = Mat::zeros(obs.len(), DESIGN_COLUMNS);
+    let mut row = [0.0; DESIGN_COLUMNS];
+    for (j, (o, n_p)) in obs.iter().zip(&n_p).enumerate() {
+        design_row(*n_p, body_normal, o.sun_body, o.observer_body, &mut row);
+        for (m, v) in row.iter().enumerate() {
+            g[(j, m)] = *v;
+        }
+    }
+    g
+}
+
+/// Runs stage 1 on every band. `band_scale_w[b] = E_sun Δλ A_ap` of band b, if known.
+pub fn run_stage1(
+    stable: &[Observation],
+    wavelengths_nm: &[f64],
+    body_normal: Vector3<f64>,
+    band_scale_w: Option<&[f64]>,
+) -> Result<Vec<Stage1Band>, InversionError> {
+    if stable.len() < DESIGN_COLUMNS {
+        return Err(InversionError::TooFewSamples {
+            stage: "stage 1",
+            got: stable.len(),
+            need: DESIGN_COLUMNS,
+        });
+    }
+    if let Some(scale) = band_scale_w {
+        if scale.len() != wavelengths_nm.len() || !scale.iter().all(|s| s.is_finite() && *s > 0.0) {
+            return Err(InversionError::InvalidConfig {
+                field: "band_scale_w",
+                reason: "needs one positive finite value per band",
+            });
+        }
+    }
+    let g = design_matrix(stable, body_normal);
+    let q = Mat::from_fn(stable.len(), wavelengths_nm.len(), |j, b| {
+        stable[j].flux_w[b] * stable[j].range_m.powi(2)
+    });
+    let system =
+        NnlsSystem::new(g.as_ref(), q.as_ref()).map_err(|source| InversionError::Nnls {
+            wavelength_nm: wavelengths_nm.first().copied().unwrap_or(f64::NAN),
+            source,
+        })?;
+
+    let mut out = Vec::with_capacity(wavelengths_nm.len());
+    for (b, &wavelength_nm) in wavelengths_nm.iter().enumerate() {
+        let flux_norm = stable
+            .iter()
+            .map(|o| o.flux_w[b].powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if flux_norm <= 0.0 {
+            return Err(InversionError::NoFlux {
+                wavelength_nm,
+                window: "stable",
+            });
+        }
+        let sol = system.solve(b).map_err(|source| InversionError::Nnls {
+            wavelength_nm,
+            source,
+        })?;
+        let err_sq: f64 = stable
+            .iter()
+            .enumerate()
+            .map(|(j, o)| {
+                let q_rec: f64 = (0..DESIGN_COLUMNS).map(|m| g[(j, m)] * sol.x[m]).sum();
+                (o.flux_w[b] - q_rec / o.range_m.powi(2)).powi(2)
+            })
+            .sum();
+        let coeffs = coefficients_from_slice(&sol.x);
+        let coeffs_m2 = band_scale_w.map(|scale| scaled(&coeffs, 1.0 / scale[b]));
+        out.push(Stage1Band {
+            wavelength_nm,
+            coeffs,
+            coeffs_m2,
+            recon_err: err_sq.sqrt() / flux_norm,
+            nnls_iterations: sol.iterations,
+        });
+    }
+    Ok(out)
+}
+
+/// `x[0..11]` → panel, `x[11..22]` → body.
+pub fn coefficients_from_slice(x: &[f64]) -> TwoFacetCoefficients {
+    let mut c = TwoFacetCoefficients {
+        panel: [0.0; TERMS_PER_FACET],
+        body: [0.0; TERMS_PER_FACET],
+    };
+    for m in 0..TERMS_PER_FACET {
+        c.panel[m] = x.get(m).copied().unwrap_or(0.0);
+        c.body[m] = x.get(TERMS_PER_FACET + m).copied().unwrap_or(0.0);
+    }
+    c
+}
+
+/// `[panel; body]` as one 22-vector.
+pub fn coefficients_to_array(c: &TwoFacetCoefficients) -> [f64; DESIGN_COLUMNS] {
+    let mut x = [0.0; DESIGN_COLUMNS];
+    x[..TERMS_PER_FACET].copy_from_slice(&c.panel);
+    x[TERMS_PER_FACET..].copy_from_slice(&c.body);
+    x
+}
+
+fn scaled(c: &TwoFacetCoefficients, k: f64) -> TwoFacetCoefficients {
+    TwoFacetCoefficients {
+        panel: c.panel.map(|v| v * k),
+        body: c.body.map(|v| v * k),
+    }
+}

@@ -1,0 +1,324 @@
+//! Stage 3: attitude-rate fit p = [w_x, w_y, w_z] \[deg/frame\] by LM with a global start
+//! strategy (docs/math.md §1.6).
+//!
+//! The cost ε(p) of [`RateProblem`] is non-convex: a single start at p = 0 can land in a mirror
+//! or shifted-glint minimum (§1.6 findings), and the basin of the true rates can be narrower than
+//! any affordable grid spacing across the glint (≈ 0.1 deg/frame for a glint 40 frames in).
+//! Ranking grid points by their cost is reliable, picking "distinct local minima" of the grid is
+//! not; so the start strategy races many starts cheaply:
+//!
+//! 1. **Grid**: `points_per_axis`³ points over the box `[−h, h]³` (h = `half_width_deg_per_frame`,
+//!    default 0.5 deg/frame, 9 points per axis → 0.125 deg/frame spacing), each costed on every
+//!    `⌈T/max_grid_frames⌉`-th frame (values only).
+//! 2. **Screen**: the `screen_starts` best grid points (default 16) each get `screen_iterations`
+//!    LM iterations (default 6) on every `⌈T/max_screen_frames⌉`-th frame.
+//! 3. **Polish**: the `polish_starts` best screened points (default 3; duplicates within
+//!    1e-2 deg/frame merged) run LM to convergence on all frames with the analytic Jacobian,
+//!    best first; a later start is abandoned when it comes within 1e-3 deg/frame of the best
+//!    solution so far without a lower cost. The lowest final cost wins.
+//!
+//! The box must contain the true rates' basin: rates outside ±h are found only if LM walks there.
+//! The result is then classified by [`crate::observability`]: a determined fit reports p, its
+//! covariance and the eigen-analysis; an unobservable one reports only the bounds.
+//!
+//! The joint multi-band fit is the same problem with the residuals of several bands stacked
+//! (same p), see [`RateProblem::new`].
+
+use crate::error::InversionError;
+use crate::lm::{levenberg_marquardt, levenberg_marquardt_with, LmConfig, LmOutcome, StopReason};
+use crate::model::RateProblem;
+use crate::observability::{
+    analyse, CovarianceSource, Observability, ObservabilityConfig, UnobservableReason,
+};
+use serde::{Deserialize, Serialize};
+
+/// Multi-start settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StartConfig {
+    /// Box half-width h \[deg/frame\] (> 0; 0.5).
+    pub half_width_deg_per_frame: f64,
+    /// Grid points per axis (≥ 1; 9). 1 means the single start p = 0.
+    pub points_per_axis: usize,
+    /// Frames used per grid evaluation, at most (≥ 1; 40).
+    pub max_grid_frames: usize,
+    /// Best grid points screened by short LM runs (≥ 1; 16).
+    pub screen_starts: usize,
+    /// LM iterations per screened start (≥ 1; 6).
+    pub screen_iterations: usize,
+    /// Frames used while screening, at most (≥ 1; 90).
+    pub max_screen_frames: usize,
+    /// Screened starts polished to convergence (≥ 1; 3).
+    pub polish_starts: usize,
+}
+
+impl Default for StartConfig {
+    fn default() -> Self {
+        Self {
+            half_width_deg_per_frame: 0.5,
+            points_per_axis: 9,
+            max_grid_frames: 40,
+            screen_starts: 16,
+            screen_iterations: 6,
+            max_screen_frames: 90,
+            polish_starts: 3,
+        }
+    }
+}
+
+/// Duplicate screened starts closer than this are merged \[deg/frame\].
+const SAME_START_DEG_PER_FRAME: f64 = 1e-2;
+/// A later polish that comes this close to the best solution so far is abandoned \[deg/frame\].
+const REJOIN_DEG_PER_FRAME: f64 = 1e-3;
+
+/// Stage-3 settings.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Stage3Config {
+    /// LM stopping rules.
+    pub lm: LmConfig,
+    /// Start strategy.
+    pub start: StartConfig,
+    /// Covariance and observability thresholds.
+    pub observability: ObservabilityConfig,
+}
+
+/// A determined rate estimate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RateFit {
+    /// Bands whose residuals were fitted \[nm\].
+    pub wavelengths_nm: Vec<f64>,
+    /// p̂ = [w_x, w_y, w_z] \[deg/frame\].
+    pub rate_deg_per_frame: [f64; 3],
+    /// Cov(p̂) \[(deg/frame)²\], see `covariance_source`.
+    pub covariance_deg2_per_frame2: [[f64; 3]; 3],
+    /// Given σ or residual variance.
+    pub covariance_source: CovarianceSource,
+    /// Final cost ε(p̂) (normalised or whitened units).
+    pub cost: f64,
+    /// LM iterations of the winning start.
+    pub iterations: usize,
+    /// LM iterations summed over all polished starts.
+    pub total_iterations: usize,
+    /// Stopping rule of the winning start.
+    pub stop: StopReason,
+    /// Grid points evaluated (0 for explicit starts).
+    pub grid_points: usize,
+    /// Starts screened by short LM runs (0 for explicit starts).
+    pub starts_screened: usize,
+    /// Starts polished to convergence by LM.
+    pub starts_polished: usize,
+    /// The winning start \[deg/frame\].
+    pub start_deg_per_frame: [f64; 3],
+    /// Eigen-analysis of the information matrix.
+    pub observability: Observability,
+}
+
+/// Stage-3 outcome: a rate, or the statement that the data do not determine it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "status", rename_all = "snake_case")]
+pub enum RateSolution {
+    /// p̂ with covariance.
+    Determined(RateFit),
+    /// No rate is reported.
+    Unobservable {
+        /// Why.
+        reason: UnobservableReason,
+        /// 1σ bounds along the eigen-directions \[deg/frame\].
+        bounds_deg_per_frame: [f64; 3],
+        /// Full eigen-analysis at the best p found.
+        observability: Observability,
+        /// Fitted bands \[nm\].
+        wavelengths_nm: Vec<f64>,
+    },
+}
+
+impl RateSolution {
+    /// The fit, if determined.
+    pub fn fit(&self) -> Option<&RateFit> {
+        match self {
+            Self::Determined(f) => Some(f),
+            Self::Unobservable { .. } => None,
+        }
+    }
+}
+
+fn validate(config: &Stage3Config) -> Result<(), InversionError> {
+    let s = &config.start;
+    let bad = |field, reason| Err(InversionError::InvalidConfig { field, reason });
+    if !(s.half_width_deg_per_frame > 0.0 && s.half_width_deg_per_frame.is_finite()) {
+        return bad("start.half_width_deg_per_frame", "must be > 0 and finite");
+    }
+    let counts = [
+        s.points_per_axis,
+        s.max_grid_frames,
+        s.screen_starts,
+        s.screen_iterations,
+        s.max_screen_frames,
+        s.polish_starts,
+    ];
+    if counts.contains(&0) {
+        return bad("start", "every count must be ≥ 1");
+    }
+    let lambda_ok = config.lm.lambda_init > 0.0 && config.lm.lambda_init.is_finite();
+    if config.lm.max_iterations == 0 || !lambda_ok {
+        return bad("lm", "max_iterations ≥ 1 and lambda_init > 0 required");
+    }
+    Ok(())
+}
+
+/// Grid values along one axis.
+fn axis_values(start: &StartConfig) -> Vec<f64> {
+    let n = start.points_per_axis;
+    if n == 1 {
+        return vec![0.0];
+    }
+    let h = start.half_width_deg_per_frame;
+    (0..n)
+        .map(|k| -h + 2.0 * h * k as f64 / (n - 1) as f64)
+        .collect()
+}
+
+/// Evaluates the grid; returns the `screen_starts` best points (best first) and the number of
+/// grid points evaluated.
+pub fn grid_candidates(problem: &RateProblem, start: &StartConfig) -> (Vec<[f64; 3]>, usize) {
+    let axis = axis_values(start);
+    let stride = problem.frame_count().div_ceil(start.max_grid_frames);
+    let mut scored: Vec<(f64, [f64; 3])> = Vec::with_capacity(axis.len().pow(3));
+    for &x in &axis {
+        for &y in &axis {
+            for &z in &axis {
+                let c = problem.cost_strided([x, y, z], stride);
+                scored.push((if c.is_finite() { c } else { f64::INFINITY }, [x, y, z]));
+            }
+        }
+    }
+    let evaluated = scored.len();
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    scored.truncate(start.screen_starts);
+    (scored.into_iter().map(|(_, p)| p).collect(), evaluated)
+}
+
+/// Short LM runs from each candidate on a subsampled window; returns the `polish_starts` best
+/// end points (duplicates merged), best first.
+pub fn screen_candidates(
+    problem: &RateProblem,
+    candidates: &[[f64; 3]],
+    config: &Stage3Config,
+) -> Result<Vec<[f64; 3]>, InversionError> {
+    let start = &config.start;
+    let coarse = problem.subsampled(problem.frame_count().div_ceil(start.max_screen_frames));
+    let lm = LmConfig {
+        max_iterations: start.screen_iterations,
+        ..config.lm.clone()
+    };
+    let mut ends: Vec<(f64, [f64; 3])> = Vec::with_capacity(candidates.len());
+    for &p0 in candidates {
+        let out = levenberg_marquardt(&coarse, p0, &lm)?;
+        ends.push((out.cost, out.p_deg_per_frame));
+    }
+    ends.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut chosen: Vec<[f64; 3]> = Vec::with_capacity(start.polish_starts);
+    for (_, p) in ends {
+        if chosen.len() == start.polish_starts {
+            break;
+        }
+        let distinct = chosen.iter().all(|q| {
+            let d2: f64 = (0..3).map(|i| (p[i] - q[i]).powi(2)).sum();
+            d2.sqrt() > SAME_START_DEG_PER_FRAME
+        });
+        if distinct {
+            chosen.push(p);
+        }
+    }
+    Ok(chosen)
+}
+
+/// Polishes every start with LM, keeps the lowest cost and classifies the result.
+pub fn fit_from_starts(
+    problem: &RateProblem,
+    starts: &[[f64; 3]],
+    config: &Stage3Config,
+) -> Result<RateSolution, InversionError> {
+    polish(problem, starts, (0, 0), config)
+}
+
+/// Polishes `starts`; `counts` = (grid points, screened starts) for the record.
+fn polish(
+    problem: &RateProblem,
+    starts: &[[f64; 3]],
+    (grid_points, starts_screened): (usize, usize),
+    config: &Stage3Config,
+) -> Result<RateSolution, InversionError> {
+    validate(config)?;
+    let mut best: Option<(LmOutcome, [f64; 3])> = None;
+    let mut total_iterations = 0;
+    for &p0 in starts {
+        // A later start is dropped once it rejoins the best solution or stays clearly worse.
+        let known = best.map(|(b, _)| (b.p_deg_per_frame, b.cost));
+        let abandon = |p: &[f64; 3], cost: f64, _k: usize| match known {
+            Some((q, c)) => {
+                let d2: f64 = (0..3).map(|i| (p[i] - q[i]).powi(2)).sum();
+                d2.sqrt() < REJOIN_DEG_PER_FRAME && cost >= c
+            }
+            None => false,
+        };
+        let out = levenberg_marquardt_with(problem, p0, &config.lm, abandon)?;
+        total_iterations += out.iterations;
+        if out.stop != StopReason::Abandoned && best.as_ref().is_none_or(|(b, _)| out.cost < b.cost)
+        {
+            best = Some((out, p0));
+        }
+    }
+    let Some((best, start)) = best else {
+        return Err(InversionError::InvalidConfig {
+            field: "starts",
+            reason: "at least one start is required",
+        });
+    };
+    let analysis = analyse(problem, best.p_deg_per_frame, &config.observability)?;
+    let wavelengths_nm = problem.wavelengths_nm().to_vec();
+    if let Some(reason) = analysis.unobservable {
+        return Ok(RateSolution::Unobservable {
+            reason,
+            bounds_deg_per_frame: analysis.observability.bounds_1sigma_deg_per_frame,
+            observability: analysis.observability,
+            wavelengths_nm,
+        });
+    }
+    Ok(RateSolution::Determined(RateFit {
+        wavelengths_nm,
+        rate_deg_per_frame: best.p_deg_per_frame,
+        covariance_deg2_per_frame2: analysis.covariance,
+        covariance_source: analysis.source,
+        cost: best.cost,
+        iterations: best.iterations,
+        total_iterations,
+        stop: best.stop,
+        grid_points,
+        starts_screened,
+        starts_polished: starts.len(),
+        start_deg_per_frame: start,
+        observability: analysis.observability,
+    }))
+}
+
+/// LM from one explicit start (e.g. the seed's p₀ = 0), no grid.
+pub fn fit_single_start(
+    problem: &RateProblem,
+    p0_deg_per_frame: [f64; 3],
+    config: &Stage3Config,
+) -> Result<RateSolution, InversionError> {
+    fit_from_starts(problem, &[p0_deg_per_frame], config)
+}
+
+/// Grid → screen → polish (the default stage-3 solve).
+pub fn fit_multistart(
+    problem: &RateProblem,
+    config: &Stage3Config,
+) -> Result<RateSolution, InversionError> {
+    validate(config)?;
+    let (candidates, grid_points) = grid_candidates(problem, &config.start);
+    let starts = screen_candidates(problem, &candidates, config)?;
+    polish(problem, &starts, (grid_points, candidates.len()), config)
+}

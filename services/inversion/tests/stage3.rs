@@ -1,0 +1,257 @@
+//! Stage 3: model vs the physics forward model, analytic Jacobian, global recovery of p.
+
+mod common;
+
+use common::*;
+use glint_inversion::stage3::{fit_multistart, fit_single_start, Stage3Config};
+use glint_inversion::{
+    rate_error_metric, AttitudeModel, MotionModelConfig, Observation, PanelNormalMode, RateBand,
+    RateProblem, RateSolution,
+};
+use glint_physics::two_facet::AttitudeConvention;
+
+const MOTION_FRAMES: usize = 360;
+
+fn table4_band() -> RateBand {
+    RateBand {
+        band_index: 0,
+        wavelength_nm: 650.0,
+        coeffs: scaled(&band_coeffs(650.0), band_scale_w(650.0)),
+    }
+}
+
+fn window(p_true: [f64; 3], model: AttitudeModel, mode: PanelNormalMode) -> Vec<Observation> {
+    motion_window(
+        MOTION_FRAMES,
+        alpha_phase15_deg(),
+        0.004_167,
+        p_true,
+        AttitudeConvention::from(model),
+        mode,
+        &[650.0],
+        &band_coeffs,
+    )
+}
+
+fn config(model: AttitudeModel, mode: PanelNormalMode) -> MotionModelConfig {
+    MotionModelConfig {
+        attitude: model,
+        panel_normal: mode,
+        ..MotionModelConfig::default()
+    }
+}
+
+const MODES: [PanelNormalMode; 3] = [
+    PanelNormalMode::Literal,
+    PanelNormalMode::Frozen,
+    PanelNormalMode::Tracking,
+];
+const MODELS: [AttitudeModel; 2] = [AttitudeModel::Verbatim, AttitudeModel::Consistent];
+
+#[test]
+fn model_reproduces_the_physics_forward_model() {
+    let p = [0.05, 0.2, -0.15];
+    for model in MODELS {
+        for mode in MODES {
+            let obs = window(p, model, mode);
+            let problem =
+                RateProblem::new(&obs, &[table4_band()], &config(model, mode)).expect("problem");
+            let flux = problem.model_flux_w(p);
+            let peak = obs.iter().map(|o| o.flux_w[0]).fold(0.0, f64::max);
+            for (o, f) in obs.iter().zip(&flux[0]) {
+                assert!(
+                    (o.flux_w[0] - f).abs() <= 1e-11 * peak,
+                    "{model:?} {mode:?}: {} vs {f}",
+                    o.flux_w[0]
+                );
+            }
+            // Exact data ⇒ zero cost at the truth.
+            assert!(problem.cost(p) < 1e-20);
+        }
+    }
+}
+
+#[test]
+fn analytic_jacobian_matches_central_differences() {
+    let p_data = [0.0, 0.25, 0.0];
+    for model in MODELS {
+        for mode in MODES {
+            let obs = window(p_data, model, mode);
+            let problem =
+                RateProblem::new(&obs, &[table4_band()], &config(model, mode)).expect("problem");
+            let n = problem.residual_count();
+            for p in [[0.01, 0.23, -0.02], [0.1, -0.2, 0.3], [0.0, 0.0, 0.0]] {
+                let mut r = vec![0.0; n];
+                let mut jac = vec![[0.0; 3]; n];
+                problem.residuals_and_jacobian(p, &mut r, &mut jac);
+                let scale = jac.iter().flatten().fold(0.0_f64, |m, v| m.max(v.abs()));
+                let h = 1e-6;
+                for i in 0..3 {
+                    let (mut pp, mut pm) = (p, p);
+                    pp[i] += h;
+                    pm[i] -= h;
+                    let (mut rp, mut rm) = (vec![0.0; n], vec![0.0; n]);
+                    problem.residuals(pp, &mut rp);
+                    problem.residuals(pm, &mut rm);
+                    for t in 0..n {
+                        // r = w(y − m) ⇒ ∂r/∂p = −J.
+                        let fd = -(rp[t] - rm[t]) / (2.0 * h);
+                        assert!(
+                            (fd - jac[t][i]).abs() <= 1e-6 * scale,
+                            "{model:?} {mode:?} p {p:?} row {t} axis {i}: {fd:e} vs {:e}",
+                            jac[t][i]
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn determined(sol: &RateSolution) -> &glint_inversion::RateFit {
+    match sol {
+        RateSolution::Determined(f) => f,
+        RateSolution::Unobservable { reason, .. } => panic!("unobservable: {reason:?}"),
+    }
+}
+
+/// The default box (±0.5, 9 points) contains 0.25 exactly; the ±0.47 box puts every truth
+/// between grid points, so the screen + polish has to do the work.
+fn configs() -> [Stage3Config; 2] {
+    let mut off_grid = Stage3Config::default();
+    off_grid.start.half_width_deg_per_frame = 0.47;
+    [Stage3Config::default(), off_grid]
+}
+
+fn problem_for(p_true: [f64; 3]) -> RateProblem {
+    let obs = window(p_true, AttitudeModel::Verbatim, PanelNormalMode::Literal);
+    RateProblem::new(&obs, &[table4_band()], &MotionModelConfig::default()).expect("problem")
+}
+
+#[test]
+fn multistart_recovers_exact_rates_about_y_and_z() {
+    for p_true in [[0.0, 0.25, 0.0], [0.0, 0.0, 0.25]] {
+        let problem = problem_for(p_true);
+        for cfg in configs() {
+            let sol = fit_multistart(&problem, &cfg).expect("fit");
+            let fit = determined(&sol);
+            let err = rate_error_metric(fit.rate_deg_per_frame, p_true) / 100.0;
+            assert!(err < 1e-6, "p* {p_true:?}: p̂ {:?}", fit.rate_deg_per_frame);
+            assert_eq!(fit.grid_points, 729);
+            assert_eq!(fit.starts_screened, 16);
+            assert!(fit.starts_polished >= 1 && fit.starts_polished <= 3);
+        }
+    }
+}
+
+#[test]
+fn multistart_recovers_off_axis_rates() {
+    for p_true in [
+        [0.03, 0.21, -0.04],
+        [0.0, -0.25, 0.0],
+        [0.0, 0.0, -0.25],
+        [-0.1, 0.15, 0.2],
+    ] {
+        let problem = problem_for(p_true);
+        let sol = fit_multistart(&problem, &configs()[1]).expect("fit");
+        let fit = determined(&sol);
+        let err = rate_error_metric(fit.rate_deg_per_frame, p_true) / 100.0;
+        assert!(err < 1e-6, "p* {p_true:?}: p̂ {:?}", fit.rate_deg_per_frame);
+    }
+}
+
+#[test]
+fn single_start_at_zero_falls_into_a_wrong_minimum() {
+    // Rotation about Y at 0.25 deg/frame (§1.6 findings: p₀ = 0 fails in this geometry).
+    let p_true = [0.0, 0.25, 0.0];
+    let problem = problem_for(p_true);
+    let cfg = Stage3Config::default();
+    let single = fit_single_start(&problem, [0.0; 3], &cfg).expect("single");
+    let single = determined(&single);
+    let multi = fit_multistart(&problem, &configs()[1]).expect("multi");
+    let multi = determined(&multi);
+    assert_eq!(single.grid_points, 0);
+    assert_eq!(single.starts_polished, 1);
+    assert!(rate_error_metric(single.rate_deg_per_frame, p_true) > 5.0);
+    assert!(
+        single.cost > 1e-4,
+        "a genuine minimum with a clearly worse cost"
+    );
+    assert!(rate_error_metric(multi.rate_deg_per_frame, p_true) < 1e-4);
+    assert!(multi.cost < 1e-18);
+}
+
+#[test]
+fn analytic_jacobian_matches_central_differences_in_a_joint_fit() {
+    let bands: Vec<RateBand> = [600.0, 650.0, 700.0]
+        .iter()
+        .enumerate()
+        .map(|(b, &l)| RateBand {
+            band_index: b,
+            wavelength_nm: l,
+            coeffs: scaled(&band_coeffs(l), band_scale_w(l)),
+        })
+        .collect();
+    let obs = motion_window(
+        120,
+        alpha_phase15_deg(),
+        0.004_167,
+        [0.0, 0.0, 0.25],
+        AttitudeConvention::Verbatim,
+        PanelNormalMode::Literal,
+        &[600.0, 650.0, 700.0],
+        &band_coeffs,
+    );
+    let problem = RateProblem::new(&obs, &bands, &MotionModelConfig::default()).expect("joint");
+    assert_eq!(problem.residual_count(), 360);
+    let p = [0.02, -0.05, 0.2];
+    let n = problem.residual_count();
+    let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
+    problem.residuals_and_jacobian(p, &mut r, &mut jac);
+    let scale = jac.iter().flatten().fold(0.0_f64, |m, v| m.max(v.abs()));
+    for i in 0..3 {
+        let (mut pp, mut pm) = (p, p);
+        pp[i] += 1e-6;
+        pm[i] -= 1e-6;
+        let (mut rp, mut rm) = (vec![0.0; n], vec![0.0; n]);
+        problem.residuals(pp, &mut rp);
+        problem.residuals(pm, &mut rm);
+        for t in 0..n {
+            let fd = -(rp[t] - rm[t]) / 2e-6;
+            assert!((fd - jac[t][i]).abs() <= 1e-6 * scale, "row {t} axis {i}");
+        }
+    }
+    // The joint fit recovers the truth too.
+    let sol = fit_multistart(&problem, &configs()[1]).expect("fit");
+    let fit = determined(&sol);
+    assert!(rate_error_metric(fit.rate_deg_per_frame, [0.0, 0.0, 0.25]) < 1e-4);
+    assert_eq!(fit.wavelengths_nm, vec![600.0, 650.0, 700.0]);
+}
+
+#[test]
+fn model_matches_math_md_7_3d() {
+    // §7.3d: Table-4 coefficients, n_p held, 10 frames at p = [0, 0, 0.25] (verbatim R).
+    let s = nalgebra::Vector3::new(0.95, 0.05, -0.30).normalize();
+    let o = nalgebra::Vector3::new(0.999, 0.0, -0.045).normalize();
+    let obs: Vec<Observation> = (0..=10)
+        .map(|t| Observation {
+            frame_index: t,
+            t_s: t as f64,
+            sun_body: s,
+            observer_body: o,
+            range_m: 1.0,
+            flux_w: vec![1.0],
+            sigma_w: vec![],
+        })
+        .collect();
+    let band = RateBand {
+        band_index: 0,
+        wavelength_nm: 650.0,
+        coeffs: glint_physics::two_facet::TwoFacetCoefficients::table4(),
+    };
+    let cfg = config(AttitudeModel::Verbatim, PanelNormalMode::Frozen);
+    let problem = RateProblem::new(&obs, &[band], &cfg).expect("problem");
+    let q = problem.model_flux_w([0.0, 0.0, 0.25]);
+    assert!((q[0][0] - 0.576001335733).abs() < 1e-11);
+    assert!((q[0][10] - (0.593846662657 + 0.0139996787073)).abs() < 1e-11);
+}

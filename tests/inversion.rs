@@ -1,0 +1,92 @@
+//! The [000] Y-rotation scenario across sensor and inversion processes, with the orchestrator
+//! sequencing the three stages over request/response; and `glint invert` on the observations
+//! the run exported, which must reproduce the service's answer exactly.
+
+mod common;
+
+use common::*;
+
+#[test]
+fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
+    let dir = temp_dir("yspin");
+    let r = run(Some(&scenario("geo-hover-yspin.toml")), &dir, &[]);
+    assert!(
+        r.output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&r.output.stderr)
+    );
+    let rep = &r.report;
+    let names: Vec<&str> = rep["services"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["sensor", "inversion"]);
+    assert_eq!(
+        rep["topics"]["spectrum"]["consumers"]["inversion"]["received"],
+        1440
+    );
+    let inv = &rep["inversion"];
+    assert_eq!(inv["windows"]["stable_samples"], 720);
+    assert_eq!(inv["windows"]["motion_frames"], 720);
+    assert_eq!(inv["stage1"]["status"], "ok");
+    let bands = inv["stage1"]["bands"].as_array().unwrap();
+    assert_eq!(bands.len(), 36);
+    for b in bands {
+        assert!(b["recon_err"].as_f64().unwrap() < 5e-3, "{b}");
+    }
+    assert_eq!(inv["stage2"]["sigma"].as_array().unwrap().len(), 36);
+    assert!(inv["stage2"]["chosen_nm"].is_number());
+    let s3 = &inv["stage3"];
+    assert_eq!(
+        s3["truth_deg_per_frame"],
+        serde_json::json!([0.0, 0.25, 0.0])
+    );
+    assert!(
+        s3["status"] == "ok" || s3["status"] == "unobservable",
+        "{s3}"
+    );
+
+    // The exported observations through the offline solver: the same answer, to the bit.
+    let out = glint()
+        .arg("invert")
+        .arg(dir.join("observations.csv"))
+        .arg("--out")
+        .arg(dir.join("offline"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let off: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("offline/inversion.json")).unwrap())
+            .unwrap();
+    assert_eq!(off["chosen_wavelength_nm"], inv["stage2"]["chosen_nm"]);
+    if s3["status"] == "ok" {
+        let p_service = &s3["p_deg_per_frame"];
+        let p_offline = &off["rate"]["rate_deg_per_frame"];
+        assert_eq!(
+            p_service, p_offline,
+            "service {p_service} vs offline {p_offline}"
+        );
+    }
+    for pic in ["inversion-sigma.svg", "light-curve.svg", "observations.csv"] {
+        assert!(dir.join(pic).exists(), "{pic}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn invert_rejects_a_malformed_observation_file() {
+    let dir = temp_dir("invert-bad");
+    let p = dir.join("obs.csv");
+    std::fs::write(&p, "window,frame_index,t_s,sun_x,sun_y,sun_z,obs_x,obs_y,obs_z,range_m,flux_650\nstable,0,0,2,0,0,1,0,0,1e6,1e-14\n").unwrap();
+    let out = glint().arg("invert").arg(&p).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("obs.csv:2") && err.contains("sun_x"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
