@@ -150,6 +150,48 @@ pub fn levenberg_marquardt_with(
     problem: &RateProblem,
     p0: [f64; 3],
     config: &LmConfig,
+    abandon: impl FnMut(&[f64; 3], f64, usize) -> bool,
+) -> Result<LmOutcome, InversionError> {
+    levenberg_marquardt_prior(problem, p0, config, &Prior::default(), abandon)
+}
+
+/// A point prior `u·p = 0` on given unit directions u, as pseudo-measurements of weight
+/// `weight` [cost units per (deg/frame)²]: the way a direction the data cannot determine is
+/// held at a stated value instead of drifting (math.md §1.6 on the sun–observer bisector).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Prior {
+    pub directions: Vec<[f64; 3]>,
+    pub weight: f64,
+}
+
+impl Prior {
+    fn cost(&self, p: &[f64; 3]) -> f64 {
+        self.directions
+            .iter()
+            .map(|u| self.weight * (0..3).map(|i| u[i] * p[i]).sum::<f64>().powi(2))
+            .sum()
+    }
+
+    /// Adds the pseudo-measurements to the normal equations (A += w u uᵀ, g −= w u (u·p)).
+    fn add(&self, p: &[f64; 3], a: &mut [[f64; 3]; 3], g: &mut [f64; 3]) {
+        for u in &self.directions {
+            let up: f64 = (0..3).map(|i| u[i] * p[i]).sum();
+            for i in 0..3 {
+                g[i] -= self.weight * u[i] * up;
+                for j in 0..3 {
+                    a[i][j] += self.weight * u[i] * u[j];
+                }
+            }
+        }
+    }
+}
+
+/// LM on the data cost plus a [`Prior`].
+pub fn levenberg_marquardt_prior(
+    problem: &RateProblem,
+    p0: [f64; 3],
+    config: &LmConfig,
+    prior: &Prior,
     mut abandon: impl FnMut(&[f64; 3], f64, usize) -> bool,
 ) -> Result<LmOutcome, InversionError> {
     let n = problem.residual_count();
@@ -157,7 +199,7 @@ pub fn levenberg_marquardt_with(
     let mut jac = vec![[0.0; 3]; n];
     let (mut r_try, mut jac_try) = (r.clone(), jac.clone());
     let mut p = p0;
-    let mut cost = problem.residuals_and_jacobian(p, &mut r, &mut jac);
+    let mut cost = problem.residuals_and_jacobian(p, &mut r, &mut jac) + prior.cost(&p);
     if !cost.is_finite() {
         return Err(InversionError::Diverged {
             iterations: 0,
@@ -175,7 +217,8 @@ pub fn levenberg_marquardt_with(
         if cost < config.cost_tol {
             return Ok(outcome(p, cost, k - 1, StopReason::CostBelowTolerance));
         }
-        let (a, g) = normal_equations(&jac, &r);
+        let (mut a, mut g) = normal_equations(&jac, &r);
+        prior.add(&p, &mut a, &mut g);
         if gauss_newton_decrease(&a, &g) < config.rel_decrease_tol * cost {
             return Ok(outcome(p, cost, k - 1, StopReason::Stationary));
         }
@@ -191,7 +234,8 @@ pub fn levenberg_marquardt_with(
             let p_new = [p[0] + delta[0], p[1] + delta[1], p[2] + delta[2]];
             // Value and Jacobian cost the same (the lobes dominate), so trials carry J along.
             // A non-finite trial cost compares false and counts as a rejection.
-            let cost_new = problem.residuals_and_jacobian(p_new, &mut r_try, &mut jac_try);
+            let cost_new = problem.residuals_and_jacobian(p_new, &mut r_try, &mut jac_try)
+                + prior.cost(&p_new);
             if cost_new < cost {
                 let rel = (cost - cost_new) / cost;
                 let small_step = norm(&delta) < config.step_tol * (1.0 + norm(&p));

@@ -25,7 +25,10 @@
 //! (same p), see [`RateProblem::new`].
 
 use crate::error::InversionError;
-use crate::lm::{levenberg_marquardt, levenberg_marquardt_with, LmConfig, LmOutcome, StopReason};
+use crate::lm::{
+    levenberg_marquardt, levenberg_marquardt_prior, levenberg_marquardt_with, LmConfig, LmOutcome,
+    Prior, StopReason,
+};
 use crate::model::RateProblem;
 use crate::observability::{
     analyse, CovarianceSource, Observability, ObservabilityConfig, UnobservableReason,
@@ -72,7 +75,7 @@ const SAME_START_DEG_PER_FRAME: f64 = 1e-2;
 const REJOIN_DEG_PER_FRAME: f64 = 1e-3;
 
 /// Stage-3 settings.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Stage3Config {
     /// LM stopping rules.
@@ -81,6 +84,20 @@ pub struct Stage3Config {
     pub start: StartConfig,
     /// Covariance and observability thresholds.
     pub observability: ObservabilityConfig,
+    /// Hold unobservable eigen-directions at the prior u·p = 0 and re-fit the rest (default);
+    /// `false` reports the unconstrained optimum.
+    pub hold_unobservable_at_prior: bool,
+}
+
+impl Default for Stage3Config {
+    fn default() -> Self {
+        Stage3Config {
+            lm: LmConfig::default(),
+            start: StartConfig::default(),
+            observability: ObservabilityConfig::default(),
+            hold_unobservable_at_prior: true,
+        }
+    }
 }
 
 /// A determined rate estimate.
@@ -244,6 +261,10 @@ pub fn fit_from_starts(
 }
 
 /// Polishes `starts`; `counts` = (grid points, screened starts) for the record.
+/// Weight of the prior on unobservable directions, relative to the largest eigenvalue of the
+/// information matrix: large enough that the prior decides those components.
+const PRIOR_WEIGHT_FACTOR: f64 = 1e6;
+
 fn polish(
     problem: &RateProblem,
     starts: &[[f64; 3]],
@@ -276,8 +297,47 @@ fn polish(
             reason: "at least one start is required",
         });
     };
-    let analysis = analyse(problem, best.p_deg_per_frame, &config.observability)?;
+    let mut analysis = analyse(problem, best.p_deg_per_frame, &config.observability)?;
     let wavelengths_nm = problem.wavelengths_nm().to_vec();
+    let mut best = best;
+    // Directions the data cannot determine (math.md §1.6: the sun–observer bisector) are held
+    // at the stated prior u·p = 0 and the rest re-fitted, instead of reporting wherever LM
+    // drifted along them. The returned observability still marks them unobservable.
+    let weak: Vec<[f64; 3]> = (0..3)
+        .filter(|&i| analysis.observability.unobservable[i])
+        .map(|i| analysis.observability.eigenvectors[i])
+        .collect();
+    if analysis.unobservable.is_none() && !weak.is_empty() && config.hold_unobservable_at_prior {
+        let strongest = analysis
+            .observability
+            .information_eigenvalues
+            .iter()
+            .cloned()
+            .fold(0.0f64, f64::max);
+        let prior = Prior {
+            directions: weak.clone(),
+            weight: PRIOR_WEIGHT_FACTOR * strongest.max(1.0),
+        };
+        let p = best.p_deg_per_frame;
+        let mut p0 = p;
+        for u in &weak {
+            let up: f64 = (0..3).map(|i| u[i] * p[i]).sum();
+            for i in 0..3 {
+                p0[i] -= u[i] * up;
+            }
+        }
+        let refit = levenberg_marquardt_prior(problem, p0, &config.lm, &prior, |_, _, _| false)?;
+        total_iterations += refit.iterations;
+        let mut refit_analysis = analyse(problem, refit.p_deg_per_frame, &config.observability)?;
+        // The classification stays the one at the unconstrained optimum.
+        refit_analysis.observability.unobservable = analysis.observability.unobservable;
+        refit_analysis.unobservable = None;
+        analysis = refit_analysis;
+        best = LmOutcome {
+            cost: problem.cost(refit.p_deg_per_frame),
+            ..refit
+        };
+    }
     if let Some(reason) = analysis.unobservable {
         return Ok(RateSolution::Unobservable {
             reason,
