@@ -46,6 +46,11 @@ pub struct TargetScore {
     pub pos_err_m_final: f64,
     pub vel_err_mps_final: f64,
     pub nees_mean: f64,
+    /// NEES at the last frame (for a Monte-Carlo check at a fixed time across seeds).
+    pub nees_final: f64,
+    /// RMS over frames of (measured angle − truth) / (the detection's claimed 1σ), azimuth and
+    /// elevation together: ≈ 1 when the detector's uncertainty is honest.
+    pub angle_err_normalized_rms: f64,
     /// 95 % bounds of the mean NEES of this many 6-dof samples.
     pub nees_bounds: [f64; 2],
     pub laser_shots: u64,
@@ -176,6 +181,14 @@ pub fn score(
         .filter_map(|(tid, v)| v.iter().max_by_key(|(_, c)| **c).map(|(i, _)| (*tid, *i)))
         .collect();
 
+    let sigma_of: BTreeMap<(u64, u32), f64> = detections
+        .iter()
+        .flat_map(|d| {
+            d.items[..d.n as usize]
+                .iter()
+                .map(move |det| ((d.frame_index, det.track_id), det.sigma_rad))
+        })
+        .collect();
     let mut targets = vec![];
     let mut series = vec![];
     for i in 0..n_debris {
@@ -189,6 +202,7 @@ pub fn score(
         let (mut az_m, mut az_f, mut el_m, mut el_f, mut direct) =
             (vec![], vec![], vec![], vec![], vec![]);
         let mut nees = vec![];
+        let mut normalized = vec![];
         let (mut shots, mut hits, mut frames_tracked) = (0u64, 0u64, 0u64);
         let mut last: Option<(Vector6<f64>, Vector6<f64>)> = None;
         for tr in tracks {
@@ -212,6 +226,13 @@ pub fn score(
                 x_true
             };
             let deg = f64::to_degrees;
+            if let Some(sigma) = sigma_of
+                .get(&(tr.frame_index, est.track_id))
+                .filter(|s| **s > 0.0)
+            {
+                normalized.push(wrap_rad(est.azimuth_meas_rad - az_t) / sigma);
+                normalized.push((est.elevation_meas_rad - el_t) / sigma);
+            }
             az_m.push(deg(wrap_rad(est.azimuth_meas_rad - az_t)));
             el_m.push(deg(est.elevation_meas_rad - el_t));
             if est.angles_valid == 1 {
@@ -279,6 +300,8 @@ pub fn score(
             } else {
                 nees.iter().sum::<f64>() / nees.len() as f64
             },
+            nees_final: nees.last().copied().unwrap_or(f64::NAN),
+            angle_err_normalized_rms: rms(&normalized),
             nees_bounds: nees_bounds(nees.len(), 6),
             laser_shots: shots,
             laser_hits: hits,
