@@ -6,7 +6,7 @@
 use std::time::Duration;
 
 use anyhow::{Context, Result};
-use glint_physics::camera::position_from_angles;
+use glint_physics::camera::{position_from_angles, PinholeCamera};
 use glint_physics::orbit::MU_EARTH_M3_S2;
 use glint_runtime::ports::{Inbox, Outbox};
 use glint_runtime::rpc::{CallOutcome, RangeClient};
@@ -20,7 +20,7 @@ use shared_types::{
 
 use crate::angle_filter::AngleFilterConfig;
 use crate::ekf::CwEkfConfig;
-use crate::track::{TrackManager, TrackManagerConfig, TrackObservation, TrackStatus};
+use crate::track::{EkfAngles, TrackManager, TrackManagerConfig, TrackObservation, TrackStatus};
 
 /// Filter settings from the scenario (noise levels in the filters' own units).
 pub fn config(cam: &CameraScenario) -> TrackManagerConfig {
@@ -53,6 +53,10 @@ struct FrameWork<'a> {
     node: &'a IpcNode,
     delay_s: f64,
     timeout: Duration,
+    camera: PinholeCamera,
+    exposure_s: f64,
+    /// σ(end point) / σ(centroid) of eq (9).
+    end_point_factor: f64,
 }
 
 impl FrameWork<'_> {
@@ -69,6 +73,15 @@ impl FrameWork<'_> {
                 range_m: None,
                 range_t_s: None,
                 sigma_rad: (det.sigma_rad > 0.0).then_some(det.sigma_rad),
+                ekf_angles: (det.sigma_rad > 0.0).then(|| {
+                    let (az, el) = self.camera.angles_from_pixel(det.x_px, det.y_px);
+                    EkfAngles {
+                        t_s: t_s - 0.5 * self.exposure_s,
+                        azimuth_rad: az,
+                        elevation_rad: el,
+                        sigma_rad: det.sigma_rad / self.end_point_factor,
+                    }
+                }),
             })
             .collect();
         let outcome = self.tm.process_frame(&observations);
@@ -202,6 +215,14 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     let mut tm = TrackManager::new(config(cam)).map_err(|e| anyhow::anyhow!("{e}"))?;
     let realtime = scenario.clock == Clock::Realtime;
     let timeout = Duration::from_millis(cam.tracker.range_timeout_ms);
+    let camera = PinholeCamera {
+        width_px: cam.width_px,
+        height_px: cam.height_px,
+        fov_x_rad: cam.fov_deg.to_radians(),
+        fov_y_rad: cam.fov_deg.to_radians(),
+    };
+    let k = cam.exposure_s / (2.0 * (cam.exposure_s + cam.interval_s));
+    let end_point_factor = ((1.0 + k).powi(2) + k * k).sqrt();
     hk.state = Heartbeat::READY;
 
     let inputs = [(&control_l, None), (&dets_l, None), (&ack_l, None)];
@@ -238,6 +259,9 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                 node: &node,
                 delay_s: cam.laser.delay_s,
                 timeout,
+                camera,
+                exposure_s: cam.exposure_s,
+                end_point_factor,
             };
             let msg = work.process(d)?;
             out.send(msg, d.exposure_end_ns)?;

@@ -76,6 +76,20 @@ pub struct TrackObservation {
     /// 1σ of these angles \[rad\] when known per detection; `None` = the configured value.
     #[serde(default)]
     pub sigma_rad: Option<f64>,
+    /// A separate line of sight for the EKF (e.g. the streak centroid at mid-exposure, whose
+    /// errors are white, where the eq-9 end points of consecutive frames share a centroid and
+    /// are correlated); `None` = the angles above.
+    #[serde(default)]
+    pub ekf_angles: Option<EkfAngles>,
+}
+
+/// A line-of-sight measurement for the EKF alone.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct EkfAngles {
+    pub t_s: f64,
+    pub azimuth_rad: f64,
+    pub elevation_rad: f64,
+    pub sigma_rad: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -235,10 +249,23 @@ impl Track {
         obs: &TrackObservation,
         faults: &mut Vec<TrackFault>,
     ) {
-        let angles = AngleMeasurement {
-            t_s: obs.t_s,
-            azimuth_rad: obs.azimuth_rad,
-            elevation_rad: obs.elevation_rad,
+        let (angles, angles_sigma) = match obs.ekf_angles {
+            Some(a) => (
+                AngleMeasurement {
+                    t_s: a.t_s,
+                    azimuth_rad: a.azimuth_rad,
+                    elevation_rad: a.elevation_rad,
+                },
+                Some(a.sigma_rad),
+            ),
+            None => (
+                AngleMeasurement {
+                    t_s: obs.t_s,
+                    azimuth_rad: obs.azimuth_rad,
+                    elevation_rad: obs.elevation_rad,
+                },
+                obs.sigma_rad,
+            ),
         };
         let range_t_s = obs.range_t_s.unwrap_or(obs.t_s);
         let range = match obs.range_m {
@@ -266,10 +293,10 @@ impl Track {
             }
             _ => {
                 if self.ekf.is_some() {
-                    let result = self
-                        .ekf
-                        .as_mut()
-                        .map(|e| e.update_angles(&angles).map(|_| ()));
+                    let result = self.ekf.as_mut().map(|e| {
+                        e.update_angles_with_sigma(&angles, angles_sigma)
+                            .map(|_| ())
+                    });
                     self.settle(result, faults);
                 }
                 if let Some(r) = range {
@@ -408,6 +435,7 @@ impl TrackManager {
                 range_m: Some(range_m),
                 range_t_s: Some(t_s),
                 sigma_rad: None,
+                ekf_angles: None,
             };
             track.observe_range(&cfg, t_s, range_m, &obs, &mut faults);
         }

@@ -23,6 +23,7 @@ fn observe(id: u64, x: &Vector6<f64>, t: f64, with_range: bool, rng: &mut Rng) -
         range_m: with_range.then(|| h[2] + 0.1 / 3.0 * rng.gaussian()),
         range_t_s: None,
         sigma_rad: None,
+        ekf_angles: None,
     }
 }
 
@@ -47,6 +48,7 @@ fn delayed_laser_range_is_applied_at_its_own_time() {
             range_m: Some(r_echo),
             range_t_s: Some(t_echo),
             sigma_rad: None,
+            ekf_angles: None,
         };
         let out = tm.process_frame(&[obs]);
         assert!(out.faults.is_empty(), "{:?}", out.faults);
