@@ -153,11 +153,15 @@ fn wait_all(
     }
 }
 
-/// The stop ladder, after the caller has published `Shutdown`. Each child's ending records the
-/// rung that stopped it (a child that had exited before the ladder keeps its own status).
+/// The stop ladder: `send_shutdown` publishes the `Shutdown` control message, then each rung
+/// waits `grace` for the children still running, escalating to SIGTERM and SIGKILL. Each
+/// child's ending records the rung that stopped it; which children are running is taken before
+/// each rung starts (for the first, before `Shutdown` is sent, so a fast exit still counts as a
+/// graceful one).
 pub fn stop_ladder(
     children: &mut [ServiceProcess],
     grace: Duration,
+    send_shutdown: &mut dyn FnMut(),
     while_waiting: &mut dyn FnMut(),
 ) {
     let rungs = [
@@ -170,10 +174,13 @@ pub fn stop_ladder(
         if !running.iter().any(|r| *r) {
             return;
         }
-        if let Some(sig) = signal {
-            for (c, r) in children.iter().zip(&running) {
-                if *r {
-                    c.signal(sig);
+        match signal {
+            None => send_shutdown(),
+            Some(sig) => {
+                for (c, r) in children.iter().zip(&running) {
+                    if *r {
+                        c.signal(sig);
+                    }
                 }
             }
         }

@@ -191,11 +191,24 @@ fn deploy_and_run(
     }
 
     // Stop ladder; drain final heartbeats while waiting so the last counters are captured.
-    consumer.command(Command::Shutdown, Control::ALL)?;
     let grace = Duration::from_millis(limits.shutdown_grace_ms);
-    stop_ladder(&mut children, grace, &mut || {
-        let _ = consumer.poll();
-    });
+    let shutdown_sent = std::cell::Cell::new(Ok(()));
+    let consumer_cell = std::cell::RefCell::new(&mut consumer);
+    stop_ladder(
+        &mut children,
+        grace,
+        &mut || {
+            shutdown_sent.set(
+                consumer_cell
+                    .borrow_mut()
+                    .command(Command::Shutdown, Control::ALL),
+            )
+        },
+        &mut || {
+            let _ = consumer_cell.borrow_mut().poll();
+        },
+    );
+    shutdown_sent.into_inner()?;
     consumer.poll()?;
 
     let production_s = match (t_running, t_done) {
