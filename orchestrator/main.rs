@@ -5,6 +5,7 @@
 //! Exit codes: 0 success, 1 the run failed (a service died, a message was lost, …),
 //! 2 bad input (scenario file, arguments).
 
+mod campaign;
 mod consume;
 mod deploy;
 mod observations;
@@ -150,13 +151,18 @@ fn main() -> ExitCode {
             if let Some(seed) = seed {
                 sc.seed = seed;
             }
-            let opts = run::RunOptions {
-                scenario: sc,
-                scenario_file: file,
-                out_dir: out,
-                progress: std::io::stderr().is_terminal(),
+            let progress = std::io::stderr().is_terminal();
+            let result = if sc.campaign.is_some() {
+                campaign::run(&sc, &file, out, progress)
+            } else {
+                run::run(run::RunOptions {
+                    scenario: sc,
+                    scenario_file: file,
+                    out_dir: out,
+                    progress,
+                })
             };
-            match run::run(opts) {
+            match result {
                 Ok((dir, ok)) => {
                     println!("{}", dir.join("summary.md").display());
                     if ok {

@@ -90,3 +90,41 @@ fn invert_rejects_a_malformed_observation_file() {
     assert!(err.contains("obs.csv:2") && err.contains("sun_x"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_campaign_runs_one_deployment_per_value_and_tabulates_them() {
+    let dir = temp_dir("campaign");
+    let out = glint()
+        .arg("run")
+        .arg(scenario("campaign-axis.toml"))
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let c: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("campaign.json")).unwrap()).unwrap();
+    let rows = c["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(rows[0]["value"], "y");
+    assert_eq!(rows[1]["paper"], 2.59);
+    for (i, r) in rows.iter().enumerate() {
+        assert_eq!(r["success"], true, "{r}");
+        // Each value ran as its own deployment with its own report.
+        let sub: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.join(format!("{i:02}/report.json"))).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(
+            sub["inversion"]["stage3"]["err_paper_metric"],
+            r["err_paper_metric"]
+        );
+    }
+    let md = std::fs::read_to_string(dir.join("summary.md")).unwrap();
+    assert!(md.contains("| y |") && md.contains("| z |"), "{md}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

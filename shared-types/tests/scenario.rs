@@ -113,3 +113,26 @@ fn resolved_scenario_round_trips() {
     let again = Scenario::from_toml_str(&s.to_toml(), "resolved").unwrap();
     assert_eq!(s, again);
 }
+
+#[test]
+fn campaign_values_are_validated_as_the_scenario_they_make() {
+    let text = std::fs::read_to_string(scenarios_dir().join("campaign-phase.toml"))
+        .unwrap()
+        .replace("values = [3.0, 5.0,", "values = [300.0, 5.0,");
+    let e = error_of(&text);
+    assert!(
+        e.contains("campaign.values[0]") && e.contains("spectra.start_phase_deg"),
+        "{e}"
+    );
+    let text = std::fs::read_to_string(scenarios_dir().join("campaign-axis.toml"))
+        .unwrap()
+        .replace(
+            "parameter = \"spectra.rotation\"",
+            "parameter = \"spectra.aperture\"",
+        );
+    let e = error_of(&text);
+    assert!(
+        e.contains("campaign.parameter") && e.contains("allowed"),
+        "{e}"
+    );
+}

@@ -1,0 +1,175 @@
+//! Campaigns: one full deployment per value of the swept parameter (each its own processes and
+//! shared memory, in `DIR/NN-…/`), then `DIR/campaign.json`, a table beside the paper's figures
+//! in `DIR/summary.md`, and a plot of the error against the parameter when it is numeric.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use serde_json::{json, Value};
+use shared_types::Scenario;
+
+use crate::plots::{line_chart, Series, BLUE, RED};
+use crate::run::{self, RunOptions};
+
+pub fn run(
+    scenario: &Scenario,
+    file: &str,
+    out_dir: Option<PathBuf>,
+    progress: bool,
+) -> Result<(PathBuf, bool)> {
+    let camp = scenario.campaign.clone().context("no [campaign] section")?;
+    let dir = out_dir.unwrap_or_else(|| {
+        PathBuf::from("runs").join(format!("{}-{}", scenario.name, run::utc_stamp()))
+    });
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let mut rows = vec![];
+    let mut all_ok = true;
+    for (i, value) in camp.values.iter().enumerate() {
+        let variant = scenario
+            .campaign_variant(i)
+            .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+        let sub = dir.join(format!("{i:02}"));
+        eprintln!(
+            "campaign {}: {} = {} ({}/{})",
+            scenario.name,
+            camp.parameter,
+            value,
+            i + 1,
+            camp.values.len()
+        );
+        let (run_dir, ok) = run::run(RunOptions {
+            scenario: variant,
+            scenario_file: file.to_string(),
+            out_dir: Some(sub.clone()),
+            progress,
+        })?;
+        all_ok &= ok;
+        let report: Value =
+            serde_json::from_str(&std::fs::read_to_string(run_dir.join("report.json"))?)?;
+        let s3 = &report["inversion"]["stage3"];
+        rows.push(json!({
+            "value": value.to_string().trim_matches('"'),
+            "run": sub.file_name().map(|n| n.to_string_lossy().to_string()),
+            "success": report["success"],
+            "status": s3["status"],
+            "band_nm": s3["band_nm"],
+            "p_deg_per_frame": s3["p_deg_per_frame"],
+            "err_paper_metric": s3["err_paper_metric"],
+            "joint_err_paper_metric": s3["joint"]["err_paper_metric"],
+            "bound_1sigma_deg_per_frame": s3["fisher"]["bound_1sigma_deg_per_frame"],
+            "observable": s3["fisher"]["observable"],
+            "paper": camp.paper.get(i),
+        }));
+    }
+    let out = json!({
+        "scenario": scenario.name,
+        "parameter": camp.parameter,
+        "seed": scenario.seed,
+        "rows": rows,
+    });
+    std::fs::write(
+        dir.join("campaign.json"),
+        serde_json::to_string_pretty(&out)? + "\n",
+    )?;
+    std::fs::write(
+        dir.join("summary.md"),
+        summary(scenario, &camp.parameter, &rows),
+    )?;
+    plot(&dir, &camp.parameter, &rows)?;
+    Ok((dir, all_ok))
+}
+
+fn num(v: &Value) -> Option<f64> {
+    v.as_f64()
+}
+
+fn fmt(v: &Value, digits: usize) -> String {
+    num(v).map_or("—".into(), |x| format!("{x:.digits$}"))
+}
+
+fn summary(scenario: &Scenario, parameter: &str, rows: &[Value]) -> String {
+    let mut s = format!(
+        "# glint campaign: {} — sweep of `{parameter}`\n\n",
+        scenario.name
+    );
+    if !scenario.description.is_empty() {
+        let _ = writeln!(s, "{}\n", scenario.description.trim());
+    }
+    if let Some(sp) = &scenario.spectra {
+        let _ = writeln!(
+            s,
+            "Windows: stable {} samples from phase {}°, motion {} frames {} s apart; materials `{:?}`; seed {}. Error = 100·‖p − p*‖ (deg/frame), as the paper prints it; 1σ bounds along the Fisher eigen-directions (weakest first).\n",
+            sp.stable_samples, sp.stable_start_phase_deg, sp.motion_frames, sp.frame_interval_s, sp.materials, scenario.seed
+        );
+    }
+    let _ = writeln!(s, "| {parameter} | status | band [nm] | p [deg/frame] | error (ours, λ*) | error (ours, joint) | paper | 1σ bounds [deg/frame] | run |\n|---|---|---|---|---|---|---|---|---|");
+    for r in rows {
+        let p = r["p_deg_per_frame"].as_array().map_or("—".into(), |p| {
+            format!(
+                "[{}]",
+                p.iter().map(|x| fmt(x, 4)).collect::<Vec<_>>().join(", ")
+            )
+        });
+        let b = r["bound_1sigma_deg_per_frame"]
+            .as_array()
+            .map_or("—".into(), |p| {
+                p.iter()
+                    .map(|x| num(x).map_or("∞".into(), |v| format!("{v:.2e}")))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            });
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | [{}]({}/summary.md) |",
+            r["value"].as_str().unwrap_or("?"),
+            r["status"].as_str().unwrap_or("—"),
+            fmt(&r["band_nm"], 0),
+            p,
+            fmt(&r["err_paper_metric"], 2),
+            fmt(&r["joint_err_paper_metric"], 2),
+            fmt(&r["paper"], 2),
+            b,
+            r["run"].as_str().unwrap_or("?"),
+            r["run"].as_str().unwrap_or("?"),
+        );
+    }
+    s.push_str("\n![error against the parameter](campaign.svg)\n");
+    s
+}
+
+fn plot(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
+    let x: Vec<Option<f64>> = rows
+        .iter()
+        .map(|r| r["value"].as_str().and_then(|v| v.parse().ok()))
+        .collect();
+    if x.iter().any(|v| v.is_none()) {
+        return Ok(());
+    }
+    let series = |key: &str| -> Vec<(f64, f64)> {
+        rows.iter()
+            .zip(&x)
+            .filter_map(|(r, x)| Some(((*x)?, num(&r[key])?)))
+            .collect()
+    };
+    line_chart(
+        &dir.join("campaign.svg"),
+        &format!("Rate error against {parameter}: ours (line) and the paper (dots)"),
+        parameter,
+        "100·‖p − p*‖ [deg/frame]",
+        &[
+            Series {
+                label: "glint",
+                points: series("err_paper_metric"),
+                color: BLUE,
+                markers: false,
+            },
+            Series {
+                label: "paper",
+                points: series("paper"),
+                color: RED,
+                markers: true,
+            },
+        ],
+    )
+}
