@@ -448,6 +448,10 @@ pub enum BodyShapeName {
     Cylinder,
     Sphere,
     HexagonalPrism,
+    /// Only what the inversion's two-facet model contains: the +X body face (1.2 m × 1.2 m,
+    /// MLI) and the sun-pointing panel — a diagnostic that separates model mismatch from the
+    /// solver.
+    TwoFacet,
 }
 
 /// Attitude matrix convention of [000] eq (17) (math.md §1.6).

@@ -197,13 +197,26 @@ pub fn analyse(
         }
     });
     let threshold = config.unobservable_bound_deg_per_frame;
+    // A numerically singular direction carries no information: its bound is infinite.
+    let singular = raw_vals.map(|v| v.is_nan() || v <= config.rank_tol * lam_max);
+    let bounds: [f64; 3] = std::array::from_fn(|i| {
+        if singular[i] {
+            f64::INFINITY
+        } else {
+            bounds[i]
+        }
+    });
     let unobservable_dirs = bounds.map(|b| b.is_nan() || b > threshold);
+    // Only when no direction is determined is there no rate to report; otherwise the weak
+    // directions are flagged (and stage 3 holds them at its prior).
     let reason = if rms_sensitivity.is_nan() || rms_sensitivity < config.flat_tol {
         Some(UnobservableReason::FlatLightCurve { rms_sensitivity })
-    } else if raw_vals[0].is_nan() || raw_vals[0] <= config.rank_tol * lam_max {
-        Some(UnobservableReason::RankDeficient { condition_number })
     } else if unobservable_dirs.iter().all(|&u| u) {
-        Some(UnobservableReason::AllDirectionsAboveThreshold)
+        if singular.iter().any(|&s| s) {
+            Some(UnobservableReason::RankDeficient { condition_number })
+        } else {
+            Some(UnobservableReason::AllDirectionsAboveThreshold)
+        }
     } else {
         None
     };

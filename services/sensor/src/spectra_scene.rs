@@ -14,8 +14,9 @@
 //! of Φ_b / SNR, a Gaussian draw per sample and band from a stream keyed by (seed, window, index).
 
 use glint_physics::hover::HoverGeometry;
+use glint_physics::materials::Material;
 use glint_physics::materials::MaterialPreset;
-use glint_physics::satellite::{BandTable, BodyShape, SatelliteModel};
+use glint_physics::satellite::{BandTable, BodyShape, Facet, SatelliteModel, CUBE_EDGE_M};
 use glint_physics::two_facet::{panel_normal, AttitudeConvention};
 use nalgebra::{Matrix3, Vector3};
 use shared_types::scenario::{
@@ -89,13 +90,23 @@ impl SpectraScene {
             MaterialPresetName::Physical => MaterialPreset::Physical,
             MaterialPresetName::PaperLike => MaterialPreset::PaperLike,
         };
-        let shape = match sc.body_shape {
-            BodyShapeName::Cube => BodyShape::Cube,
-            BodyShapeName::Cylinder => BodyShape::Cylinder,
-            BodyShapeName::Sphere => BodyShape::Sphere,
-            BodyShapeName::HexagonalPrism => BodyShape::HexagonalPrism,
+        let shape = |b: BodyShape| SatelliteModel::tan2020(b, preset);
+        let model = match sc.body_shape {
+            BodyShapeName::Cube => shape(BodyShape::Cube),
+            BodyShapeName::Cylinder => shape(BodyShape::Cylinder),
+            BodyShapeName::Sphere => shape(BodyShape::Sphere),
+            BodyShapeName::HexagonalPrism => shape(BodyShape::HexagonalPrism),
+            BodyShapeName::TwoFacet => {
+                let cube = shape(BodyShape::Cube);
+                let face = Facet {
+                    normal_body: Vector3::x(),
+                    area_m2: CUBE_EDGE_M * CUBE_EDGE_M,
+                    material: Material::MliKapton,
+                };
+                SatelliteModel::from_facets(vec![face], cube.panel_area_m2(), preset)
+                    .map_err(|e| SpectraSceneError::Model(format!("{e:?}")))?
+            }
         };
-        let model = SatelliteModel::tan2020(shape, preset);
         let wavelengths = sc.wavelengths_nm();
         let bands = model
             .band_table(&wavelengths)
