@@ -11,8 +11,8 @@ use glint_runtime::{open_node, run_loop, AckReader, Credit, Exit, Housekeeping, 
 use shared_types::scenario::{CameraScenario, Clock};
 use shared_types::topics::{detections_service, frame_service, DETECTIONS_BUFFER};
 use shared_types::{
-    deployment, Command, Detection, Detections, DropReason, Heartbeat, Scenario, ServiceId,
-    TopicId, MAX_DETECTIONS,
+    deployment, Detection, Detections, DropReason, Heartbeat, Scenario, ServiceId, TopicId,
+    MAX_DETECTIONS,
 };
 
 use crate::angles::line_of_sight;
@@ -159,23 +159,11 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     let inputs = [(&control_l, None), (&frame_l, None), (&ack_l, None)];
     let hb = Duration::from_millis(scenario.run.heartbeat_period_ms);
     let exit = run_loop(&inputs, hb, |wakes| {
-        for cmd in hk.poll_control()? {
-            match cmd {
-                Command::Start => hk.state = Heartbeat::RUNNING,
-                Command::Shutdown => {
-                    hk.state = Heartbeat::STOPPING;
-                    hk.beat(0, &[&frames.stats, &out.stats])?;
-                    return Ok(Step::Stop);
-                }
-                _ => {}
-            }
+        if hk.obey(&[&frames.stats, &out.stats])? {
+            return Ok(Step::Stop);
         }
         acks.poll(&mut [(TopicId::Detections, &mut credit)])?;
-        let limit = if realtime {
-            usize::MAX
-        } else {
-            credit.available(out.stats.published).min(usize::MAX as u64) as usize
-        };
+        let limit = credit.input_limit(out.stats.published, realtime);
         let mut last_t_ns = 0;
         frames.drain_up_to(limit, |header, pixels, latency_ns| {
             hk.last_latency_ns = latency_ns;

@@ -12,8 +12,8 @@ use nalgebra::Vector3;
 use shared_types::scenario::{AttitudeConvention, SpectraScenario};
 use shared_types::topics::spectrum_service;
 use shared_types::{
-    Command, Heartbeat, Scenario, ServiceId, SolveRequest, SolveResponse, SolveStatus, Spectrum,
-    TopicId, Window,
+    Heartbeat, Scenario, ServiceId, SolveRequest, SolveResponse, SolveStatus, Spectrum, TopicId,
+    Window,
 };
 
 use crate::model::MotionModelConfig;
@@ -173,16 +173,8 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     let inputs = [(&control_l, None), (&spectra_l, None), (&solve_l, None)];
     let hb = Duration::from_millis(scenario.run.heartbeat_period_ms);
     let exit = run_loop(&inputs, hb, |wakes| {
-        for cmd in hk.poll_control()? {
-            match cmd {
-                Command::Start => hk.state = Heartbeat::RUNNING,
-                Command::Shutdown => {
-                    hk.state = Heartbeat::STOPPING;
-                    hk.beat(0, &[&spectra.stats, &server.stats])?;
-                    return Ok(Step::Stop);
-                }
-                _ => {}
-            }
+        if hk.obey(&[&spectra.stats, &server.stats])? {
+            return Ok(Step::Stop);
         }
         let mut last_t_ns = 0;
         spectra.drain(|r| {

@@ -41,6 +41,16 @@ impl Credit {
             .unwrap_or(u64::MAX)
     }
 
+    /// How many inputs a service that publishes one message per input may take now: the credit
+    /// in sim-clock mode, everything in realtime mode (drops are counted downstream there).
+    pub fn input_limit(&self, published: u64, realtime: bool) -> usize {
+        if realtime {
+            usize::MAX
+        } else {
+            self.available(published).min(usize::MAX as u64) as usize
+        }
+    }
+
     pub fn record(&mut self, consumer: ServiceId, next_seq: u64) {
         if let Some(a) = self.acked.get_mut(&consumer) {
             *a = (*a).max(next_seq);

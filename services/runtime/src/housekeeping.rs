@@ -58,6 +58,24 @@ impl Housekeeping {
         Ok(cmds)
     }
 
+    /// The control handling of a consuming service: `Start` marks it running; `Shutdown` sends a
+    /// last heartbeat with `stats` and returns `true` (leave the loop). Other commands are for
+    /// producers and are ignored here.
+    pub fn obey(&mut self, stats: &[&TopicStats]) -> Result<bool> {
+        for cmd in self.poll_control()? {
+            match cmd {
+                Command::Start => self.state = Heartbeat::RUNNING,
+                Command::Shutdown => {
+                    self.state = Heartbeat::STOPPING;
+                    self.beat(0, stats)?;
+                    return Ok(true);
+                }
+                _ => {}
+            }
+        }
+        Ok(false)
+    }
+
     /// Publishes a heartbeat carrying `stats` (at most [`MAX_TOPICS`] topics).
     pub fn beat(&mut self, t_ns: u64, stats: &[&TopicStats]) -> Result<()> {
         let mut topics = [TopicCounters {

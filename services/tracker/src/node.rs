@@ -14,8 +14,8 @@ use glint_runtime::{open_node, run_loop, AckReader, Credit, Exit, Housekeeping, 
 use shared_types::scenario::{CameraScenario, Clock};
 use shared_types::topics::{detections_service, tracks_service, IpcNode, TRACKS_BUFFER};
 use shared_types::{
-    deployment, Command, Detections, Heartbeat, RangeRequest, RangeStatus, Scenario, ServiceId,
-    TopicId, TrackEstimate, Tracks, MAX_TRACKS,
+    deployment, Detections, Heartbeat, RangeRequest, RangeStatus, Scenario, ServiceId, TopicId,
+    TrackEstimate, Tracks, MAX_TRACKS,
 };
 
 use crate::angle_filter::AngleFilterConfig;
@@ -228,23 +228,11 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     let inputs = [(&control_l, None), (&dets_l, None), (&ack_l, None)];
     let hb = Duration::from_millis(scenario.run.heartbeat_period_ms);
     let exit = run_loop(&inputs, hb, |wakes| {
-        for cmd in hk.poll_control()? {
-            match cmd {
-                Command::Start => hk.state = Heartbeat::RUNNING,
-                Command::Shutdown => {
-                    hk.state = Heartbeat::STOPPING;
-                    hk.beat(0, &[&dets.stats, &out.stats])?;
-                    return Ok(Step::Stop);
-                }
-                _ => {}
-            }
+        if hk.obey(&[&dets.stats, &out.stats])? {
+            return Ok(Step::Stop);
         }
         acks.poll(&mut [(TopicId::Tracks, &mut credit)])?;
-        let limit = if realtime {
-            usize::MAX
-        } else {
-            credit.available(out.stats.published).min(usize::MAX as u64) as usize
-        };
+        let limit = credit.input_limit(out.stats.published, realtime);
         let mut pending: Vec<Detections> = vec![];
         dets.drain_up_to(limit, |r| {
             hk.last_latency_ns = r.latency_ns;
