@@ -1,0 +1,166 @@
+//! Wire messages: every type that crosses a process boundary.
+//!
+//! All types are `#[repr(C)]`, hold no pointers, and derive [`ZeroCopySend`] with an explicit,
+//! versioned `#[type_name]`: a process built from another contract version fails to open the
+//! service with `IncompatibleTypes` instead of misreading memory. Padding is explicit (`_pad`
+//! fields) so the layout is the same in every language; `tests/layout.rs` pins size, alignment
+//! and field offsets.
+//!
+//! Every message starts with a [`Meta`]: a per-producer sequence number, the simulated time the
+//! message describes, and the producer's monotonic send time (for cross-process latency).
+//!
+//! Messages come from peers, which may be buggy or corrupted by fault injection, so each type has
+//! a `validate` method that a consumer calls before trusting the contents; a failure is counted
+//! as a drop with reason [`DropReason::Malformed`], never a panic.
+
+use iceoryx2::prelude::ZeroCopySend;
+
+use crate::CONTRACT_VERSION;
+
+mod camera;
+mod housekeeping;
+mod range;
+mod spectrum;
+mod truth;
+
+pub use camera::*;
+pub use housekeeping::*;
+pub use range::*;
+pub use spectrum::*;
+pub use truth::*;
+
+/// Maximum number of spectral bands in one [`Spectrum`].
+pub const MAX_BANDS: usize = 64;
+/// Maximum number of debris objects carried in one [`Truth`] message.
+pub const MAX_DEBRIS: usize = 16;
+/// Number of per-reason drop counters in a [`Heartbeat`].
+pub const DROP_REASONS: usize = 8;
+/// Number of per-topic counters in a [`Heartbeat`].
+pub const MAX_TOPICS: usize = 8;
+
+/// Header common to every message.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[type_name("glint.v1.Meta")]
+#[repr(C)]
+pub struct Meta {
+    /// Per-producer, per-topic sequence number, starting at 0, without gaps.
+    pub seq: u64,
+    /// Simulated time the content refers to [ns since scenario start].
+    pub t_ns: u64,
+    /// Producer's `CLOCK_MONOTONIC` at send [ns]; only for latency, never for results.
+    pub send_mono_ns: u64,
+    /// Contract version of the producer ([`CONTRACT_VERSION`]).
+    pub contract_version: u32,
+    /// Producer service id ([`crate::ServiceId`] as u32).
+    pub producer: u32,
+}
+
+impl Meta {
+    /// A header for a new message of this contract version.
+    pub fn new(seq: u64, t_ns: u64, send_mono_ns: u64, producer: crate::ServiceId) -> Self {
+        Meta {
+            seq,
+            t_ns,
+            send_mono_ns,
+            contract_version: CONTRACT_VERSION,
+            producer: producer as u32,
+        }
+    }
+
+    pub fn validate(&self) -> Result<(), Reject> {
+        if self.contract_version != CONTRACT_VERSION {
+            return Err(Reject::new("meta.contract_version", "mismatch"));
+        }
+        Ok(())
+    }
+}
+
+/// Why a message was rejected by [`validate`](FrameHeader::validate).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Reject {
+    /// The offending field.
+    pub field: &'static str,
+    /// What is wrong with it.
+    pub what: &'static str,
+}
+
+impl Reject {
+    fn new(field: &'static str, what: &'static str) -> Self {
+        Reject { field, what }
+    }
+}
+
+impl std::fmt::Display for Reject {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.field, self.what)
+    }
+}
+
+fn finite(v: f64, field: &'static str) -> Result<(), Reject> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(Reject::new(field, "not finite"))
+    }
+}
+
+fn unit(v: &[f64; 3], field: &'static str) -> Result<(), Reject> {
+    let n2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    if !n2.is_finite() || (n2 - 1.0).abs() > 1e-6 {
+        return Err(Reject::new(field, "not a unit vector"));
+    }
+    Ok(())
+}
+
+/// Access to the common header, and the validation every consumer runs before trusting a peer.
+pub trait Message: std::fmt::Debug + Copy + ZeroCopySend + 'static {
+    fn meta(&self) -> &Meta;
+    fn meta_mut(&mut self) -> &mut Meta;
+    /// Called by the producer after the header is filled (e.g. to compute a content hash).
+    fn seal(&mut self) {}
+    /// Checks a received message; a failure is a counted `Malformed` drop.
+    fn check(&self) -> Result<(), Reject>;
+}
+
+macro_rules! message {
+    ($t:ty, $check:expr) => {
+        impl Message for $t {
+            fn meta(&self) -> &Meta {
+                &self.meta
+            }
+            fn meta_mut(&mut self) -> &mut Meta {
+                &mut self.meta
+            }
+            fn check(&self) -> Result<(), Reject> {
+                #[allow(clippy::redundant_closure_call)]
+                ($check)(self)
+            }
+        }
+    };
+}
+
+impl Message for Spectrum {
+    fn meta(&self) -> &Meta {
+        &self.meta
+    }
+    fn meta_mut(&mut self) -> &mut Meta {
+        &mut self.meta
+    }
+    fn seal(&mut self) {
+        self.content_xxh3 = self.compute_hash();
+    }
+    fn check(&self) -> Result<(), Reject> {
+        self.validate()
+    }
+}
+
+message!(Truth, |m: &Truth| m.validate());
+message!(Detections, |m: &Detections| m.validate());
+message!(Tracks, |m: &Tracks| m.validate());
+message!(SolveRequest, |m: &SolveRequest| m.validate());
+message!(SolveResponse, |m: &SolveResponse| m.validate());
+message!(RangeRequest, |m: &RangeRequest| m.validate());
+message!(RangeResponse, |m: &RangeResponse| m.meta.validate());
+message!(Heartbeat, |m: &Heartbeat| m.validate());
+message!(Control, |m: &Control| m.validate());
+message!(Ack, |m: &Ack| m.meta.validate());

@@ -1,0 +1,282 @@
+//! The attitude solve ([000]): spectrum samples and the solve calls of the three stages.
+
+use iceoryx2::prelude::ZeroCopySend;
+
+use super::*;
+
+/// Which observation window a spectrum sample belongs to ([000] §1.4, §1.6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Window {
+    /// Three-axis-stable attitude: stage 1 reconstructs the BRDF coefficients here.
+    Stable = 0,
+    /// Attitude motion: stage 3 fits the rates here.
+    Motion = 1,
+}
+
+impl Window {
+    pub fn from_u32(v: u32) -> Option<Self> {
+        match v {
+            0 => Some(Window::Stable),
+            1 => Some(Window::Motion),
+            _ => None,
+        }
+    }
+}
+
+/// One time sample of the target's spectrum plus the geometry the inversion needs.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("glint.v1.Spectrum")]
+#[repr(C)]
+pub struct Spectrum {
+    pub meta: Meta,
+    /// Frame index within its window (t = 0 is the frame before the motion starts).
+    pub frame_index: u64,
+    /// [`Window`] as u32.
+    pub window: u32,
+    /// Number of valid bands (≤ [`MAX_BANDS`]).
+    pub n_bands: u32,
+    /// Unit vector target→Sun in the target body frame at rest (LVLH-nadir).
+    pub sun_body: [f64; 3],
+    /// Unit vector target→observer in the target body frame at rest.
+    pub observer_body: [f64; 3],
+    /// Target–observer range [m].
+    pub range_m: f64,
+    /// Phase angle Sun–target–observer [rad].
+    pub phase_rad: f64,
+    /// Band centre wavelengths [nm].
+    pub wavelength_nm: [f64; MAX_BANDS],
+    /// Band-integrated flux at the pupil [W].
+    pub flux_w: [f64; MAX_BANDS],
+    /// 1σ noise of `flux_w` [W] (0 when noise-free).
+    pub sigma_w: [f64; MAX_BANDS],
+    /// xxh3-64 of every field above except `meta.send_mono_ns`, set by the producer.
+    pub content_xxh3: u64,
+}
+
+impl Default for Spectrum {
+    fn default() -> Self {
+        Spectrum {
+            meta: Meta::default(),
+            frame_index: 0,
+            window: 0,
+            n_bands: 0,
+            sun_body: [0.0; 3],
+            observer_body: [0.0; 3],
+            range_m: 0.0,
+            phase_rad: 0.0,
+            wavelength_nm: [0.0; MAX_BANDS],
+            flux_w: [0.0; MAX_BANDS],
+            sigma_w: [0.0; MAX_BANDS],
+            content_xxh3: 0,
+        }
+    }
+}
+
+impl Spectrum {
+    /// Hash of the content (everything but the send time and the hash itself).
+    pub fn compute_hash(&self) -> u64 {
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        h.update(&self.meta.seq.to_le_bytes());
+        h.update(&self.meta.t_ns.to_le_bytes());
+        h.update(&self.frame_index.to_le_bytes());
+        h.update(&self.window.to_le_bytes());
+        h.update(&self.n_bands.to_le_bytes());
+        for v in self
+            .sun_body
+            .iter()
+            .chain(self.observer_body.iter())
+            .chain([self.range_m, self.phase_rad].iter())
+            .chain(self.wavelength_nm.iter())
+            .chain(self.flux_w.iter())
+            .chain(self.sigma_w.iter())
+        {
+            h.update(&v.to_le_bytes());
+        }
+        h.digest()
+    }
+
+    pub fn validate(&self) -> Result<(), Reject> {
+        self.meta.validate()?;
+        if Window::from_u32(self.window).is_none() {
+            return Err(Reject::new(
+                "spectrum.window",
+                "not 0 (stable) or 1 (motion)",
+            ));
+        }
+        if self.n_bands == 0 || self.n_bands as usize > MAX_BANDS {
+            return Err(Reject::new("spectrum.n_bands", "out of range 1..=64"));
+        }
+        unit(&self.sun_body, "spectrum.sun_body")?;
+        unit(&self.observer_body, "spectrum.observer_body")?;
+        if !(self.range_m.is_finite() && self.range_m > 0.0) {
+            return Err(Reject::new("spectrum.range_m", "not finite and > 0"));
+        }
+        let n = self.n_bands as usize;
+        for i in 0..n {
+            finite(self.wavelength_nm[i], "spectrum.wavelength_nm")?;
+            finite(self.flux_w[i], "spectrum.flux_w")?;
+            if !(self.sigma_w[i].is_finite() && self.sigma_w[i] >= 0.0) {
+                return Err(Reject::new("spectrum.sigma_w", "not finite and >= 0"));
+            }
+        }
+        if self.compute_hash() != self.content_xxh3 {
+            return Err(Reject::new(
+                "spectrum.content_xxh3",
+                "does not match content",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A solve call to the inversion ([000] three-stage solve).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[type_name("glint.v1.SolveRequest")]
+#[repr(C)]
+pub struct SolveRequest {
+    pub meta: Meta,
+    pub request_id: u64,
+    /// 1 = reconstruct (stable window), 2 = band selection, 3 = attitude rates (motion window).
+    pub stage: u32,
+    /// [`SolveRequest::FLAG_JOINT`]: also fit stage 3 on all bands jointly.
+    pub flags: u32,
+}
+
+impl SolveRequest {
+    pub const FLAG_JOINT: u32 = 1;
+
+    pub fn validate(&self) -> Result<(), Reject> {
+        self.meta.validate()?;
+        if !(1..=3).contains(&self.stage) {
+            return Err(Reject::new("solve_request.stage", "not 1, 2 or 3"));
+        }
+        Ok(())
+    }
+}
+
+/// Outcome of a solve call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum SolveStatus {
+    Ok = 0,
+    /// The window this stage needs is not complete yet (or an earlier stage has not run).
+    NotReady = 1,
+    /// The geometry does not determine the rates (no glint); no number is given.
+    Unobservable = 2,
+    /// The solver failed (diverged, singular).
+    Failed = 3,
+    /// The request was malformed.
+    Rejected = 4,
+}
+
+impl SolveStatus {
+    pub fn from_u32(v: u32) -> Option<Self> {
+        [
+            Self::Ok,
+            Self::NotReady,
+            Self::Unobservable,
+            Self::Failed,
+            Self::Rejected,
+        ]
+        .into_iter()
+        .find(|s| *s as u32 == v)
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ok => "ok",
+            Self::NotReady => "not_ready",
+            Self::Unobservable => "unobservable",
+            Self::Failed => "failed",
+            Self::Rejected => "rejected",
+        }
+    }
+}
+
+/// The inversion's answer; every stage fills what it computed (NaN elsewhere).
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("glint.v1.SolveResponse")]
+#[repr(C)]
+pub struct SolveResponse {
+    pub meta: Meta,
+    pub request_id: u64,
+    pub stage: u32,
+    /// [`SolveStatus`] as u32.
+    pub status: u32,
+    pub n_bands: u32,
+    /// Index of the chosen band λ* (stage 2 and 3).
+    pub chosen_band: u32,
+    pub wavelength_nm: [f64; MAX_BANDS],
+    /// Stage 1: relative reconstruction error per band.
+    pub recon_err: [f64; MAX_BANDS],
+    /// Stage 2: separation degree σ(λ) per band.
+    pub separation: [f64; MAX_BANDS],
+    /// Stage 3 at λ*: rates [deg/frame] and their covariance (row-major).
+    pub p_deg_per_frame: [f64; 3],
+    pub p_covariance: [f64; 9],
+    /// Stage 3 on all bands jointly (NaN when not requested).
+    pub p_joint_deg_per_frame: [f64; 3],
+    pub p_joint_covariance: [f64; 9],
+    /// Fisher information at the solution: eigenvalues (ascending) and eigenvectors (columns).
+    pub fisher_eigenvalues: [f64; 3],
+    pub fisher_eigenvectors: [f64; 9],
+    /// 1σ bound along each eigen-direction [deg/frame].
+    pub bound_1sigma_deg_per_frame: [f64; 3],
+    /// Final normalised cost, LM iterations, starts tried.
+    pub cost: f64,
+    pub iterations: u32,
+    pub starts: u32,
+    /// Bit i set when eigen-direction i is observable (its bound below the threshold).
+    pub observable_mask: u32,
+    pub stable_samples: u32,
+    pub motion_samples: u32,
+    pub _pad: u32,
+}
+
+impl Default for SolveResponse {
+    fn default() -> Self {
+        SolveResponse {
+            meta: Meta::default(),
+            request_id: 0,
+            stage: 0,
+            status: SolveStatus::Failed as u32,
+            n_bands: 0,
+            chosen_band: 0,
+            wavelength_nm: [0.0; MAX_BANDS],
+            recon_err: [f64::NAN; MAX_BANDS],
+            separation: [f64::NAN; MAX_BANDS],
+            p_deg_per_frame: [f64::NAN; 3],
+            p_covariance: [f64::NAN; 9],
+            p_joint_deg_per_frame: [f64::NAN; 3],
+            p_joint_covariance: [f64::NAN; 9],
+            fisher_eigenvalues: [f64::NAN; 3],
+            fisher_eigenvectors: [f64::NAN; 9],
+            bound_1sigma_deg_per_frame: [f64::NAN; 3],
+            cost: f64::NAN,
+            iterations: 0,
+            starts: 0,
+            observable_mask: 0,
+            stable_samples: 0,
+            motion_samples: 0,
+            _pad: 0,
+        }
+    }
+}
+
+impl SolveResponse {
+    pub fn validate(&self) -> Result<(), Reject> {
+        self.meta.validate()?;
+        if SolveStatus::from_u32(self.status).is_none() {
+            return Err(Reject::new("solve_response.status", "unknown status"));
+        }
+        if self.n_bands as usize > MAX_BANDS
+            || (self.n_bands > 0 && self.chosen_band >= self.n_bands)
+        {
+            return Err(Reject::new(
+                "solve_response.n_bands/chosen_band",
+                "out of range",
+            ));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,110 @@
+//! The `[campaign]` section: a one-parameter sweep, one deployment per value.
+
+use serde::{Deserialize, Serialize};
+
+use super::*;
+
+/// A one-parameter sweep ([000] studies: phase, SNR, body shape, rotation axis, seed).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Campaign {
+    /// One of `spectra.start_phase_deg`, `spectra.snr`, `spectra.body_shape`,
+    /// `spectra.materials`, `spectra.rotation` (values "y" or "z": 0.25 deg/frame about that
+    /// body axis), `seed`.
+    pub parameter: String,
+    /// 1–100 values of that parameter.
+    pub values: Vec<toml::Value>,
+    /// The paper's figure for each value (its error metric), shown beside ours; optional.
+    #[serde(default)]
+    pub paper: Vec<f64>,
+}
+
+/// Parameters a campaign may sweep.
+pub const CAMPAIGN_PARAMETERS: [&str; 6] = [
+    "spectra.start_phase_deg",
+    "spectra.snr",
+    "spectra.body_shape",
+    "spectra.materials",
+    "spectra.rotation",
+    "seed",
+];
+
+impl Scenario {
+    /// The scenario of one campaign value (no campaign section, name suffixed).
+    pub fn campaign_variant(&self, index: usize) -> Result<Scenario, FieldError> {
+        let c = self.campaign.as_ref().ok_or(FieldError {
+            field: "campaign".into(),
+            message: "no campaign section".into(),
+        })?;
+        let v = &c.values[index];
+        let field = format!("campaign.values[{index}]");
+        let bad = |m: &str| FieldError {
+            field: field.clone(),
+            message: format!("{v} {m}"),
+        };
+        let mut s = self.clone();
+        s.campaign = None;
+        s.name = format!("{}-{index:02}", self.name);
+        let num = || v.as_float().or_else(|| v.as_integer().map(|i| i as f64));
+        let text = || v.as_str().map(str::to_string);
+        let sp = || {
+            s.spectra
+                .clone()
+                .ok_or_else(|| bad("needs a [spectra] section"))
+        };
+        match c.parameter.as_str() {
+            "seed" => {
+                s.seed = v
+                    .as_integer()
+                    .filter(|i| *i >= 0)
+                    .ok_or_else(|| bad("is not a seed (a whole number >= 0)"))?
+                    as u64
+            }
+            "spectra.start_phase_deg" => {
+                let mut x = sp()?;
+                x.start_phase_deg = num().ok_or_else(|| bad("is not a number"))?;
+                s.spectra = Some(x);
+            }
+            "spectra.snr" => {
+                let mut x = sp()?;
+                x.snr = Some(num().ok_or_else(|| bad("is not a number"))?);
+                s.spectra = Some(x);
+            }
+            "spectra.body_shape" | "spectra.materials" | "spectra.rotation" => {
+                let mut x = sp()?;
+                let t = text().ok_or_else(|| bad("is not a string"))?;
+                let parsed = toml::Value::String(t.clone());
+                match c.parameter.as_str() {
+                    "spectra.body_shape" => {
+                        x.body_shape = parsed
+                            .try_into()
+                            .map_err(|_| bad("is not cube, cylinder, sphere or hexagonal-prism"))?
+                    }
+                    "spectra.materials" => {
+                        x.materials = parsed
+                            .try_into()
+                            .map_err(|_| bad("is not physical or paper-like"))?
+                    }
+                    _ => {
+                        x.rate_deg_per_frame = match t.as_str() {
+                            "y" => [0.0, 0.25, 0.0],
+                            "z" => [0.0, 0.0, 0.25],
+                            _ => return Err(bad("is not y or z")),
+                        }
+                    }
+                }
+                s.spectra = Some(x);
+            }
+            other => {
+                return Err(FieldError {
+                    field: "campaign.parameter".into(),
+                    message: format!(
+                        "`{other}` cannot be swept; allowed: {}",
+                        CAMPAIGN_PARAMETERS.join(", ")
+                    ),
+                })
+            }
+        }
+        Ok(s)
+    }
+}
