@@ -59,6 +59,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
         let determined = r.status == SolveStatus::Ok as u32;
         let pj = r.p_joint_deg_per_frame;
         let joint_ok = pj.iter().all(|v| v.is_finite());
+        let mirror_ok = r.p_mirror_deg_per_frame.iter().all(|v| v.is_finite());
         json!({
             "status": status(r),
             "band_nm": r.wavelength_nm[r.chosen_band as usize],
@@ -66,6 +67,8 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
             "truth_deg_per_frame": truth,
             "err_paper_metric": if determined { finite(rate_error_metric(p, truth)) } else { Value::Null },
             "covariance": r.p_covariance.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
+            "mirror_deg_per_frame": if mirror_ok { json!(r.p_mirror_deg_per_frame) } else { Value::Null },
+            "err_paper_metric_mirror": if mirror_ok { finite(rate_error_metric(r.p_mirror_deg_per_frame, truth)) } else { Value::Null },
             "joint": {
                 "p_deg_per_frame": if joint_ok { json!(pj) } else { Value::Null },
                 "err_paper_metric": if joint_ok { finite(rate_error_metric(pj, truth)) } else { Value::Null },
@@ -126,6 +129,14 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             );
         } else {
             let _ = writeln!(s, "Stage 3: **{}** — no rate is reported.", status(r));
+        }
+        let m = r.p_mirror_deg_per_frame;
+        if m.iter().all(|v| v.is_finite()) {
+            let _ = writeln!(
+                s,
+                "\n**The mirror solution [{:.5}, {:.5}, {:.5}] fits the data equally well** (error {:.3}): every geometry vector lies in the body XZ plane, so the sense of rotation about X and Z is not observable here.",
+                m[0], m[1], m[2], rate_error_metric(m, truth)
+            );
         }
         let pj = r.p_joint_deg_per_frame;
         if pj.iter().all(|v| v.is_finite()) {

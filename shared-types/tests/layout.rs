@@ -219,7 +219,7 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, flags), 44);
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (1936, 8)
+        (1960, 8)
     );
     assert_eq!(offset_of!(SolveResponse, status), 44);
     assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
@@ -233,4 +233,5 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveResponse, bound_1sigma_deg_per_frame), 1880);
     assert_eq!(offset_of!(SolveResponse, cost), 1904);
     assert_eq!(offset_of!(SolveResponse, motion_samples), 1928);
+    assert_eq!(offset_of!(SolveResponse, p_mirror_deg_per_frame), 1936);
 }

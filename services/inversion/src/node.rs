@@ -64,6 +64,9 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
                 }
             }
             out.cost = fit.cost;
+            if let Some(m) = fit.mirror_deg_per_frame {
+                out.p_mirror_deg_per_frame = m;
+            }
             out.iterations = fit.iterations as u32;
             out.starts = fit.starts_polished as u32;
             &fit.observability

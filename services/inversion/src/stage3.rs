@@ -129,6 +129,12 @@ pub struct RateFit {
     pub start_deg_per_frame: [f64; 3],
     /// Eigen-analysis of the information matrix.
     pub observability: Observability,
+    /// The mirror solution (−w_x, w_y, −w_z) when it fits the data as well as p̂: with every
+    /// geometry vector in the body XZ plane the light curve cannot tell a rotation from its
+    /// mirror image, so the sense of rotation about X and Z is not observable. `None` when the
+    /// data distinguish them (or p̂ is its own mirror).
+    #[serde(default)]
+    pub mirror_deg_per_frame: Option<[f64; 3]>,
 }
 
 /// Stage-3 outcome: a rate, or the statement that the data do not determine it.
@@ -360,7 +366,26 @@ fn polish(
         starts_polished: starts.len(),
         start_deg_per_frame: start,
         observability: analysis.observability,
+        mirror_deg_per_frame: mirror_if_ambiguous(problem, best.p_deg_per_frame, best.cost),
     }))
+}
+
+/// Mirror solutions closer than this to p̂ are not reported \[deg/frame\].
+const MIRROR_MIN_DISTANCE_DEG_PER_FRAME: f64 = 1e-2;
+/// Relative cost difference below which p̂ and its mirror fit the data equally well.
+const MIRROR_COST_TOL: f64 = 1e-6;
+
+/// The mirror (−w_x, w_y, −w_z) of p̂ if the data cannot tell them apart.
+fn mirror_if_ambiguous(problem: &RateProblem, p: [f64; 3], cost: f64) -> Option<[f64; 3]> {
+    let m = [-p[0], p[1], -p[2]];
+    let distance = (p[0] * p[0] + p[2] * p[2]).sqrt() * 2.0;
+    if distance < MIRROR_MIN_DISTANCE_DEG_PER_FRAME {
+        return None;
+    }
+    let cost_m = problem.cost(m);
+    let scale = cost.abs().max(1e-30);
+    ((cost_m - cost).abs() <= MIRROR_COST_TOL * scale.max(1e-12 * problem.residual_count() as f64))
+        .then_some(m)
 }
 
 /// LM from one explicit start (e.g. the seed's p₀ = 0), no grid.

@@ -226,3 +226,53 @@ fn an_unobservable_direction_is_held_at_the_prior_not_left_adrift() {
         fit.rate_deg_per_frame
     );
 }
+
+#[test]
+fn a_symmetric_geometry_reports_the_mirror_solution() {
+    // Every geometry vector in the body XZ plane: a rotation and its mirror (−w_x, w_y, −w_z)
+    // give the same light curve, so a fit with w_x or w_z ≠ 0 must name its mirror.
+    let p_true = [0.05, 0.25, 0.1];
+    let o = Vector3::new(0.999, 0.0, -0.045).normalize();
+    let obs: Vec<Observation> = (0..150)
+        .map(|t| {
+            let tf = t as f64;
+            let a = (-17.5f64 + 0.004 * tf).to_radians();
+            let s = Vector3::new(a.cos(), 0.0, a.sin());
+            let r = AttitudeConvention::Verbatim.matrix(p_true, tf);
+            let n_p = Vector3::new(a.cos(), 0.0, a.sin());
+            Observation {
+                frame_index: t,
+                t_s: tf,
+                sun_body: s,
+                observer_body: o,
+                range_m: 2.0e6,
+                flux_w: vec![flux_w(&band_coeffs(650.0), 1.0, n_p, r * s, r * o, 2.0e6)],
+                sigma_w: vec![],
+            }
+        })
+        .collect();
+    let band = RateBand {
+        coeffs: band_coeffs(650.0),
+        ..band()
+    };
+    let problem = RateProblem::new(&obs, &[band], &MotionModelConfig::default()).expect("p");
+    let unconstrained = Stage3Config {
+        hold_unobservable_at_prior: false,
+        ..Default::default()
+    };
+    let sol = fit_single_start(&problem, p_true, &unconstrained).expect("fit");
+    let fit = sol.fit().expect("determined");
+    let m = fit.mirror_deg_per_frame.expect("the mirror is reported");
+    assert_eq!(
+        m,
+        [
+            -fit.rate_deg_per_frame[0],
+            fit.rate_deg_per_frame[1],
+            -fit.rate_deg_per_frame[2]
+        ]
+    );
+    assert!(
+        (problem.cost(m) - problem.cost(fit.rate_deg_per_frame)).abs()
+            <= 1e-9 * problem.cost(fit.rate_deg_per_frame).max(1e-20)
+    );
+}

@@ -231,6 +231,9 @@ pub struct SolveResponse {
     pub stable_samples: u32,
     pub motion_samples: u32,
     pub _pad: u32,
+    /// Stage 3: the mirror solution (−w_x, w_y, −w_z) when it fits the data as well as p — the
+    /// sense of rotation about X and Z is then not observable; NaN when the data tell them apart.
+    pub p_mirror_deg_per_frame: [f64; 3],
 }
 
 impl Default for SolveResponse {
@@ -259,6 +262,7 @@ impl Default for SolveResponse {
             stable_samples: 0,
             motion_samples: 0,
             _pad: 0,
+            p_mirror_deg_per_frame: [f64::NAN; 3],
         }
     }
 }
