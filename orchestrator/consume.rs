@@ -206,23 +206,11 @@ impl Consumer {
             self.ack(TopicId::Spectrum, next)?;
         }
         if let Some(inbox) = self.detections.as_mut() {
-            let (digest, keep) = (&mut self.detections_digest, &mut self.detection_msgs);
-            inbox.drain(|r| {
-                hash_pod(digest, r.msg);
-                keep.push(*r.msg);
-                Ok(())
-            })?;
-            let next = inbox.stats.next_seq;
+            let next = drain_keep(inbox, &mut self.detections_digest, &mut self.detection_msgs)?;
             self.ack(TopicId::Detections, next)?;
         }
         if let Some(inbox) = self.tracks.as_mut() {
-            let (digest, keep) = (&mut self.tracks_digest, &mut self.track_msgs);
-            inbox.drain(|r| {
-                hash_pod(digest, r.msg);
-                keep.push(*r.msg);
-                Ok(())
-            })?;
-            let next = inbox.stats.next_seq;
+            let next = drain_keep(inbox, &mut self.tracks_digest, &mut self.track_msgs)?;
             self.ack(TopicId::Tracks, next)?;
         }
         let (digest, truths) = (&mut self.truth_digest, &mut self.truths);
@@ -348,6 +336,21 @@ impl Consumer {
                 .copied()
         })
     }
+}
+
+/// Receives everything queued on `inbox`, folding each message into `digest` and keeping it;
+/// returns the next expected sequence number (what to acknowledge).
+fn drain_keep<T: shared_types::Message>(
+    inbox: &mut Inbox<T>,
+    digest: &mut Xxh3,
+    keep: &mut Vec<T>,
+) -> Result<u64> {
+    inbox.drain(|r| {
+        hash_pod(digest, r.msg);
+        keep.push(*r.msg);
+        Ok(())
+    })?;
+    Ok(inbox.stats.next_seq)
 }
 
 /// Folds a message's content into a digest, leaving out its send time (the only field that

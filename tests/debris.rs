@@ -8,12 +8,7 @@ use common::*;
 #[test]
 fn debris_scenario_meets_its_targets_across_processes() {
     let dir = temp_dir("debris");
-    let r = run(Some(&scenario("debris-geo.toml")), &dir, &[]);
-    assert!(
-        r.output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&r.output.stderr)
-    );
+    let r = run_ok(Some(&scenario("debris-geo.toml")), &dir, &[]);
     let rep = &r.report;
     let names: Vec<&str> = rep["services"]
         .as_array()

@@ -8,7 +8,7 @@ use common::*;
 #[test]
 fn default_run_accounts_for_every_message_across_processes() {
     let dir = temp_dir("default");
-    let r = run(None, &dir, &[]);
+    let r = run_ok(None, &dir, &[]);
     assert!(
         r.output.status.success(),
         "glint run failed: {}\n{}",
@@ -89,18 +89,15 @@ fn same_seed_gives_identical_results_and_another_seed_differs() {
 #[test]
 fn realtime_clock_accounts_for_every_frame() {
     let dir = temp_dir("realtime");
-    let text = std::fs::read_to_string(scenario("debris-geo.toml"))
-        .unwrap()
-        .replace("seed = 2016", "seed = 2016\nclock = \"realtime\"")
-        .replace("frames = 50", "frames = 25");
-    let file = dir.join("rt.toml");
-    std::fs::write(&file, text).unwrap();
-    let r = run(Some(&file), &dir.join("out"), &[]);
-    assert!(
-        r.output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&r.output.stderr)
+    let file = scenario_variant(
+        "debris-geo.toml",
+        &[
+            ("seed = 2016", "seed = 2016\nclock = \"realtime\""),
+            ("frames = 50", "frames = 25"),
+        ],
+        &dir,
     );
+    let r = run(Some(&file), &dir.join("out"), &[]);
     let f = &r.report["topics"]["frame"];
     assert_eq!(f["published"], 25);
     let c = &f["consumers"]["orchestrator"];

@@ -9,12 +9,7 @@ use common::*;
 #[test]
 fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
     let dir = temp_dir("yspin");
-    let r = run(Some(&scenario("geo-hover-yspin.toml")), &dir, &[]);
-    assert!(
-        r.output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&r.output.stderr)
-    );
+    let r = run_ok(Some(&scenario("geo-hover-yspin.toml")), &dir, &[]);
     let rep = &r.report;
     let names: Vec<&str> = rep["services"]
         .as_array()
@@ -134,19 +129,16 @@ fn the_chain_recovers_the_exact_rate_when_the_satellite_is_the_two_facet_model()
     // The simulator's satellite reduced to what the inversion models (+X face and panel):
     // sensor → shared memory → inversion → orchestrator must give p* back exactly.
     let dir = temp_dir("two-facet");
-    let text = std::fs::read_to_string(scenario("geo-hover-yspin.toml"))
-        .unwrap()
-        .replace("body_shape = \"cube\"", "body_shape = \"two-facet\"")
-        .replace("motion_frames = 720", "motion_frames = 240")
-        .replace("stable_samples = 720", "stable_samples = 240");
-    let file = dir.join("two-facet.toml");
-    std::fs::write(&file, text).unwrap();
-    let r = run(Some(&file), &dir.join("out"), &[]);
-    assert!(
-        r.output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&r.output.stderr)
+    let file = scenario_variant(
+        "geo-hover-yspin.toml",
+        &[
+            ("body_shape = \"cube\"", "body_shape = \"two-facet\""),
+            ("motion_frames = 720", "motion_frames = 240"),
+            ("stable_samples = 720", "stable_samples = 240"),
+        ],
+        &dir,
     );
+    let r = run_ok(Some(&file), &dir.join("out"), &[]);
     let s3 = &r.report["inversion"]["stage3"];
     assert_eq!(s3["status"], "ok", "{s3}");
     let err = s3["err_paper_metric"].as_f64().unwrap();

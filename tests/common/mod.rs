@@ -55,6 +55,29 @@ pub fn run(scenario: Option<&Path>, dir: &Path, extra: &[&str]) -> RunResult {
     }
 }
 
+/// As [`run`], and the run must have succeeded.
+pub fn run_ok(scenario: Option<&Path>, dir: &Path, extra: &[&str]) -> RunResult {
+    let r = run(scenario, dir, extra);
+    assert!(
+        r.output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&r.output.stderr)
+    );
+    r
+}
+
+/// A shipped scenario with text replacements applied, written into `dir`.
+pub fn scenario_variant(name: &str, replacements: &[(&str, &str)], dir: &Path) -> PathBuf {
+    let mut text = std::fs::read_to_string(scenario(name)).unwrap();
+    for (from, to) in replacements {
+        assert!(text.contains(from), "{name} has no `{from}`");
+        text = text.replace(from, to);
+    }
+    let file = dir.join(name);
+    std::fs::write(&file, text).unwrap();
+    file
+}
+
 /// The report without what legitimately differs between two runs: the run identity, timings,
 /// process ids.
 pub fn deterministic_part(report: &Value) -> Value {
