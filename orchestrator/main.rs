@@ -66,6 +66,10 @@ enum Cmd {
         /// Skip the joint multi-band fit.
         #[arg(long)]
         no_joint: bool,
+        /// Solver settings (TOML, the fields of `InversionConfig`: `[stage3.start]`,
+        /// `[stage3.lm]`, `[stage3.observability]`, `[model]`, …); unset fields keep defaults.
+        #[arg(long)]
+        config: Option<PathBuf>,
     },
     /// Offline tools: algorithm stages on files, no IPC.
     Tool {
@@ -182,7 +186,8 @@ fn main() -> ExitCode {
             observations,
             out,
             no_joint,
-        } => match tools::invert(&observations, !no_joint) {
+            config,
+        } => match tools::invert(&observations, !no_joint, config.as_deref()) {
             Ok((json, text)) => {
                 print!("{text}");
                 if let Some(dir) = out {

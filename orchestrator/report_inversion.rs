@@ -63,6 +63,8 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
         json!({
             "status": status(r),
             "band_nm": r.wavelength_nm[r.chosen_band as usize],
+            "fitted_frames": r.fitted_frames,
+            "fit_horizon_deg": glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG,
             "p_deg_per_frame": if determined { json!(p) } else { Value::Null },
             "truth_deg_per_frame": truth,
             "err_paper_metric": if determined { finite(rate_error_metric(p, truth)) } else { Value::Null },
@@ -123,9 +125,10 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             let p = r.p_deg_per_frame;
             let _ = writeln!(
                 s,
-                "Stage 3 at {} nm: p = [{:.5}, {:.5}, {:.5}] deg/frame (truth [{}, {}, {}]), **error {:.3}** (paper metric 100·‖Δp‖); {} LM iterations, {} starts.",
+                "Stage 3 at {} nm: p = [{:.5}, {:.5}, {:.5}] deg/frame (truth [{}, {}, {}]), **error {:.3}** (paper metric 100·‖Δp‖); fitted on the first {} of {} motion frames (fit horizon: {}° of rotation at the fitted rate); {} LM iterations over {} polished starts.",
                 r.wavelength_nm[r.chosen_band as usize], p[0], p[1], p[2], truth[0], truth[1], truth[2],
-                rate_error_metric(p, truth), r.iterations, r.starts
+                rate_error_metric(p, truth), r.fitted_frames, r.motion_samples,
+                glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG, r.iterations, r.starts
             );
         } else {
             let _ = writeln!(s, "Stage 3: **{}** — no rate is reported.", status(r));
@@ -134,7 +137,7 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
         if m.iter().all(|v| v.is_finite()) {
             let _ = writeln!(
                 s,
-                "\n**The mirror solution [{:.5}, {:.5}, {:.5}] fits the data equally well** (error {:.3}): every geometry vector lies in the body XZ plane, so the sense of rotation about X and Z is not observable here.",
+                "\n**The mirror solution [{:.5}, {:.5}, {:.5}] fits the data equally well** (error {:.3}): its cost is within Δχ² ≤ 4 of the fit's. With the Sun within a fraction of a degree of the orbit plane, the geometry is (nearly) symmetric about the body XZ plane, so the sense of rotation about X and Z is not observable here.",
                 m[0], m[1], m[2], rate_error_metric(m, truth)
             );
         }

@@ -79,12 +79,17 @@ pub fn render(scenario: &Scenario, k: u64, out: &Path) -> Result<()> {
 
 /// `glint invert OBS.csv`: the three-stage solve on an observation file; returns the JSON of the
 /// result (with the paper's error metric when the file states the truth) and a text summary.
-pub fn invert(path: &Path, joint: bool) -> Result<(serde_json::Value, String)> {
-    let file = crate::observations::read(path)?;
-    let config = glint_inversion::InversionConfig {
-        joint_fit: joint,
-        ..Default::default()
+pub fn invert(
+    path: &Path,
+    joint: bool,
+    config_path: Option<&Path>,
+) -> Result<(serde_json::Value, String)> {
+    let mut config = match config_path {
+        Some(p) => read_inversion_config(p)?,
+        None => glint_inversion::InversionConfig::default(),
     };
+    let file = crate::observations::read(path)?;
+    config.joint_fit = joint;
     let result = glint_inversion::solve_three_stage(&file.set, &config)
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let mut j = serde_json::to_value(&result)?;
@@ -96,6 +101,15 @@ pub fn invert(path: &Path, joint: bool) -> Result<(serde_json::Value, String)> {
         file.set.motion.len(),
         result.stage1.iter().map(|b| b.recon_err).fold(0.0f64, f64::max),
         result.chosen_wavelength_nm
+    );
+    text += &format!(
+        "stage 3: fitted {} of {} motion frames (horizon: {})\n",
+        result.fitted_frames,
+        file.set.motion.len(),
+        config
+            .stage3
+            .max_rotation_deg
+            .map_or("every frame".to_string(), |d| format!("{d}° of rotation")),
     );
     for (label, sol) in [
         ("stage 3", Some(&result.rate)),
@@ -123,4 +137,16 @@ pub fn invert(path: &Path, joint: bool) -> Result<(serde_json::Value, String)> {
         j["truth_deg_per_frame"] = json!(t);
     }
     Ok((j, text))
+}
+
+/// Reads solver settings for `glint invert --config` (TOML; unknown fields are errors).
+fn read_inversion_config(path: &Path) -> Result<glint_inversion::InversionConfig> {
+    let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let config: glint_inversion::InversionConfig =
+        toml::from_str(&text).map_err(|e| anyhow!("{}: {}", path.display(), e.message()))?;
+    config
+        .stage3
+        .validate()
+        .map_err(|e| anyhow!("{}: [stage3] {e}", path.display()))?;
+    Ok(config)
 }

@@ -233,5 +233,6 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveResponse, bound_1sigma_deg_per_frame), 1880);
     assert_eq!(offset_of!(SolveResponse, cost), 1904);
     assert_eq!(offset_of!(SolveResponse, motion_samples), 1928);
+    assert_eq!(offset_of!(SolveResponse, fitted_frames), 1932);
     assert_eq!(offset_of!(SolveResponse, p_mirror_deg_per_frame), 1936);
 }

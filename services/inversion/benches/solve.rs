@@ -1,7 +1,7 @@
 //! The whole three-stage solve: 8 bands, stable window 720 samples, motion window 360 frames,
 //! rotation 0.25 deg/frame about Y, single-threaded (faer built without rayon).
 //!
-//! Run: `CARGO_TARGET_DIR=/work/target-inversion cargo bench -p glint-inversion --bench solve`
+//! Run: `cargo bench -p glint-inversion --bench solve`
 
 #[path = "../tests/common/mod.rs"]
 mod common;

@@ -26,6 +26,7 @@ pub mod lm;
 pub mod model;
 pub mod nnls;
 pub mod node;
+pub mod nuisance;
 pub mod observability;
 pub mod observation;
 pub mod rotation;
@@ -73,6 +74,8 @@ pub struct InversionResult {
     pub rate: RateSolution,
     /// Joint fit over all bands, when enabled.
     pub joint_rate: Option<RateSolution>,
+    /// Motion frames stage 3 fitted (the fit horizon, see [`Stage3Config::max_rotation_deg`]).
+    pub fitted_frames: usize,
 }
 
 /// The paper's error metric ε_p = 100·‖p̂ − p*‖₂ (p in deg/frame; §1.6, not relative).
@@ -97,31 +100,125 @@ pub fn solve_three_stage(
         config.band_scale_w.as_deref(),
     )?;
     let stage2 = stage2::run_stage2(&stage1)?;
-    let chosen = stage2.chosen_index;
+    let fits = fit_rates(
+        &set.motion,
+        &stage1,
+        stage2.chosen_index,
+        &config.model,
+        &config.stage3,
+        config.joint_fit,
+    )?;
+    Ok(InversionResult {
+        chosen_wavelength_nm: stage2.chosen_wavelength_nm,
+        stage1,
+        stage2,
+        rate: fits.rate,
+        joint_rate: fits.joint_rate,
+        fitted_frames: fits.fitted_frames,
+    })
+}
+
+/// Stage 3 at band `chosen` and, with `joint`, one p for all bands, each over its fit horizon.
+pub fn fit_rates(
+    motion: &[Observation],
+    stage1: &[Stage1Band],
+    chosen: usize,
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+    joint: bool,
+) -> Result<RateFits, InversionError> {
     let band = |b: usize| RateBand {
         band_index: b,
         wavelength_nm: stage1[b].wavelength_nm,
         coeffs: stage1[b].coeffs,
     };
-    let problem = RateProblem::new(&set.motion, &[band(chosen)], &config.model)?;
-    let rate = stage3::fit_multistart(&problem, &config.stage3)?;
-    let joint_rate = if config.joint_fit {
+    let (rate, fitted_frames) = fit_within_horizon(motion, &[band(chosen)], model, config)?;
+    let joint_rate = if joint {
         let bands: Vec<RateBand> = (0..stage1.len()).map(band).collect();
-        let joint = RateProblem::new(&set.motion, &bands, &config.model)?;
-        Some(match rate.fit() {
-            Some(fit) => {
-                stage3::fit_from_starts(&joint, &[fit.rate_deg_per_frame], &config.stage3)?
-            }
-            None => stage3::fit_multistart(&joint, &config.stage3)?,
-        })
+        Some(fit_within_horizon(motion, &bands, model, config)?)
     } else {
         None
     };
-    Ok(InversionResult {
-        chosen_wavelength_nm: stage2.chosen_wavelength_nm,
-        stage1,
-        stage2,
+    Ok(RateFits {
         rate,
-        joint_rate,
+        fitted_frames,
+        joint_fitted_frames: joint_rate.as_ref().map(|j| j.1),
+        joint_rate: joint_rate.map(|j| j.0),
     })
+}
+
+/// Multi-start fit on the frames within the fit horizon: the first window is valid for every
+/// rate in the start box (the fastest turns `max_rotation_deg` in it); it then grows to the
+/// horizon of the fitted rate, re-polishing from the previous solution, until the fitted frames
+/// stop changing. Returns the solution and the number of frames fitted.
+pub fn fit_within_horizon(
+    motion: &[Observation],
+    bands: &[RateBand],
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+) -> Result<(RateSolution, usize), InversionError> {
+    let epoch = model
+        .epoch_frame
+        .unwrap_or_else(|| motion.iter().map(|o| o.frame_index).min().unwrap_or(0));
+    let model = MotionModelConfig {
+        epoch_frame: Some(epoch),
+        ..model.clone()
+    };
+    let within = |horizon_frames: f64| -> Vec<Observation> {
+        motion
+            .iter()
+            .filter(|o| (o.frame_index.saturating_sub(epoch) as f64) <= horizon_frames)
+            .cloned()
+            .collect()
+    };
+    let Some(max_deg) = config.max_rotation_deg.filter(|d| d.is_finite()) else {
+        let problem = RateProblem::new(motion, bands, &model)?;
+        return Ok((stage3::fit_multistart(&problem, config)?, motion.len()));
+    };
+    let fastest = 3f64.sqrt() * config.start.half_width_deg_per_frame;
+    let mut frames = within((max_deg / fastest).max(MIN_FIT_FRAMES));
+    let mut rate = stage3::fit_multistart(&RateProblem::new(&frames, bands, &model)?, config)?;
+    for _ in 0..HORIZON_ROUNDS {
+        let Some(fit) = rate.fit() else { break };
+        let p = fit.rate_deg_per_frame;
+        let speed = p.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let next = within((max_deg / speed.max(1e-12)).max(MIN_FIT_FRAMES));
+        if next.len() == frames.len() {
+            break;
+        }
+        frames = next;
+        let problem = RateProblem::new(&frames, bands, &model)?;
+        let refit = stage3::fit_from_starts(&problem, &[p], config)?;
+        rate = carry_search_counts(&rate, refit);
+    }
+    Ok((rate, frames.len()))
+}
+
+/// A re-fit on a grown window keeps the record of the search that found its start.
+fn carry_search_counts(previous: &RateSolution, mut refit: RateSolution) -> RateSolution {
+    if let (Some(prev), RateSolution::Determined(fit)) = (previous.fit(), &mut refit) {
+        fit.grid_points = prev.grid_points;
+        fit.starts_screened = prev.starts_screened;
+        fit.starts_polished += prev.starts_polished;
+        fit.total_iterations += prev.total_iterations;
+    }
+    refit
+}
+
+/// The fit horizon never shrinks below this many frames.
+const MIN_FIT_FRAMES: f64 = 24.0;
+/// Re-fits while the horizon grows, at most.
+const HORIZON_ROUNDS: usize = 4;
+
+/// Stage-3 results and the window they were fitted on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RateFits {
+    /// At λ*.
+    pub rate: RateSolution,
+    /// All bands jointly, when asked.
+    pub joint_rate: Option<RateSolution>,
+    /// Motion frames fitted at λ* (those within its horizon).
+    pub fitted_frames: usize,
+    /// Motion frames of the joint fit.
+    pub joint_fitted_frames: Option<usize>,
 }

@@ -23,6 +23,7 @@
 
 use crate::error::InversionError;
 use crate::facet::{FacetGeometry, LOBES, TERMS};
+use crate::nuisance::{project_band, Normal, Row, NUISANCE};
 use crate::observation::Observation;
 use crate::rotation::{AttitudeModel, TrigStepper};
 use glint_physics::two_facet::{panel_normal, TwoFacetCoefficients};
@@ -53,6 +54,10 @@ pub struct MotionModelConfig {
     pub panel_normal: PanelNormalMode,
     /// Eq (17) convention.
     pub attitude: AttitudeModel,
+    /// Re-estimate the diffuse coefficients of both facets and a constant remainder per band
+    /// in stage 3 (variable projection, [`crate::nuisance`]; beyond the paper). `false`
+    /// (default) is the paper's model: every coefficient from stage 1.
+    pub refit_diffuse: bool,
     /// Frame index with t = 0 (all angles 0); `None` = the smallest motion frame index.
     pub epoch_frame: Option<u64>,
 }
@@ -63,6 +68,7 @@ impl Default for MotionModelConfig {
             body_normal: [1.0, 0.0, 0.0],
             panel_normal: PanelNormalMode::Literal,
             attitude: AttitudeModel::Verbatim,
+            refit_diffuse: false,
             epoch_frame: None,
         }
     }
@@ -107,6 +113,7 @@ pub struct RateProblem {
     attitude: AttitudeModel,
     active: [[bool; TERMS]; 2],
     sigma_given: bool,
+    refit_diffuse: bool,
 }
 
 /// Per-facet arrays: `[panel, body]`.
@@ -206,7 +213,12 @@ impl RateProblem {
             } else {
                 vec![1.0; motion.len()]
             };
-            let x = [band.coeffs.panel, band.coeffs.body].map(|c| c.map(|v| v / mean));
+            let mut x = [band.coeffs.panel, band.coeffs.body].map(|c| c.map(|v| v / mean));
+            if config.refit_diffuse {
+                // Stage 3 estimates these itself (the nuisance columns).
+                x[0][0] = 0.0;
+                x[1][0] = 0.0;
+            }
             for (act, xf) in active.iter_mut().zip(&x) {
                 for (a, v) in act.iter_mut().zip(xf) {
                     *a |= *v != 0.0;
@@ -220,6 +232,11 @@ impl RateProblem {
                 mean_flux_w: mean,
             });
         }
+        if config.refit_diffuse {
+            // The nuisance columns need the diffuse basis of both facets.
+            active[0][0] = true;
+            active[1][0] = true;
+        }
         Ok(Self {
             frames,
             bands: data,
@@ -229,6 +246,7 @@ impl RateProblem {
             attitude: config.attitude,
             active,
             sigma_given,
+            refit_diffuse: config.refit_diffuse,
         })
     }
 
@@ -342,35 +360,76 @@ impl RateProblem {
 
     /// Writes residuals `r` (length T·B) and returns the cost Σ r².
     pub fn residuals(&self, p: [f64; 3], r: &mut [f64]) -> f64 {
+        self.residuals_with_nuisance(p, r).0
+    }
+
+    /// Residuals, cost and the nuisance coefficients per band (zeros without the re-fit).
+    fn residuals_with_nuisance(&self, p: [f64; 3], r: &mut [f64]) -> (f64, Vec<[f64; NUISANCE]>) {
         let nb = self.bands.len();
         let mut g = [[0.0; TERMS]; 2];
-        let mut cost = 0.0;
+        let mut rows = self.nuisance_rows();
         let mut trig = TrigStepper::new(p);
         for (t, frame) in self.frames.iter().enumerate() {
             let rot = self.attitude.matrix_from_trig(&trig.at(frame.t_frames));
             self.basis(frame, &rot, &mut g);
             for (b, band) in self.bands.iter().enumerate() {
                 let m = frame.inv_range2 * dot22(&band.x, &g);
-                let res = band.w[t] * (band.y[t] - m);
-                r[t * nb + b] = res;
-                cost += res * res;
+                r[t * nb + b] = band.w[t] * (band.y[t] - m);
+                if let Some(rows) = rows.get_mut(b) {
+                    rows[t].a = nuisance_columns(band.w[t] * frame.inv_range2, &g);
+                }
             }
         }
-        cost
+        let c = self.project(&rows, r, None);
+        (r.iter().map(|v| v * v).sum(), c)
+    }
+
+    /// Empty per-band rows for the nuisance projection (none without the re-fit).
+    fn nuisance_rows(&self) -> Vec<Vec<Row>> {
+        if self.refit_diffuse {
+            vec![vec![Row::default(); self.frames.len()]; self.bands.len()]
+        } else {
+            Vec::new()
+        }
+    }
+
+    /// Applies the variable projection of every band; returns the coefficients c per band.
+    fn project(
+        &self,
+        rows: &[Vec<Row>],
+        r: &mut [f64],
+        mut jac: Option<&mut [[f64; 3]]>,
+    ) -> Vec<[f64; NUISANCE]> {
+        let nb = self.bands.len();
+        if rows.is_empty() {
+            return vec![[0.0; NUISANCE]; nb];
+        }
+        rows.iter()
+            .enumerate()
+            .map(|(b, band_rows)| project_band(band_rows, |t| t * nb + b, r, jac.as_deref_mut()))
+            .collect()
     }
 
     /// Cost Σ r² over every `stride`-th frame (stride ≥ 1), without storing residuals.
     pub fn cost_strided(&self, p: [f64; 3], stride: usize) -> f64 {
         let mut g = [[0.0; TERMS]; 2];
         let mut cost = 0.0;
+        let mut normals = vec![Normal::default(); self.bands.len()];
         let mut trig = TrigStepper::new(p);
         for (t, frame) in self.frames.iter().enumerate().step_by(stride.max(1)) {
             let rot = self.attitude.matrix_from_trig(&trig.at(frame.t_frames));
             self.basis(frame, &rot, &mut g);
-            for band in &self.bands {
+            for (band, normal) in self.bands.iter().zip(normals.iter_mut()) {
                 let res = band.w[t] * (band.y[t] - frame.inv_range2 * dot22(&band.x, &g));
-                cost += res * res;
+                if self.refit_diffuse {
+                    normal.add(&nuisance_columns(band.w[t] * frame.inv_range2, &g), res);
+                } else {
+                    cost += res * res;
+                }
             }
+        }
+        if self.refit_diffuse {
+            cost = normals.iter().map(Normal::projected_cost).sum();
         }
         cost
     }
@@ -385,7 +444,7 @@ impl RateProblem {
         let nb = self.bands.len();
         let mut g = [[0.0; TERMS]; 2];
         let mut slopes = [FacetSlopes::default(); 2];
-        let mut cost = 0.0;
+        let mut rows = self.nuisance_rows();
         let mut trig = TrigStepper::new(p);
         for (t, frame) in self.frames.iter().enumerate() {
             let (rot, drot) = self
@@ -402,30 +461,60 @@ impl RateProblem {
                     }
                 }
                 let (w, k) = (band.w[t], frame.inv_range2);
-                let res = w * (band.y[t] - k * m);
                 let wk = w * k;
-                r[t * nb + b] = res;
+                r[t * nb + b] = w * (band.y[t] - k * m);
                 jac[t * nb + b] = [wk * dm[0], wk * dm[1], wk * dm[2]];
-                cost += res * res;
+                if let Some(rows) = rows.get_mut(b) {
+                    rows[t] = Row {
+                        a: nuisance_columns(wk, &g),
+                        da: [
+                            slopes[0].d_diffuse.map(|d| wk * d),
+                            slopes[1].d_diffuse.map(|d| wk * d),
+                            [0.0; 3],
+                        ],
+                    };
+                }
             }
         }
-        cost
+        self.project(&rows, r, Some(jac));
+        r.iter().map(|v| v * v).sum()
     }
 
     /// Model flux Φ_model(t; p) \[W\] per fitted band (outer) and frame (inner).
     pub fn model_flux_w(&self, p: [f64; 3]) -> Vec<Vec<f64>> {
+        let mut scratch = vec![0.0; self.residual_count()];
+        let (_, c) = self.residuals_with_nuisance(p, &mut scratch);
         let mut g = [[0.0; TERMS]; 2];
         let mut out = vec![Vec::with_capacity(self.frames.len()); self.bands.len()];
         let mut trig = TrigStepper::new(p);
         for frame in &self.frames {
             let rot = self.attitude.matrix_from_trig(&trig.at(frame.t_frames));
             self.basis(frame, &rot, &mut g);
-            for (band, series) in self.bands.iter().zip(out.iter_mut()) {
-                series.push(frame.inv_range2 * dot22(&band.x, &g) * band.mean_flux_w);
+            for ((band, series), c) in self.bands.iter().zip(out.iter_mut()).zip(&c) {
+                let a = nuisance_columns(frame.inv_range2, &g);
+                let nuisance: f64 = (0..NUISANCE).map(|i| a[i] * c[i]).sum();
+                let m = frame.inv_range2 * dot22(&band.x, &g) + nuisance;
+                series.push(m * band.mean_flux_w);
             }
         }
         out
     }
+
+    /// The re-fitted nuisance coefficients per band at p (stage-1 units W·m², like x̃; the
+    /// constant remainder in W·m² per sr⁻¹ of G), or zeros without the re-fit.
+    pub fn nuisance_coefficients(&self, p: [f64; 3]) -> Vec<[f64; NUISANCE]> {
+        let mut scratch = vec![0.0; self.residual_count()];
+        let (_, c) = self.residuals_with_nuisance(p, &mut scratch);
+        c.iter()
+            .zip(&self.bands)
+            .map(|(c, band)| c.map(|v| v * band.mean_flux_w))
+            .collect()
+    }
+}
+
+/// The nuisance column row `scale·[G_0(panel), G_0(body), 1]`.
+fn nuisance_columns(scale: f64, g: &Basis) -> [f64; NUISANCE] {
+    [scale * g[0][0], scale * g[1][0], scale]
 }
 
 fn dot22(x: &Basis, g: &Basis) -> f64 {

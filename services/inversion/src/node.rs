@@ -67,7 +67,7 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
             if let Some(m) = fit.mirror_deg_per_frame {
                 out.p_mirror_deg_per_frame = m;
             }
-            out.iterations = fit.iterations as u32;
+            out.iterations = fit.total_iterations as u32;
             out.starts = fit.starts_polished as u32;
             &fit.observability
         }
@@ -149,6 +149,7 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
     if req.stage == 3 {
         if let Some(rate) = &session.rate {
             fill_rate(&mut out, rate, session.joint_rate.as_ref());
+            out.fitted_frames = session.fitted_frames as u32;
         }
     }
     out

@@ -4,11 +4,11 @@
 
 use nalgebra::Vector3;
 
-use crate::model::{MotionModelConfig, RateBand, RateProblem};
+use crate::model::MotionModelConfig;
 use crate::stage1::{run_stage1, Stage1Band};
 use crate::stage2::{run_stage2, Stage2Result};
-use crate::stage3::{fit_from_starts, fit_multistart, RateSolution, Stage3Config};
-use crate::{InversionError, Observation, ObservationSet};
+use crate::stage3::{RateSolution, Stage3Config};
+use crate::{fit_rates, InversionError, Observation, ObservationSet};
 
 /// Why a stage cannot run yet.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -29,6 +29,8 @@ pub struct Session {
     pub stage2: Option<Stage2Result>,
     pub rate: Option<RateSolution>,
     pub joint_rate: Option<RateSolution>,
+    /// Motion frames stage 3 fitted (within its horizon).
+    pub fitted_frames: usize,
 }
 
 pub enum StageOutcome {
@@ -58,6 +60,7 @@ impl Session {
             stage2: None,
             rate: None,
             joint_rate: None,
+            fitted_frames: 0,
         }
     }
 
@@ -108,26 +111,17 @@ impl Session {
                 need: self.expected_motion,
             }));
         }
-        let band = |b: usize| RateBand {
-            band_index: b,
-            wavelength_nm: s1[b].wavelength_nm,
-            coeffs: s1[b].coeffs,
-        };
-        let problem = RateProblem::new(&self.set.motion, &[band(s2.chosen_index)], &self.model)?;
-        let rate = fit_multistart(&problem, &self.stage3_config)?;
-        self.joint_rate = if joint {
-            let bands: Vec<RateBand> = (0..s1.len()).map(band).collect();
-            let problem = RateProblem::new(&self.set.motion, &bands, &self.model)?;
-            Some(match rate.fit() {
-                Some(fit) => {
-                    fit_from_starts(&problem, &[fit.rate_deg_per_frame], &self.stage3_config)?
-                }
-                None => fit_multistart(&problem, &self.stage3_config)?,
-            })
-        } else {
-            None
-        };
-        self.rate = Some(rate);
+        let fits = fit_rates(
+            &self.set.motion,
+            s1,
+            s2.chosen_index,
+            &self.model,
+            &self.stage3_config,
+            joint,
+        )?;
+        self.rate = Some(fits.rate);
+        self.joint_rate = fits.joint_rate;
+        self.fitted_frames = fits.fitted_frames;
         Ok(StageOutcome::Done)
     }
 }

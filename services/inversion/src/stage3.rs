@@ -87,6 +87,12 @@ pub struct Stage3Config {
     /// Hold unobservable eigen-directions at the prior u·p = 0 and re-fit the rest (default);
     /// `false` reports the unconstrained optimum.
     pub hold_unobservable_at_prior: bool,
+    /// Fit horizon: stage 3 fits the motion frames during which the body has turned at most
+    /// this far from its stable attitude at the fitted rate \[deg\] (30; `None` or ∞ = every
+    /// frame).
+    /// The two-facet model holds only while the observed face and the panel front are the lit
+    /// and visible surfaces; turned further, the other faces and the panel back appear.
+    pub max_rotation_deg: Option<f64>,
 }
 
 impl Default for Stage3Config {
@@ -96,9 +102,13 @@ impl Default for Stage3Config {
             start: StartConfig::default(),
             observability: ObservabilityConfig::default(),
             hold_unobservable_at_prior: true,
+            max_rotation_deg: Some(DEFAULT_MAX_ROTATION_DEG),
         }
     }
 }
+
+/// Default fit horizon \[deg of rotation\].
+pub const DEFAULT_MAX_ROTATION_DEG: f64 = 30.0;
 
 /// A determined rate estimate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -166,6 +176,13 @@ impl RateSolution {
     }
 }
 
+impl Stage3Config {
+    /// Checks every setting (the error names the field).
+    pub fn validate(&self) -> Result<(), InversionError> {
+        validate(self)
+    }
+}
+
 fn validate(config: &Stage3Config) -> Result<(), InversionError> {
     let s = &config.start;
     let bad = |field, reason| Err(InversionError::InvalidConfig { field, reason });
@@ -182,6 +199,14 @@ fn validate(config: &Stage3Config) -> Result<(), InversionError> {
     ];
     if counts.contains(&0) {
         return bad("start", "every count must be ≥ 1");
+    }
+    if let Some(deg) = config.max_rotation_deg {
+        if !(deg > 0.0 && (deg <= 360.0 || deg == f64::INFINITY)) {
+            return bad(
+                "max_rotation_deg",
+                "must be in (0, 360], or inf for every frame",
+            );
+        }
     }
     let lambda_ok = config.lm.lambda_init > 0.0 && config.lm.lambda_init.is_finite();
     if config.lm.max_iterations == 0 || !lambda_ok {
@@ -266,6 +291,11 @@ pub fn fit_from_starts(
     polish(problem, starts, (0, 0), config)
 }
 
+/// Whether every |p_i| is within the start box (`half_width_deg_per_frame`).
+fn in_box(p: &[f64; 3], start: &StartConfig) -> bool {
+    p.iter().all(|v| v.abs() <= start.half_width_deg_per_frame)
+}
+
 /// Polishes `starts`; `counts` = (grid points, screened starts) for the record.
 /// Weight of the prior on unobservable directions, relative to the largest eigenvalue of the
 /// information matrix: large enough that the prior decides those components.
@@ -292,8 +322,16 @@ fn polish(
         };
         let out = levenberg_marquardt_with(problem, p0, &config.lm, abandon)?;
         total_iterations += out.iterations;
-        if out.stop != StopReason::Abandoned && best.as_ref().is_none_or(|(b, _)| out.cost < b.cost)
-        {
+        if out.stop == StopReason::Abandoned {
+            continue;
+        }
+        // An end point inside the search box beats one outside it; then the lower cost wins.
+        let inside = in_box(&out.p_deg_per_frame, &config.start);
+        let better = best.as_ref().is_none_or(|(b, _)| {
+            let b_inside = in_box(&b.p_deg_per_frame, &config.start);
+            (inside && !b_inside) || (inside == b_inside && out.cost < b.cost)
+        });
+        if better {
             best = Some((out, p0));
         }
     }
@@ -366,26 +404,47 @@ fn polish(
         starts_polished: starts.len(),
         start_deg_per_frame: start,
         observability: analysis.observability,
-        mirror_deg_per_frame: mirror_if_ambiguous(problem, best.p_deg_per_frame, best.cost),
+        mirror_deg_per_frame: mirror_if_ambiguous(
+            problem,
+            best.p_deg_per_frame,
+            best.cost,
+            config,
+        )?,
     }))
 }
 
 /// Mirror solutions closer than this to p̂ are not reported \[deg/frame\].
 const MIRROR_MIN_DISTANCE_DEG_PER_FRAME: f64 = 1e-2;
-/// Relative cost difference below which p̂ and its mirror fit the data equally well.
-const MIRROR_COST_TOL: f64 = 1e-6;
+/// The mirror is reported when its cost exceeds p̂'s by at most this many noise variances
+/// (Δχ² ≤ 4: the data cannot tell them apart at 2σ).
+const MIRROR_MAX_DELTA_CHI2: f64 = 4.0;
 
-/// The mirror (−w_x, w_y, −w_z) of p̂ if the data cannot tell them apart.
-fn mirror_if_ambiguous(problem: &RateProblem, p: [f64; 3], cost: f64) -> Option<[f64; 3]> {
-    let m = [-p[0], p[1], -p[2]];
-    let distance = (p[0] * p[0] + p[2] * p[2]).sqrt() * 2.0;
-    if distance < MIRROR_MIN_DISTANCE_DEG_PER_FRAME {
-        return None;
+/// The mirror solution of p̂ when the data cannot tell them apart: LM polished from
+/// (−w_x, w_y, −w_z) (an exact minimum when every geometry vector lies in the body XZ plane, a
+/// nearby one otherwise), reported if its cost is within Δχ² ≤ 4 of p̂'s, in units of the noise
+/// variance (1 with σ given, else the residual variance ε/(N − 3)).
+fn mirror_if_ambiguous(
+    problem: &RateProblem,
+    p: [f64; 3],
+    cost: f64,
+    config: &Stage3Config,
+) -> Result<Option<[f64; 3]>, InversionError> {
+    let start = [-p[0], p[1], -p[2]];
+    let out = levenberg_marquardt(problem, start, &config.lm)?;
+    let m = out.p_deg_per_frame;
+    let distance: f64 = (0..3).map(|i| (m[i] - p[i]).powi(2)).sum::<f64>().sqrt();
+    if distance < MIRROR_MIN_DISTANCE_DEG_PER_FRAME || !out.cost.is_finite() {
+        return Ok(None);
     }
-    let cost_m = problem.cost(m);
-    let scale = cost.abs().max(1e-30);
-    ((cost_m - cost).abs() <= MIRROR_COST_TOL * scale.max(1e-12 * problem.residual_count() as f64))
-        .then_some(m)
+    let dof = problem.residual_count().saturating_sub(3).max(1) as f64;
+    let variance = if problem.sigma_given() {
+        1.0
+    } else {
+        (cost / dof).max(f64::MIN_POSITIVE)
+    };
+    // Noise-free data fitted exactly (cost ≈ 0): only an equally exact mirror qualifies.
+    let tie = (out.cost - cost).abs() <= 1e-6 * cost.abs().max(1e-12 * dof);
+    Ok(((out.cost - cost) / variance <= MIRROR_MAX_DELTA_CHI2 || tie).then_some(m))
 }
 
 /// LM from one explicit start (e.g. the seed's p₀ = 0), no grid.

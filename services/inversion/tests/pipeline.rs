@@ -107,3 +107,54 @@ fn config_round_trips_and_rejects_unknown_fields() {
     assert_eq!(partial.stage3.start.half_width_deg_per_frame, 0.5);
     assert!(serde_json::from_str::<InversionConfig>(r#"{"joint": true}"#).is_err());
 }
+
+/// The fit horizon: stage 3 fits only the frames within 30° of rotation at the fitted rate, so
+/// light the two-facet model does not contain beyond it (here: a strong extra term from frame
+/// 150 on, like the panel back or another face turning into view) does not bias the rates; the
+/// same data fitted on every frame do.
+#[test]
+fn fit_horizon_keeps_light_beyond_the_model_out_of_the_fit() {
+    let p_true = [0.0, 0.25, 0.0];
+    let mut set = scenario(720, 720, p_true);
+    let first = set.motion[0].frame_index;
+    let n = set.motion.len() as f64;
+    let mean: Vec<f64> = (0..BANDS_NM.len())
+        .map(|b| set.motion.iter().map(|o| o.flux_w[b]).sum::<f64>() / n)
+        .collect();
+    for o in &mut set.motion {
+        let t = (o.frame_index - first) as f64;
+        if t >= 150.0 {
+            for (f, m) in o.flux_w.iter_mut().zip(&mean) {
+                *f += 0.3 * m * ((t - 150.0) / 100.0).min(1.0);
+            }
+        }
+    }
+    let horizon = InversionConfig::default();
+    assert_eq!(horizon.stage3.max_rotation_deg, Some(30.0));
+    let result = solve_three_stage(&set, &horizon).expect("solve");
+    // 30° / 0.25 deg/frame = 120 frames after the epoch (frames 0..=120), at the fitted rate.
+    assert!(
+        (115..=125).contains(&result.fitted_frames),
+        "{}",
+        result.fitted_frames
+    );
+    let fit = result.rate.fit().expect("determined");
+    let eps = rate_error_metric(fit.rate_deg_per_frame, p_true);
+    let mirror = fit
+        .mirror_deg_per_frame
+        .map_or(f64::INFINITY, |m| rate_error_metric(m, p_true));
+    assert!(eps.min(mirror) < 2.0, "{:?}", fit.rate_deg_per_frame);
+
+    let mut every_frame = InversionConfig::default();
+    every_frame.stage3.max_rotation_deg = None;
+    let all = solve_three_stage(&set, &every_frame).expect("solve");
+    assert_eq!(all.fitted_frames, 720);
+    let worse = all.rate.fit().map_or(f64::INFINITY, |f| {
+        let m = f.mirror_deg_per_frame.unwrap_or(f.rate_deg_per_frame);
+        rate_error_metric(f.rate_deg_per_frame, p_true).min(rate_error_metric(m, p_true))
+    });
+    assert!(
+        worse > 5.0 * eps.min(mirror).max(0.1),
+        "every frame: {worse}, horizon: {eps}"
+    );
+}

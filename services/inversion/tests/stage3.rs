@@ -41,6 +41,25 @@ fn config(model: AttitudeModel, mode: PanelNormalMode) -> MotionModelConfig {
     }
 }
 
+/// The paper's stage-3 model (every coefficient from stage 1) and, except with the tracking
+/// panel, the diffuse re-fit. (A tracking panel's diffuse term is almost constant, collinear
+/// with the re-fit's constant column; the re-fit's Jacobian is checked on a well-conditioned
+/// problem in `nuisance`'s unit tests.)
+fn both_refits(base: MotionModelConfig) -> Vec<MotionModelConfig> {
+    let refits: &[bool] = if base.panel_normal == PanelNormalMode::Tracking {
+        &[false]
+    } else {
+        &[false, true]
+    };
+    refits
+        .iter()
+        .map(|&refit_diffuse| MotionModelConfig {
+            refit_diffuse,
+            ..base.clone()
+        })
+        .collect()
+}
+
 const MODES: [PanelNormalMode; 3] = [
     PanelNormalMode::Literal,
     PanelNormalMode::Frozen,
@@ -77,32 +96,67 @@ fn analytic_jacobian_matches_central_differences() {
     for model in MODELS {
         for mode in MODES {
             let obs = window(p_data, model, mode);
-            let problem =
-                RateProblem::new(&obs, &[table4_band()], &config(model, mode)).expect("problem");
-            let n = problem.residual_count();
-            for p in [[0.01, 0.23, -0.02], [0.1, -0.2, 0.3], [0.0, 0.0, 0.0]] {
-                let mut r = vec![0.0; n];
-                let mut jac = vec![[0.0; 3]; n];
-                problem.residuals_and_jacobian(p, &mut r, &mut jac);
-                let scale = jac.iter().flatten().fold(0.0_f64, |m, v| m.max(v.abs()));
+            for cfg in both_refits(config(model, mode)) {
+                // Table 4 has no diffuse terms; add some so their derivatives are tested too.
+                let mut band = table4_band();
+                band.coeffs.panel[0] = 0.2 * band.coeffs.panel[5];
+                band.coeffs.body[0] = 0.3 * band.coeffs.body[1];
+                let problem = RateProblem::new(&obs, &[band], &cfg).expect("problem");
+                let n = problem.residual_count();
+                // At p = 0 the geometry barely changes over the window, so the re-fit's diffuse
+                // columns are collinear with the constant one and c is not determined.
+                let points: &[[f64; 3]] = if cfg.refit_diffuse {
+                    &[[0.01, 0.23, -0.02], [0.1, -0.2, 0.3], [-0.05, 0.02, 0.2]]
+                } else {
+                    &[[0.01, 0.23, -0.02], [0.1, -0.2, 0.3], [0.0, 0.0, 0.0]]
+                };
+                // The re-fit's columns are nearly collinear over this short window, so c is large
+                // and the differences lose about a digit to rounding. (A wider step would
+                // straddle the horizon kinks of the diffuse terms, which move c and every row.)
                 let h = 1e-6;
-                for i in 0..3 {
-                    let (mut pp, mut pm) = (p, p);
-                    pp[i] += h;
-                    pm[i] -= h;
-                    let (mut rp, mut rm) = (vec![0.0; n], vec![0.0; n]);
-                    problem.residuals(pp, &mut rp);
-                    problem.residuals(pm, &mut rm);
-                    for t in 0..n {
-                        // r = w(y − m) ⇒ ∂r/∂p = −J.
-                        let fd = -(rp[t] - rm[t]) / (2.0 * h);
-                        assert!(
-                            (fd - jac[t][i]).abs() <= 1e-6 * scale,
-                            "{model:?} {mode:?} p {p:?} row {t} axis {i}: {fd:e} vs {:e}",
-                            jac[t][i]
-                        );
+                let tol = if cfg.refit_diffuse { 1e-5 } else { 1e-6 };
+                let mut skipped = 0;
+                for &p in points {
+                    let mut r = vec![0.0; n];
+                    let mut jac = vec![[0.0; 3]; n];
+                    problem.residuals_and_jacobian(p, &mut r, &mut jac);
+                    let scale = jac.iter().flatten().fold(0.0_f64, |m, v| m.max(v.abs()));
+                    for i in 0..3 {
+                        let (mut pp, mut pm) = (p, p);
+                        pp[i] += h;
+                        pm[i] -= h;
+                        let (mut rp, mut rm) = (vec![0.0; n], vec![0.0; n]);
+                        problem.residuals(pp, &mut rp);
+                        problem.residuals(pm, &mut rm);
+                        // A row whose one-sided differences disagree straddles a horizon kink
+                        // of the masked diffuse term; its derivative is one-sided. With the
+                        // re-fit, c (and so every row) feels a kink anywhere in the window.
+                        let at_kink = |t: usize| {
+                            let (fwd, bwd) = (-(rp[t] - r[t]) / h, -(r[t] - rm[t]) / h);
+                            (fwd - bwd).abs() > 1e3 * tol * scale
+                        };
+                        let kinks = (0..n).filter(|&t| at_kink(t)).count();
+                        assert!(kinks <= 2, "{kinks} rows at a kink");
+                        if cfg.refit_diffuse && kinks > 0 {
+                            skipped += 1;
+                            continue;
+                        }
+                        for t in 0..n {
+                            // r = w(y − m) ⇒ ∂r/∂p = −J.
+                            let fd = -(rp[t] - rm[t]) / (2.0 * h);
+                            if at_kink(t) {
+                                continue;
+                            }
+                            assert!(
+                                (fd - jac[t][i]).abs() <= tol * scale,
+                                "{model:?} {mode:?} refit {} p {p:?} row {t} axis {i}: {fd:e} vs {:e}",
+                                cfg.refit_diffuse,
+                                jac[t][i]
+                            );
+                        }
                     }
                 }
+                assert!(skipped <= 2, "{skipped} of 9 checks skipped");
             }
         }
     }

@@ -230,7 +230,8 @@ pub struct SolveResponse {
     pub observable_mask: u32,
     pub stable_samples: u32,
     pub motion_samples: u32,
-    pub _pad: u32,
+    /// Stage 3: motion frames fitted at λ* (those within the fit horizon).
+    pub fitted_frames: u32,
     /// Stage 3: the mirror solution (−w_x, w_y, −w_z) when it fits the data as well as p — the
     /// sense of rotation about X and Z is then not observable; NaN when the data tell them apart.
     pub p_mirror_deg_per_frame: [f64; 3],
@@ -261,7 +262,7 @@ impl Default for SolveResponse {
             observable_mask: 0,
             stable_samples: 0,
             motion_samples: 0,
-            _pad: 0,
+            fitted_frames: 0,
             p_mirror_deg_per_frame: [f64::NAN; 3],
         }
     }

@@ -74,7 +74,9 @@ pub struct SpectraScenario {
     pub frame_interval_s: f64,
     /// Signal-to-noise ratio σ = mean Φ / SNR per band; absent = noise-free. 0.01–1e9.
     pub snr: Option<f64>,
-    /// Sun declination [deg], −23.5–23.5 (0 = equinox, the paper's 2019-03-21).
+    /// Sun declination [deg], −23.5–23.5 (0 = equinox; the paper's motion starts at
+    /// 2019-03-21 05:30 UTC, 7.5 h after the equinox: +0.124°). At exactly 0 every geometry
+    /// vector lies in the body XZ plane and a rotation cannot be told from its mirror image.
     #[serde(default)]
     pub sun_declination_deg: f64,
     #[serde(default)]
