@@ -9,7 +9,7 @@ use anyhow::{Context, Result};
 use serde_json::{json, Value};
 use shared_types::Scenario;
 
-use crate::plots::{line_chart, Series, BLUE, RED};
+use crate::plots::{line_chart, Series, BLUE, GREEN, RED};
 use crate::run::{self, RunOptions};
 
 pub fn run(
@@ -30,6 +30,31 @@ pub fn run(
             .campaign_variant(i)
             .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
         let sub = dir.join(format!("{i:02}"));
+        if camp.seeds > 1 {
+            eprintln!(
+                "campaign {}: {} = {} ({}/{}): noise-free reference + {} seeds",
+                scenario.name,
+                camp.parameter,
+                value,
+                i + 1,
+                camp.values.len(),
+                camp.seeds
+            );
+            let (mc, ok) =
+                crate::campaign_mc::run_value(&variant, file, &sub, camp.seeds, progress)?;
+            all_ok &= ok;
+            rows.push(json!({
+                "value": value.to_string().trim_matches('"'),
+                "run": sub.file_name().map(|n| n.to_string_lossy().to_string()),
+                "success": ok,
+                "err_paper_metric": mc["median_err_paper_metric"],
+                "joint_err_paper_metric": mc["median_joint_err_paper_metric"],
+                "crb_paper_metric": mc["joint"]["crb_observable_deg_per_frame"].as_f64().map(|c| 100.0 * c),
+                "paper": camp.paper.get(i),
+                "monte_carlo": mc,
+            }));
+            continue;
+        }
         eprintln!(
             "campaign {}: {} = {} ({}/{})",
             scenario.name,
@@ -73,10 +98,12 @@ pub fn run(
         dir.join("campaign.json"),
         serde_json::to_string_pretty(&out)? + "\n",
     )?;
-    std::fs::write(
-        dir.join("summary.md"),
-        summary(scenario, &camp.parameter, &rows),
-    )?;
+    let text = if camp.seeds > 1 {
+        crate::campaign_mc::summary(scenario, &camp.parameter, camp.seeds, &rows)
+    } else {
+        summary(scenario, &camp.parameter, &rows)
+    };
+    std::fs::write(dir.join("summary.md"), text)?;
     plot(&dir, &camp.parameter, &rows)?;
     Ok((dir, all_ok))
 }
@@ -171,6 +198,12 @@ fn plot(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
                 points: series("paper"),
                 color: RED,
                 markers: true,
+            },
+            Series {
+                label: "100 × Cramér–Rao 1σ (joint, observable directions)",
+                points: series("crb_paper_metric"),
+                color: GREEN,
+                markers: false,
             },
         ],
     )

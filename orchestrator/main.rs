@@ -6,6 +6,7 @@
 //! 2 bad input (scenario file, arguments).
 
 mod campaign;
+mod campaign_mc;
 mod consume;
 mod deploy;
 mod observations;

@@ -87,10 +87,15 @@ fn rms(v: &[f64]) -> f64 {
 
 /// 95 % interval of the mean of `n` χ²(k) samples (Wilson–Hilferty for χ²(n·k), divided by n).
 pub fn nees_bounds(n: usize, k: usize) -> [f64; 2] {
-    if n == 0 {
+    chi2_mean_bounds(n * k, n)
+}
+
+/// 95 % interval of the mean of n NEES values whose sum is χ²(`total_dof`) (Wilson–Hilferty).
+pub fn chi2_mean_bounds(total_dof: usize, n: usize) -> [f64; 2] {
+    if n == 0 || total_dof == 0 {
         return [f64::NAN, f64::NAN];
     }
-    let dof = (n * k) as f64;
+    let dof = total_dof as f64;
     let q = |z: f64| {
         dof * (1.0 - 2.0 / (9.0 * dof) + z * (2.0 / (9.0 * dof)).sqrt()).powi(3) / n as f64
     };

@@ -76,6 +76,8 @@ pub struct InversionResult {
     pub joint_rate: Option<RateSolution>,
     /// Motion frames stage 3 fitted (the fit horizon, see [`Stage3Config::max_rotation_deg`]).
     pub fitted_frames: usize,
+    /// Motion frames of the joint fit (its own horizon), when run.
+    pub joint_fitted_frames: Option<usize>,
 }
 
 /// The paper's error metric ε_p = 100·‖p̂ − p*‖₂ (p in deg/frame; §1.6, not relative).
@@ -115,6 +117,7 @@ pub fn solve_three_stage(
         rate: fits.rate,
         joint_rate: fits.joint_rate,
         fitted_frames: fits.fitted_frames,
+        joint_fitted_frames: fits.joint_fitted_frames,
     })
 }
 
@@ -149,8 +152,8 @@ pub fn fit_rates(
 
 /// Multi-start fit on the frames within the fit horizon: the first window is valid for every
 /// rate in the start box (the fastest turns `max_rotation_deg` in it); it then grows to the
-/// horizon of the fitted rate, re-polishing from the previous solution, until the fitted frames
-/// stop changing. Returns the solution and the number of frames fitted.
+/// horizon of the fitted rate, searching again (with the previous solution as an extra start),
+/// until the fitted frames stop changing. Returns the solution and the number of frames fitted.
 pub fn fit_within_horizon(
     motion: &[Observation],
     bands: &[RateBand],
@@ -187,22 +190,12 @@ pub fn fit_within_horizon(
             break;
         }
         frames = next;
+        // A fresh global search on the longer window (it can rank the minima the short one
+        // could not), with the short window's solution as one more start.
         let problem = RateProblem::new(&frames, bands, &model)?;
-        let refit = stage3::fit_from_starts(&problem, &[p], config)?;
-        rate = carry_search_counts(&rate, refit);
+        rate = stage3::fit_multistart_with(&problem, config, &[p])?;
     }
     Ok((rate, frames.len()))
-}
-
-/// A re-fit on a grown window keeps the record of the search that found its start.
-fn carry_search_counts(previous: &RateSolution, mut refit: RateSolution) -> RateSolution {
-    if let (Some(prev), RateSolution::Determined(fit)) = (previous.fit(), &mut refit) {
-        fit.grid_points = prev.grid_points;
-        fit.starts_screened = prev.starts_screened;
-        fit.starts_polished += prev.starts_polished;
-        fit.total_iterations += prev.total_iterations;
-    }
-    refit
 }
 
 /// The fit horizon never shrinks below this many frames.

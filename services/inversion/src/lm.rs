@@ -26,7 +26,8 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct LmConfig {
-    /// k_max, outer iterations (≥ 1; seed: 5000).
+    /// k_max, outer iterations (≥ 1; 500). The seed's 5000 only lets LM creep along the
+    /// weakly observable bisector direction; a well-posed 3-parameter fit converges in tens.
     pub max_iterations: usize,
     /// Stop when ε < this (seed: 1e-22, in normalised units).
     pub cost_tol: f64,
@@ -43,7 +44,7 @@ pub struct LmConfig {
 impl Default for LmConfig {
     fn default() -> Self {
         Self {
-            max_iterations: 5000,
+            max_iterations: 500,
             cost_tol: 1e-22,
             step_tol: 1e-12,
             rel_decrease_tol: 1e-15,

@@ -236,6 +236,64 @@ pub fn analyse(
     })
 }
 
+/// Widens the bounds of the determined directions to their likelihood intervals: along each
+/// eigen-direction v_i, the half-width δ_i where the cost has risen by one noise variance,
+/// `ε(p ± δ v_i) − ε(p) = s²` (the larger side). For a quadratic cost δ_i is the linearised
+/// bound 1/sqrt(λ_i); near the mirror-symmetric geometry (math.md §1.6) the cost is flatter
+/// than its curvature at p̂ says, and the linearised covariance would be overconfident. The
+/// covariance is rebuilt as V diag(δ²) Vᵀ; the classification is left as it is.
+pub fn widen_to_likelihood_intervals(problem: &RateProblem, p: [f64; 3], analysis: &mut Analysis) {
+    let s2 = match analysis.source {
+        CovarianceSource::GivenSigma => 1.0,
+        CovarianceSource::ResidualVariance { sigma_normalised } => sigma_normalised.powi(2),
+    };
+    let obs = &mut analysis.observability;
+    let cap = INTERVAL_CAP_FACTOR * obs.threshold_deg_per_frame;
+    let c0 = problem.cost(p);
+    for i in 0..3 {
+        let linear = obs.bounds_1sigma_deg_per_frame[i];
+        if obs.unobservable[i] || !(linear > 0.0 && linear.is_finite()) {
+            continue;
+        }
+        let v = obs.eigenvectors[i];
+        let rise = |d: f64| problem.cost([p[0] + d * v[0], p[1] + d * v[1], p[2] + d * v[2]]) - c0;
+        let width = [1.0, -1.0]
+            .map(|side| half_width(|d| rise(side * d), linear, cap, s2))
+            .into_iter()
+            .fold(0.0f64, f64::max);
+        if width > linear {
+            obs.bounds_1sigma_deg_per_frame[i] = width;
+            obs.information_eigenvalues[i] = width.powi(-2);
+        }
+    }
+    analysis.covariance = inverse_from_eigen(&obs.information_eigenvalues, &obs.eigenvectors);
+}
+
+/// Likelihood intervals are not searched beyond this multiple of the threshold.
+const INTERVAL_CAP_FACTOR: f64 = 4.0;
+
+/// Smallest δ in (0, cap] with `rise(δ) ≥ s2` (doubling from `start`, then bisection); `cap`
+/// if the cost never rises that far.
+fn half_width(rise: impl Fn(f64) -> f64, start: f64, cap: f64, s2: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, start.min(cap));
+    while rise(hi) < s2 || rise(hi).is_nan() {
+        if hi >= cap {
+            return cap;
+        }
+        lo = hi;
+        hi = (2.0 * hi).min(cap);
+    }
+    for _ in 0..20 {
+        let mid = 0.5 * (lo + hi);
+        if rise(mid) >= s2 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
+}
+
 /// Cramér–Rao bound `sqrt(diag((JᵀWJ)⁻¹))` \[deg/frame\] at the true rates, using the
 /// observations' σ (which the problem must carry).
 pub fn cramer_rao_bound(

@@ -31,7 +31,8 @@ use crate::lm::{
 };
 use crate::model::RateProblem;
 use crate::observability::{
-    analyse, CovarianceSource, Observability, ObservabilityConfig, UnobservableReason,
+    analyse, widen_to_likelihood_intervals, CovarianceSource, Observability, ObservabilityConfig,
+    UnobservableReason,
 };
 use serde::{Deserialize, Serialize};
 
@@ -296,6 +297,47 @@ fn in_box(p: &[f64; 3], start: &StartConfig) -> bool {
     p.iter().all(|v| v.abs() <= start.half_width_deg_per_frame)
 }
 
+/// Largest cost increase, in noise variances, at which the data still accept holding the
+/// weakest direction at its prior (3σ for one degree of freedom).
+const HOLD_MAX_DELTA_CHI2: f64 = 9.0;
+
+/// Re-fits with the prior u·p = 0 on `weak` (from p̂ projected onto the prior); returns the
+/// held outcome (cost without the prior), the analysis there and the LM iterations used.
+fn hold_at_prior(
+    problem: &RateProblem,
+    best: &LmOutcome,
+    weak: &[[f64; 3]],
+    analysis: &crate::observability::Analysis,
+    config: &Stage3Config,
+) -> Result<(LmOutcome, crate::observability::Analysis, usize), InversionError> {
+    let strongest = analysis
+        .observability
+        .information_eigenvalues
+        .iter()
+        .cloned()
+        .fold(0.0f64, f64::max);
+    let prior = Prior {
+        directions: weak.to_vec(),
+        weight: PRIOR_WEIGHT_FACTOR * strongest.max(1.0),
+    };
+    let p = best.p_deg_per_frame;
+    let mut p0 = p;
+    for u in weak {
+        let up: f64 = (0..3).map(|i| u[i] * p[i]).sum();
+        for i in 0..3 {
+            p0[i] -= u[i] * up;
+        }
+    }
+    let refit = levenberg_marquardt_prior(problem, p0, &config.lm, &prior, |_, _, _| false)?;
+    let held_analysis = analyse(problem, refit.p_deg_per_frame, &config.observability)?;
+    let iterations = refit.iterations;
+    let held = LmOutcome {
+        cost: problem.cost(refit.p_deg_per_frame),
+        ..refit
+    };
+    Ok((held, held_analysis, iterations))
+}
+
 /// Polishes `starts`; `counts` = (grid points, screened starts) for the record.
 /// Weight of the prior on unobservable directions, relative to the largest eigenvalue of the
 /// information matrix: large enough that the prior decides those components.
@@ -351,36 +393,44 @@ fn polish(
         .filter(|&i| analysis.observability.unobservable[i])
         .map(|i| analysis.observability.eigenvectors[i])
         .collect();
-    if analysis.unobservable.is_none() && !weak.is_empty() && config.hold_unobservable_at_prior {
-        let strongest = analysis
-            .observability
-            .information_eigenvalues
-            .iter()
-            .cloned()
-            .fold(0.0f64, f64::max);
-        let prior = Prior {
-            directions: weak.clone(),
-            weight: PRIOR_WEIGHT_FACTOR * strongest.max(1.0),
-        };
-        let p = best.p_deg_per_frame;
-        let mut p0 = p;
-        for u in &weak {
-            let up: f64 = (0..3).map(|i| u[i] * p[i]).sum();
-            for i in 0..3 {
-                p0[i] -= u[i] * up;
+    if analysis.unobservable.is_none() && config.hold_unobservable_at_prior {
+        if !weak.is_empty() {
+            let (held, mut held_analysis, iterations) =
+                hold_at_prior(problem, &best, &weak, &analysis, config)?;
+            total_iterations += iterations;
+            // The classification stays the one at the unconstrained optimum.
+            held_analysis.observability.unobservable = analysis.observability.unobservable;
+            held_analysis.unobservable = None;
+            analysis = held_analysis;
+            best = held;
+        } else {
+            // The bisector is invisible to first order only near u·p = 0 (the light curve
+            // depends on it about quadratically there); a fit that drifted along it sees
+            // curvature that is not there at the prior. So the weakest direction is judged
+            // where the prior puts it: held if it is unobservable at the held solution and the
+            // data do not reject the prior (likelihood ratio: Δχ² ≤ 9, 3σ).
+            let u = analysis.observability.eigenvectors[0];
+            let (held, held_analysis, iterations) =
+                hold_at_prior(problem, &best, &[u], &analysis, config)?;
+            total_iterations += iterations;
+            let dof = problem.residual_count().saturating_sub(3).max(1) as f64;
+            let variance = if problem.sigma_given() {
+                1.0
+            } else {
+                (best.cost / dof).max(config.observability.min_sigma_rel.powi(2))
+            };
+            let accepted = (held.cost - best.cost) / variance <= HOLD_MAX_DELTA_CHI2;
+            if accepted
+                && held_analysis.unobservable.is_none()
+                && held_analysis.observability.unobservable[0]
+            {
+                analysis = held_analysis;
+                best = held;
             }
         }
-        let refit = levenberg_marquardt_prior(problem, p0, &config.lm, &prior, |_, _, _| false)?;
-        total_iterations += refit.iterations;
-        let mut refit_analysis = analyse(problem, refit.p_deg_per_frame, &config.observability)?;
-        // The classification stays the one at the unconstrained optimum.
-        refit_analysis.observability.unobservable = analysis.observability.unobservable;
-        refit_analysis.unobservable = None;
-        analysis = refit_analysis;
-        best = LmOutcome {
-            cost: problem.cost(refit.p_deg_per_frame),
-            ..refit
-        };
+    }
+    if analysis.unobservable.is_none() {
+        widen_to_likelihood_intervals(problem, best.p_deg_per_frame, &mut analysis);
     }
     if let Some(reason) = analysis.unobservable {
         return Ok(RateSolution::Unobservable {
@@ -461,8 +511,19 @@ pub fn fit_multistart(
     problem: &RateProblem,
     config: &Stage3Config,
 ) -> Result<RateSolution, InversionError> {
+    fit_multistart_with(problem, config, &[])
+}
+
+/// Grid → screen → polish, with `extra` starts (e.g. a solution on a shorter window) polished
+/// after the screened ones.
+pub fn fit_multistart_with(
+    problem: &RateProblem,
+    config: &Stage3Config,
+    extra: &[[f64; 3]],
+) -> Result<RateSolution, InversionError> {
     validate(config)?;
     let (candidates, grid_points) = grid_candidates(problem, &config.start);
-    let starts = screen_candidates(problem, &candidates, config)?;
+    let mut starts = screen_candidates(problem, &candidates, config)?;
+    starts.extend_from_slice(extra);
     polish(problem, &starts, (grid_points, candidates.len()), config)
 }

@@ -125,7 +125,7 @@ fn fit_horizon_keeps_light_beyond_the_model_out_of_the_fit() {
         let t = (o.frame_index - first) as f64;
         if t >= 150.0 {
             for (f, m) in o.flux_w.iter_mut().zip(&mean) {
-                *f += 0.3 * m * ((t - 150.0) / 100.0).min(1.0);
+                *f += m * ((t - 150.0) / 100.0).min(1.0);
             }
         }
     }

@@ -20,7 +20,8 @@ use glint_physics::satellite::{BandTable, BodyShape, Facet, SatelliteModel, CUBE
 use glint_physics::two_facet::{panel_normal, AttitudeConvention};
 use nalgebra::{Matrix3, Vector3};
 use shared_types::scenario::{
-    AttitudeConvention as ScenarioConvention, BodyShapeName, MaterialPresetName, SpectraScenario,
+    AttitudeConvention as ScenarioConvention, BodyShapeName, MaterialPresetName, NoiseWindows,
+    SpectraScenario,
 };
 use shared_types::{Spectrum, Truth, Window, MAX_BANDS};
 
@@ -66,8 +67,7 @@ pub struct SpectraScene {
     stable_start_s: f64,
     stable_samples: u64,
     motion_frames: u64,
-    snr: Option<f64>,
-    /// Per window, per band: noise σ [W].
+    /// Per window, per band: noise σ [W] (0 = noise-free).
     sigma_w: [[f64; MAX_BANDS]; 2],
     seed: u64,
 }
@@ -128,15 +128,18 @@ impl SpectraScene {
             stable_start_s,
             stable_samples: sc.stable_samples,
             motion_frames: sc.motion_frames,
-            snr: sc.snr,
             sigma_w: [[0.0; MAX_BANDS]; 2],
             seed,
         };
         if let Some(snr) = sc.snr {
-            for (w, count) in [
-                (Window::Stable, sc.stable_samples),
-                (Window::Motion, sc.motion_frames),
-            ] {
+            let windows = match sc.noise_windows {
+                NoiseWindows::Both => &[
+                    (Window::Stable, sc.stable_samples),
+                    (Window::Motion, sc.motion_frames),
+                ][..],
+                NoiseWindows::Motion => &[(Window::Motion, sc.motion_frames)][..],
+            };
+            for &(w, count) in windows {
                 let mut sum = [0.0; MAX_BANDS];
                 for i in 0..count {
                     let c = scene.clean(w, i)?;
@@ -249,7 +252,7 @@ impl SpectraScene {
         for b in 0..self.n_bands {
             sp.wavelength_nm[b] = self.bands.wavelengths_nm()[b];
             let sigma = self.sigma_w[window as usize][b];
-            let noise = if self.snr.is_some() {
+            let noise = if sigma > 0.0 {
                 sigma * inverse_normal_cdf(rng.next_open01())
             } else {
                 0.0

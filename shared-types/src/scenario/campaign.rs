@@ -17,6 +17,16 @@ pub struct Campaign {
     /// The paper's figure for each value (its error metric), shown beside ours; optional.
     #[serde(default)]
     pub paper: Vec<f64>,
+    /// Monte-Carlo runs per value, 1–1000 (default 1). With more than one, each value also runs
+    /// once noise-free (the reference) and then with seeds `seed`, `seed + 1`, …; the summary
+    /// gives the scatter about the noise-free solution against the Cramér–Rao bound and the
+    /// NEES of the reported covariance.
+    #[serde(default = "one")]
+    pub seeds: u32,
+}
+
+fn one() -> u32 {
+    1
 }
 
 /// Parameters a campaign may sweep.
@@ -45,6 +55,12 @@ impl Scenario {
         let mut s = self.clone();
         s.campaign = None;
         s.name = format!("{}-{index:02}", self.name);
+        if c.parameter == "seed" && c.seeds > 1 {
+            return Err(FieldError {
+                field: "campaign.seeds".into(),
+                message: "a seed sweep is itself the Monte-Carlo: give seeds = 1".into(),
+            });
+        }
         let num = || v.as_float().or_else(|| v.as_integer().map(|i| i as f64));
         let text = || v.as_str().map(str::to_string);
         let sp = || {

@@ -218,6 +218,7 @@ impl Scenario {
         }
         if let Some(camp) = &self.campaign {
             c.range_u("campaign.values (count)", camp.values.len() as u64, 1, 100);
+            c.range_u("campaign.seeds", camp.seeds as u64, 1, 1000);
             if !camp.paper.is_empty() && camp.paper.len() != camp.values.len() {
                 c.fail(
                     "campaign.paper",

@@ -29,6 +29,18 @@ pub enum BodyShapeName {
     TwoFacet,
 }
 
+/// Which windows carry the noise of `snr`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum NoiseWindows {
+    /// Both windows (the paper's setting).
+    #[default]
+    Both,
+    /// Only the motion window: stage 1 sees a noise-free stable window, which isolates the
+    /// rate fit's own efficiency (a diagnostic).
+    Motion,
+}
+
 /// Attitude matrix convention of [000] eq (17) (math.md §1.6).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -74,6 +86,9 @@ pub struct SpectraScenario {
     pub frame_interval_s: f64,
     /// Signal-to-noise ratio σ = mean Φ / SNR per band; absent = noise-free. 0.01–1e9.
     pub snr: Option<f64>,
+    /// Windows the noise applies to: "both" (default) or "motion".
+    #[serde(default)]
+    pub noise_windows: NoiseWindows,
     /// Sun declination [deg], −23.5–23.5 (0 = equinox; the paper's motion starts at
     /// 2019-03-21 05:30 UTC, 7.5 h after the equinox: +0.124°). At exactly 0 every geometry
     /// vector lies in the body XZ plane and a rotation cannot be told from its mirror image.

@@ -1,0 +1,416 @@
+//! Monte-Carlo campaign values (`[campaign] seeds = N > 1`): is the rate estimator efficient
+//! and honest at this noise level?
+//!
+//! Per value: one noise-free deployment (the reference) and N noisy ones (seeds `seed + k`),
+//! each a full deployment with its own processes. Then, for the fit at λ* and the joint fit:
+//!
+//! ```text
+//! d_k = p̂_k − p₀                      p₀: the noise-free solution (offline, same solver)
+//! CRB = (JᵀWJ)⁻¹ at p₀                  J over the frames p₀ was fitted on, W = 1/σ²,
+//!                                      σ = mean Φ / SNR per band over the motion window
+//! observable: CRB eigen-directions v_i with 1σ = sqrt(λ_i) ≤ 0.25 deg/frame
+//! efficiency = sqrt(mean_k Σ_obs (d_k·v_i)²) / sqrt(Σ_obs λ_i)     (1 = efficient)
+//! NEES_k = Σ_obs' (d_k·u_j)²/μ_j        u_j, μ_j: eigen-pairs of the run's reported covariance
+//! ```
+//!
+//! The CRB treats the stage-1 coefficients as known, so noise in the stable window adds scatter
+//! the bound does not contain: efficiency above 1 measures that too.
+
+use std::path::Path;
+
+use anyhow::{anyhow, Context, Result};
+use glint_inversion::lm::normal_equations;
+use glint_inversion::observability::symmetric_eigen;
+use glint_inversion::{
+    rate_error_metric, solve_three_stage, InversionConfig, MotionModelConfig, Observation,
+    RateBand, RateProblem,
+};
+use serde_json::{json, Value};
+use shared_types::Scenario;
+
+use crate::run::{self, RunOptions};
+use crate::score_debris::chi2_mean_bounds;
+
+/// A direction with a larger 1σ bound is unobservable \[deg/frame\] (as in stage 3).
+const OBSERVABLE_BOUND_DEG_PER_FRAME: f64 = 0.25;
+
+/// Runs the reference and the N noisy deployments of one campaign value under `dir`; returns
+/// the value's statistics and whether every deployment succeeded.
+pub fn run_value(
+    variant: &Scenario,
+    file: &str,
+    dir: &Path,
+    seeds: u32,
+    progress: bool,
+) -> Result<(Value, bool)> {
+    let sp = variant
+        .spectra
+        .as_ref()
+        .context("a Monte-Carlo campaign needs a [spectra] section")?;
+    let snr = sp
+        .snr
+        .context("a Monte-Carlo campaign needs spectra.snr (noise)")?;
+    let truth = sp.rate_deg_per_frame;
+    let mut reference = variant.clone();
+    if let Some(x) = reference.spectra.as_mut() {
+        x.snr = None;
+    }
+    let deploy = |scenario: Scenario, sub: &Path| -> Result<(Value, bool)> {
+        let (run_dir, ok) = run::run(RunOptions {
+            scenario,
+            scenario_file: file.to_string(),
+            out_dir: Some(sub.to_path_buf()),
+            progress,
+        })?;
+        let report = std::fs::read_to_string(run_dir.join("report.json"))?;
+        Ok((serde_json::from_str(&report)?, ok))
+    };
+    let ref_dir = dir.join("reference");
+    let (_, mut all_ok) = deploy(reference, &ref_dir)?;
+    let mut runs = Vec::with_capacity(seeds as usize);
+    for k in 0..seeds {
+        let mut noisy = variant.clone();
+        noisy.seed = variant.seed + k as u64;
+        let (report, ok) = deploy(noisy, &dir.join(format!("s{k:03}")))?;
+        all_ok &= ok;
+        runs.push(report["inversion"]["stage3"].clone());
+    }
+    let reference = Reference::solve(&ref_dir.join("observations.csv"), snr)?;
+    let single = Estimator::from_runs(&runs, &|s3| s3, reference.single.clone());
+    let joint = Estimator::from_runs(&runs, &|s3| &s3["joint"], reference.joint.clone());
+    let median = |key: &dyn Fn(&Value) -> Option<[f64; 3]>| {
+        median(
+            runs.iter()
+                .filter_map(|s3| key(s3).map(|p| rate_error_metric(p, truth)))
+                .collect(),
+        )
+    };
+    let stats = json!({
+        "runs": seeds,
+        "snr": snr,
+        "median_err_paper_metric": median(&|s3| vec3(&s3["p_deg_per_frame"])),
+        "median_joint_err_paper_metric": median(&|s3| vec3(&s3["joint"]["p_deg_per_frame"])),
+        "reference_err_paper_metric": reference.single.p0.map(|p| rate_error_metric(p, truth)),
+        "single": single.json(),
+        "joint": joint.json(),
+    });
+    Ok((stats, all_ok))
+}
+
+fn vec3(v: &Value) -> Option<[f64; 3]> {
+    let a = v.as_array()?;
+    let p = [
+        a.first()?.as_f64()?,
+        a.get(1)?.as_f64()?,
+        a.get(2)?.as_f64()?,
+    ];
+    p.iter().all(|x| x.is_finite()).then_some(p)
+}
+
+fn mat3(v: &Value) -> Option<[[f64; 3]; 3]> {
+    let a = v.as_array()?;
+    let mut m = [[0.0; 3]; 3];
+    for (i, row) in m.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = a.get(3 * i + j)?.as_f64()?;
+        }
+    }
+    m.iter().flatten().all(|x| x.is_finite()).then_some(m)
+}
+
+fn median(mut v: Vec<f64>) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    match n {
+        0 => None,
+        _ if n % 2 == 1 => Some(v[n / 2]),
+        _ => Some(0.5 * (v[n / 2 - 1] + v[n / 2])),
+    }
+}
+
+/// The noise-free solution of one estimator and its Cramér–Rao bound.
+#[derive(Debug, Clone)]
+struct Bound {
+    /// p₀ (None when the reference fit was not determined).
+    p0: Option<[f64; 3]>,
+    /// CRB variances along the Fisher eigen-directions \[(deg/frame)²\] and those directions
+    /// (rows).
+    variances: [f64; 3],
+    directions: [[f64; 3]; 3],
+}
+
+impl Bound {
+    fn observable(&self) -> [bool; 3] {
+        self.variances
+            .map(|v| v.is_finite() && v.sqrt() <= OBSERVABLE_BOUND_DEG_PER_FRAME)
+    }
+}
+
+struct Reference {
+    single: Bound,
+    joint: Bound,
+}
+
+impl Reference {
+    /// The offline solve of the noise-free run's observations (the service gives the same
+    /// answer to the bit) and the CRB of each fit on the frames it used, at σ = mean/SNR.
+    fn solve(observations: &Path, snr: f64) -> Result<Reference> {
+        let file = crate::observations::read(observations)?;
+        let config = InversionConfig {
+            joint_fit: true,
+            ..Default::default()
+        };
+        let result = solve_three_stage(&file.set, &config)
+            .map_err(|e| anyhow!("{}: {e}", observations.display()))?;
+        let band = |b: usize| RateBand {
+            band_index: b,
+            wavelength_nm: result.stage1[b].wavelength_nm,
+            coeffs: result.stage1[b].coeffs,
+        };
+        let mut motion = file.set.motion.clone();
+        motion.sort_by_key(|o| o.frame_index);
+        let n_bands = file.set.wavelengths_nm.len();
+        let sigma: Vec<f64> = (0..n_bands)
+            .map(|b| motion.iter().map(|o| o.flux_w[b]).sum::<f64>() / motion.len() as f64 / snr)
+            .collect();
+        for o in &mut motion {
+            o.sigma_w = sigma.clone();
+        }
+        let model = MotionModelConfig {
+            epoch_frame: motion.first().map(|o| o.frame_index),
+            ..config.model.clone()
+        };
+        let bound = |p0: Option<[f64; 3]>, frames: usize, bands: Vec<RateBand>| -> Result<Bound> {
+            let frames: Vec<Observation> = motion.iter().take(frames).cloned().collect();
+            let problem = RateProblem::new(&frames, &bands, &model)?;
+            crb(&problem, p0)
+        };
+        let chosen = result.stage2.chosen_index;
+        let single = bound(
+            result.rate.fit().map(|f| f.rate_deg_per_frame),
+            result.fitted_frames,
+            vec![band(chosen)],
+        )?;
+        let joint = bound(
+            result
+                .joint_rate
+                .as_ref()
+                .and_then(|r| r.fit())
+                .map(|f| f.rate_deg_per_frame),
+            result.joint_fitted_frames.unwrap_or(result.fitted_frames),
+            (0..n_bands).map(band).collect(),
+        )?;
+        Ok(Reference { single, joint })
+    }
+}
+
+fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
+    let Some(p) = p0 else {
+        return Ok(Bound {
+            p0: None,
+            variances: [f64::NAN; 3],
+            directions: [[f64::NAN; 3]; 3],
+        });
+    };
+    let n = problem.residual_count();
+    let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
+    problem.residuals_and_jacobian(p, &mut r, &mut jac);
+    let (fisher, _) = normal_equations(&jac, &r);
+    let (info, vecs) = symmetric_eigen(&fisher)?;
+    Ok(Bound {
+        p0,
+        variances: info.map(|l| if l > 0.0 { 1.0 / l } else { f64::INFINITY }),
+        directions: vecs,
+    })
+}
+
+/// Scatter and consistency of one estimator over the noisy runs.
+struct Estimator {
+    bound: Bound,
+    /// Σ_obs (d·v_i)² per determined run.
+    dev2_observable: Vec<f64>,
+    /// (d·v_i)² per run, per CRB direction.
+    dev2_along: Vec<[f64; 3]>,
+    /// (NEES, dof) per run with a reported covariance.
+    nees: Vec<(f64, usize)>,
+    /// Runs without a determined rate.
+    undetermined: usize,
+}
+
+impl Estimator {
+    fn from_runs(runs: &[Value], pick: &dyn Fn(&Value) -> &Value, bound: Bound) -> Self {
+        let observable = bound.observable();
+        let mut out = Estimator {
+            dev2_observable: vec![],
+            dev2_along: vec![],
+            nees: vec![],
+            undetermined: 0,
+            bound,
+        };
+        let Some(p0) = out.bound.p0 else {
+            out.undetermined = runs.len();
+            return out;
+        };
+        for s3 in runs {
+            let fit = pick(s3);
+            let Some(p) = vec3(&fit["p_deg_per_frame"]) else {
+                out.undetermined += 1;
+                continue;
+            };
+            let d = [p[0] - p0[0], p[1] - p0[1], p[2] - p0[2]];
+            let along = out
+                .bound
+                .directions
+                .map(|v| (0..3).map(|i| v[i] * d[i]).sum::<f64>());
+            let along2 = along.map(|x| x * x);
+            out.dev2_along.push(along2);
+            out.dev2_observable
+                .push((0..3).filter(|&i| observable[i]).map(|i| along2[i]).sum());
+            if let Some(cov) = mat3(&fit["covariance"]) {
+                if let Some(n) = nees(&cov, &d) {
+                    out.nees.push(n);
+                }
+            }
+        }
+        out
+    }
+
+    fn json(&self) -> Value {
+        let observable = self.bound.observable();
+        let n = self.dev2_observable.len();
+        let crb_obs: f64 = (0..3)
+            .filter(|&i| observable[i])
+            .map(|i| self.bound.variances[i])
+            .sum();
+        let rms_obs = (n > 0).then(|| (self.dev2_observable.iter().sum::<f64>() / n as f64).sqrt());
+        let per_direction: Vec<Value> = (0..3)
+            .map(|i| {
+                let rms = (n > 0)
+                    .then(|| (self.dev2_along.iter().map(|a| a[i]).sum::<f64>() / n as f64).sqrt());
+                json!({
+                    "direction": self.bound.directions[i],
+                    "crb_1sigma_deg_per_frame": finite(self.bound.variances[i].sqrt()),
+                    "rms_deg_per_frame": rms,
+                    "observable": observable[i],
+                })
+            })
+            .collect();
+        let total_dof: usize = self.nees.iter().map(|(_, k)| k).sum();
+        let mean_nees = (!self.nees.is_empty())
+            .then(|| self.nees.iter().map(|(e, _)| e).sum::<f64>() / self.nees.len() as f64);
+        let [lo, hi] = chi2_mean_bounds(total_dof, self.nees.len());
+        json!({
+            "p0_deg_per_frame": self.bound.p0,
+            "determined": n,
+            "undetermined": self.undetermined,
+            "observable_directions": observable.iter().filter(|o| **o).count(),
+            "crb_observable_deg_per_frame": finite(crb_obs.sqrt()),
+            "rms_observable_deg_per_frame": rms_obs,
+            "efficiency": rms_obs.map(|r| r / crb_obs.sqrt()).filter(|e| e.is_finite()),
+            "directions": per_direction,
+            "nees_mean": mean_nees,
+            "nees_dof_mean": (!self.nees.is_empty()).then(|| total_dof as f64 / self.nees.len() as f64),
+            "nees_bounds_95": [finite(lo), finite(hi)],
+        })
+    }
+}
+
+fn finite(v: f64) -> Value {
+    if v.is_finite() {
+        json!(v)
+    } else {
+        Value::Null
+    }
+}
+
+/// NEES of deviation d under a reported covariance, over its observable eigen-directions.
+fn nees(cov: &[[f64; 3]; 3], d: &[f64; 3]) -> Option<(f64, usize)> {
+    let (vals, vecs) = symmetric_eigen(cov).ok()?;
+    let mut sum = 0.0;
+    let mut dof = 0;
+    for (var, v) in vals.iter().zip(&vecs) {
+        if !(*var > 0.0 && var.sqrt() <= OBSERVABLE_BOUND_DEG_PER_FRAME) {
+            continue;
+        }
+        let x: f64 = (0..3).map(|i| v[i] * d[i]).sum();
+        sum += x * x / var;
+        dof += 1;
+    }
+    (dof > 0).then_some((sum, dof))
+}
+
+fn fmt(v: &Value, digits: usize) -> String {
+    v.as_f64().map_or("—".into(), |x| format!("{x:.digits$}"))
+}
+
+fn fmt_e(v: &Value) -> String {
+    v.as_f64().map_or("—".into(), |x| format!("{x:.2e}"))
+}
+
+/// The Monte-Carlo campaign's summary.md: Table-7-style medians beside the paper, then the
+/// efficiency and NEES table.
+pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value]) -> String {
+    use std::fmt::Write as _;
+    let mut s = format!(
+        "# glint campaign: {} — sweep of `{parameter}`, {seeds} seeds per value\n\n",
+        scenario.name
+    );
+    if !scenario.description.is_empty() {
+        let _ = writeln!(s, "{}\n", scenario.description.trim());
+    }
+    if let Some(sp) = &scenario.spectra {
+        let _ = writeln!(
+            s,
+            "Windows: stable {} samples from phase {}°, motion {} frames {} s apart (stage 3 fits the frames within 30° of rotation); materials `{:?}`, body `{:?}`; seeds {}…{}. Noise σ = mean Φ / SNR per band and window, both windows noisy.\n",
+            sp.stable_samples, sp.stable_start_phase_deg, sp.motion_frames, sp.frame_interval_s,
+            sp.materials, sp.body_shape, scenario.seed, scenario.seed + seeds as u64 - 1
+        );
+    }
+    s.push_str("## Error against the truth (median over seeds; paper metric 100·‖p − p*‖)\n\n");
+    let _ = writeln!(
+        s,
+        "| {parameter} | noise-free | median, λ* | median, joint | paper | 100 × CRB 1σ, joint (observable) | run |\n|---|---|---|---|---|---|---|"
+    );
+    for r in rows {
+        let mc = &r["monte_carlo"];
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | [{}]({}/reference/summary.md) |",
+            r["value"].as_str().unwrap_or("?"),
+            fmt(&mc["reference_err_paper_metric"], 2),
+            fmt(&r["err_paper_metric"], 2),
+            fmt(&r["joint_err_paper_metric"], 2),
+            fmt(&r["paper"], 2),
+            fmt(&r["crb_paper_metric"], 2),
+            r["run"].as_str().unwrap_or("?"),
+            r["run"].as_str().unwrap_or("?"),
+        );
+    }
+    s.push_str(
+        "\n## Efficiency and honesty (scatter about the noise-free solution)\n\n\
+         RMS = sqrt(mean ‖(p̂ − p₀) projected on the observable CRB directions‖²); efficiency = RMS / CRB (1 is efficient; the CRB takes the stage-1 coefficients as known). NEES uses each run's reported covariance over its observable directions; its 95 % interval is for the mean over the runs.\n\n\
+         | value | fit | runs determined | observable dirs | CRB 1σ [deg/frame] | RMS [deg/frame] | efficiency | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        for (label, key) in [("λ*", "single"), ("joint", "joint")] {
+            let e = &r["monte_carlo"][key];
+            let _ = writeln!(
+                s,
+                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} ({}) | {}–{} |",
+                r["value"].as_str().unwrap_or("?"),
+                e["determined"],
+                r["monte_carlo"]["runs"],
+                e["observable_directions"],
+                fmt_e(&e["crb_observable_deg_per_frame"]),
+                fmt_e(&e["rms_observable_deg_per_frame"]),
+                fmt(&e["efficiency"], 2),
+                fmt(&e["nees_mean"], 2),
+                fmt(&e["nees_dof_mean"], 1),
+                fmt(&e["nees_bounds_95"][0], 2),
+                fmt(&e["nees_bounds_95"][1], 2),
+            );
+        }
+    }
+    s.push_str("\n![error against the parameter](campaign.svg)\n");
+    s
+}
