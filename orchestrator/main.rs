@@ -15,6 +15,7 @@ mod png;
 mod progress;
 mod report;
 mod report_debris;
+mod report_fit;
 mod report_inversion;
 mod run;
 mod score_debris;

@@ -44,6 +44,16 @@ fn bounds(series: &[Series]) -> ((f64, f64), (f64, f64)) {
     (pad(x), pad(y))
 }
 
+/// A tick label readable at any scale: scientific notation for very small or large axes
+/// (fluxes are ~1e-14 W).
+fn tick_label(v: f64, axis_scale: f64) -> String {
+    if axis_scale > 0.0 && !(1e-2..1e5).contains(&axis_scale) {
+        format!("{v:.2e}")
+    } else {
+        format!("{v:.3}")
+    }
+}
+
 /// Writes a line chart to `path`.
 pub fn line_chart(
     path: &Path,
@@ -62,10 +72,12 @@ pub fn line_chart(
         .y_label_area_size(80)
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(|e| anyhow!("{e:?}"))?;
+    let y_scale = y0.abs().max(y1.abs());
     chart
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
+        .y_label_formatter(&|v| tick_label(*v, y_scale))
         .draw()
         .map_err(|e| anyhow!("{e:?}"))?;
     for s in series {

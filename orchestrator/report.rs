@@ -484,6 +484,12 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
             &facts.spectra,
             Some(sp.rate_deg_per_frame),
         )?;
+        // Fit plots need complete windows (a run cut short has none to solve).
+        if facts.solve.iter().any(|r| r.stage == 3) {
+            if let Err(e) = crate::report_fit::plots(dir) {
+                tracing::warn!(error = %e, "fit plots skipped");
+            }
+        }
     }
     if let Some(d) = &facts.debris {
         crate::report_debris::plots(

@@ -130,6 +130,10 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                 rate_error_metric(p, truth), r.fitted_frames, r.motion_samples,
                 glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG, r.iterations, r.starts
             );
+            let _ = writeln!(
+                s,
+                "\n![stage-1 fit](stage1-fit.svg)\n\n![stage-3 fit](stage3-fit.svg)\n\n![stage-3 residuals](stage3-residuals.svg)\n"
+            );
         } else {
             let _ = writeln!(s, "Stage 3: **{}** — no rate is reported.", status(r));
         }

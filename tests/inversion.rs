@@ -68,7 +68,14 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
             "service {p_service} vs offline {p_offline}"
         );
     }
-    for pic in ["inversion-sigma.svg", "light-curve.svg", "observations.csv"] {
+    for pic in [
+        "inversion-sigma.svg",
+        "light-curve.svg",
+        "observations.csv",
+        "stage1-fit.svg",
+        "stage3-fit.svg",
+        "stage3-residuals.svg",
+    ] {
         assert!(dir.join(pic).exists(), "{pic}");
     }
     let _ = std::fs::remove_dir_all(&dir);
@@ -182,5 +189,68 @@ fn the_chain_recovers_the_exact_rate_when_the_satellite_is_the_two_facet_model()
     for b in r.report["inversion"]["stage1"]["bands"].as_array().unwrap() {
         assert!(b["recon_err"].as_f64().unwrap() < 1e-9, "{b}");
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
+    let dir = temp_dir("campaign-mc");
+    let file = scenario_variant(
+        "campaign-efficiency.toml",
+        &[
+            ("values = [10.0, 20.0]", "values = [20.0]"),
+            ("seeds = 50", "seeds = 3"),
+            ("stable_samples = 360", "stable_samples = 240"),
+            ("motion_frames = 360", "motion_frames = 240"),
+        ],
+        &dir,
+    );
+    let out = glint()
+        .arg("run")
+        .arg(&file)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let root = dir.join("out");
+    let c: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("campaign.json")).unwrap())
+            .unwrap();
+    let mc = &c["rows"][0]["monte_carlo"];
+    assert_eq!(mc["runs"], 3);
+    // Every run is its own deployment: the noise-free reference and seeds 1000..=1002.
+    let reference: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(root.join("00/reference/report.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(reference["inversion"]["windows"]["snr"].is_null());
+    for k in 0..3 {
+        let run: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(root.join(format!("00/s{k:03}/report.json"))).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(run["inversion"]["windows"]["snr"], 20.0);
+        assert_eq!(run["seed"], 1000 + k);
+    }
+    // p₀ comes from the offline solve of the reference's observations: it must be the
+    // service's answer, to the bit.
+    assert_eq!(
+        mc["single"]["p0_deg_per_frame"],
+        reference["inversion"]["stage3"]["p_deg_per_frame"]
+    );
+    for fit in ["single", "joint"] {
+        let e = &mc[fit];
+        assert_eq!(e["determined"], 3, "{e}");
+        assert!(e["efficiency"].as_f64().unwrap().is_finite(), "{e}");
+        let [lo, hi] = [0, 1].map(|i| e["nees_bounds_95"][i].as_f64().unwrap());
+        assert!(lo > 0.0 && hi > lo, "{e}");
+    }
+    let md = std::fs::read_to_string(root.join("summary.md")).unwrap();
+    assert!(md.contains("efficiency") && md.contains("NEES"), "{md}");
     let _ = std::fs::remove_dir_all(&dir);
 }
