@@ -72,6 +72,9 @@ enum Cmd {
         /// `[stage3.lm]`, `[stage3.observability]`, `[model]`, …); unset fields keep defaults.
         #[arg(long)]
         config: Option<PathBuf>,
+        /// Also fit stage 3 at every band and rank the chosen band against them.
+        #[arg(long)]
+        band_sweep: bool,
     },
     /// Offline tools: algorithm stages on files, no IPC.
     Tool {
@@ -189,7 +192,8 @@ fn main() -> ExitCode {
             out,
             no_joint,
             config,
-        } => match tools::invert(&observations, !no_joint, config.as_deref()) {
+            band_sweep,
+        } => match tools::invert(&observations, !no_joint, config.as_deref(), band_sweep) {
             Ok((json, text)) => {
                 print!("{text}");
                 if let Some(dir) = out {

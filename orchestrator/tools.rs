@@ -83,6 +83,7 @@ pub fn invert(
     path: &Path,
     joint: bool,
     config_path: Option<&Path>,
+    band_sweep: bool,
 ) -> Result<(serde_json::Value, String)> {
     let mut config = match config_path {
         Some(p) => read_inversion_config(p)?,
@@ -109,6 +110,7 @@ pub fn invert(
         config
             .stage3
             .max_rotation_deg
+            .filter(|d| d.is_finite())
             .map_or("every frame".to_string(), |d| format!("{d}° of rotation")),
     );
     for (label, sol) in [
@@ -136,7 +138,74 @@ pub fn invert(
     if let Some(t) = file.truth_rate_deg_per_frame {
         j["truth_deg_per_frame"] = json!(t);
     }
+    if band_sweep {
+        let (rows, summary) = sweep_bands(&file, &result, &config)
+            .map_err(|e| anyhow!("{}: band sweep: {e}", path.display()))?;
+        j["band_sweep"] = json!(rows);
+        text += &summary;
+    }
     Ok((j, text))
+}
+
+/// Stage 3 at every band (the stage-2 check: is λ* the band with the lowest error?).
+fn sweep_bands(
+    file: &crate::observations::ObservationFile,
+    result: &glint_inversion::InversionResult,
+    config: &glint_inversion::InversionConfig,
+) -> Result<(Vec<serde_json::Value>, String)> {
+    let mut rows = Vec::with_capacity(result.stage1.len());
+    let mut text = String::from("band sweep (stage 3 at each band):\n");
+    let mut errors = Vec::new();
+    for (b, band) in result.stage1.iter().enumerate() {
+        let fits = glint_inversion::fit_rates(
+            &file.set.motion,
+            &result.stage1,
+            b,
+            &config.model,
+            &config.stage3,
+            false,
+        )?;
+        let p = fits.rate.fit().map(|f| f.rate_deg_per_frame);
+        let err = match (p, file.truth_rate_deg_per_frame) {
+            (Some(p), Some(t)) => Some(glint_inversion::rate_error_metric(p, t)),
+            _ => None,
+        };
+        if let Some(e) = err {
+            errors.push((band.wavelength_nm, e));
+        }
+        let sigma = result.stage2.bands.get(b).map(|s| s.sigma);
+        text += &format!(
+            "  {:>5.0} nm  σ = {:>8.4}  {}{}\n",
+            band.wavelength_nm,
+            sigma.unwrap_or(f64::NAN),
+            p.map_or("unobservable".into(), |p| format!(
+                "p = [{:.5}, {:.5}, {:.5}]",
+                p[0], p[1], p[2]
+            )),
+            err.map_or(String::new(), |e| format!("  error {e:.3}")),
+        );
+        rows.push(json!({
+            "wavelength_nm": band.wavelength_nm,
+            "sigma": sigma,
+            "p_deg_per_frame": p,
+            "err_paper_metric": err,
+        }));
+    }
+    let chosen = result.chosen_wavelength_nm;
+    if let (Some(best), Some(own)) = (
+        errors.iter().map(|e| e.1).reduce(f64::min),
+        errors.iter().find(|e| e.0 == chosen).map(|e| e.1),
+    ) {
+        text += &format!(
+            "chosen band {chosen} nm: error {own:.3}; lowest over the sweep {best:.3} ({}).\n",
+            if own <= 1.1 * best {
+                "λ* is the lowest or within 10 %"
+            } else {
+                "λ* is NOT within 10 % of the lowest"
+            }
+        );
+    }
+    Ok((rows, text))
 }
 
 /// Reads solver settings for `glint invert --config` (TOML; unknown fields are errors).

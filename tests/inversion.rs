@@ -49,6 +49,7 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
         .arg(dir.join("observations.csv"))
         .arg("--out")
         .arg(dir.join("offline"))
+        .arg("--band-sweep")
         .output()
         .unwrap();
     assert!(
@@ -60,6 +61,17 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
         serde_json::from_str(&std::fs::read_to_string(dir.join("offline/inversion.json")).unwrap())
             .unwrap();
     assert_eq!(off["chosen_wavelength_nm"], inv["stage2"]["chosen_nm"]);
+    // The band sweep fits stage 3 at every band; at λ* it is the solve's own fit.
+    let sweep = off["band_sweep"].as_array().unwrap();
+    assert_eq!(sweep.len(), 36);
+    let at_chosen = sweep
+        .iter()
+        .find(|r| r["wavelength_nm"] == off["chosen_wavelength_nm"])
+        .unwrap();
+    assert_eq!(
+        at_chosen["p_deg_per_frame"],
+        off["rate"]["rate_deg_per_frame"]
+    );
     if s3["status"] == "ok" {
         let p_service = &s3["p_deg_per_frame"];
         let p_offline = &off["rate"]["rate_deg_per_frame"];

@@ -269,6 +269,9 @@ pub fn widen_to_likelihood_intervals(problem: &RateProblem, p: [f64; 3], analysi
     analysis.covariance = inverse_from_eigen(&obs.information_eigenvalues, &obs.eigenvectors);
 }
 
+/// Bisection steps of a likelihood half-width (2⁻⁸ of its bracket: the bound is a 1σ figure).
+const INTERVAL_BISECTIONS: usize = 8;
+
 /// Likelihood intervals are not searched beyond this multiple of the threshold.
 const INTERVAL_CAP_FACTOR: f64 = 4.0;
 
@@ -283,7 +286,7 @@ fn half_width(rise: impl Fn(f64) -> f64, start: f64, cap: f64, s2: f64) -> f64 {
         lo = hi;
         hi = (2.0 * hi).min(cap);
     }
-    for _ in 0..20 {
+    for _ in 0..INTERVAL_BISECTIONS {
         let mid = 0.5 * (lo + hi);
         if rise(mid) >= s2 {
             hi = mid;
