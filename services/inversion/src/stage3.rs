@@ -301,6 +301,16 @@ fn in_box(p: &[f64; 3], start: &StartConfig) -> bool {
 /// weakest direction at its prior (3σ for one degree of freedom).
 const HOLD_MAX_DELTA_CHI2: f64 = 9.0;
 
+/// One noise variance in cost units: 1 with σ given (whitened residuals), else the residual
+/// variance ε/(N − 3) of a fit of cost ε (floored as in the observability analysis).
+fn noise_variance(problem: &RateProblem, cost: f64, config: &Stage3Config) -> f64 {
+    if problem.sigma_given() {
+        return 1.0;
+    }
+    let dof = problem.residual_count().saturating_sub(3).max(1) as f64;
+    (cost / dof).max(config.observability.min_sigma_rel.powi(2))
+}
+
 /// Re-fits with the prior u·p = 0 on `weak` (from p̂ projected onto the prior); returns the
 /// held outcome (cost without the prior), the analysis there and the LM iterations used.
 fn hold_at_prior(
@@ -413,12 +423,7 @@ fn polish(
             let (held, held_analysis, iterations) =
                 hold_at_prior(problem, &best, &[u], &analysis, config)?;
             total_iterations += iterations;
-            let dof = problem.residual_count().saturating_sub(3).max(1) as f64;
-            let variance = if problem.sigma_given() {
-                1.0
-            } else {
-                (best.cost / dof).max(config.observability.min_sigma_rel.powi(2))
-            };
+            let variance = noise_variance(problem, best.cost, config);
             let accepted = (held.cost - best.cost) / variance <= HOLD_MAX_DELTA_CHI2;
             if accepted
                 && held_analysis.unobservable.is_none()
@@ -487,11 +492,7 @@ fn mirror_if_ambiguous(
         return Ok(None);
     }
     let dof = problem.residual_count().saturating_sub(3).max(1) as f64;
-    let variance = if problem.sigma_given() {
-        1.0
-    } else {
-        (cost / dof).max(f64::MIN_POSITIVE)
-    };
+    let variance = noise_variance(problem, cost, config);
     // Noise-free data fitted exactly (cost ≈ 0): only an equally exact mirror qualifies.
     let tie = (out.cost - cost).abs() <= 1e-6 * cost.abs().max(1e-12 * dof);
     Ok(((out.cost - cost) / variance <= MIRROR_MAX_DELTA_CHI2 || tie).then_some(m))
