@@ -135,10 +135,29 @@ pub fn fit_rates(
         wavelength_nm: stage1[b].wavelength_nm,
         coeffs: stage1[b].coeffs,
     };
-    let (rate, fitted_frames) = fit_within_horizon(motion, &[band(chosen)], model, config)?;
+    let covariances = |bands: &[usize]| -> Vec<Option<Vec<f64>>> {
+        bands
+            .iter()
+            .map(|&b| stage1[b].coeff_covariance.clone())
+            .collect()
+    };
+    let (rate, fitted_frames) = fit_within_horizon(
+        motion,
+        &[band(chosen)],
+        &covariances(&[chosen]),
+        model,
+        config,
+    )?;
     let joint_rate = if joint {
-        let bands: Vec<RateBand> = (0..stage1.len()).map(band).collect();
-        Some(fit_within_horizon(motion, &bands, model, config)?)
+        let all: Vec<usize> = (0..stage1.len()).collect();
+        let bands: Vec<RateBand> = all.iter().map(|&b| band(b)).collect();
+        Some(fit_within_horizon(
+            motion,
+            &bands,
+            &covariances(&all),
+            model,
+            config,
+        )?)
     } else {
         None
     };
@@ -157,6 +176,7 @@ pub fn fit_rates(
 pub fn fit_within_horizon(
     motion: &[Observation],
     bands: &[RateBand],
+    coefficient_covariance: &[Option<Vec<f64>>],
     model: &MotionModelConfig,
     config: &Stage3Config,
 ) -> Result<(RateSolution, usize), InversionError> {
@@ -167,6 +187,10 @@ pub fn fit_within_horizon(
         epoch_frame: Some(epoch),
         ..model.clone()
     };
+    let build = |frames: &[Observation]| -> Result<RateProblem, InversionError> {
+        Ok(RateProblem::new(frames, bands, &model)?
+            .with_coefficient_covariance(coefficient_covariance.to_vec()))
+    };
     let within = |horizon_frames: f64| -> Vec<Observation> {
         motion
             .iter()
@@ -175,12 +199,14 @@ pub fn fit_within_horizon(
             .collect()
     };
     let Some(max_deg) = config.max_rotation_deg.filter(|d| d.is_finite()) else {
-        let problem = RateProblem::new(motion, bands, &model)?;
-        return Ok((stage3::fit_multistart(&problem, config)?, motion.len()));
+        return Ok((
+            stage3::fit_multistart(&build(motion)?, config)?,
+            motion.len(),
+        ));
     };
     let fastest = 3f64.sqrt() * config.start.half_width_deg_per_frame;
     let mut frames = within((max_deg / fastest).max(MIN_FIT_FRAMES));
-    let mut rate = stage3::fit_multistart(&RateProblem::new(&frames, bands, &model)?, config)?;
+    let mut rate = stage3::fit_multistart(&build(&frames)?, config)?;
     for _ in 0..HORIZON_ROUNDS {
         let Some(fit) = rate.fit() else { break };
         let p = fit.rate_deg_per_frame;
@@ -192,8 +218,7 @@ pub fn fit_within_horizon(
         frames = next;
         // A fresh global search on the longer window (it can rank the minima the short one
         // could not), with the short window's solution as one more start.
-        let problem = RateProblem::new(&frames, bands, &model)?;
-        rate = stage3::fit_multistart_with(&problem, config, &[p])?;
+        rate = stage3::fit_multistart_with(&build(&frames)?, config, &[p])?;
     }
     Ok((rate, frames.len()))
 }

@@ -189,6 +189,16 @@ pub fn analyse(
     };
     let rms_sensitivity = (lam_max / n as f64).sqrt() / problem.weight_rms();
     let vals = raw_vals.map(|v| v / s2);
+    // The stage-1 coefficients are estimates too: with σ given, their covariance is carried
+    // into the rates' (F⁻¹ + F⁻¹ C F⁻¹), and the eigen-analysis is of that total.
+    let regular = raw_vals.iter().all(|v| *v > config.rank_tol * lam_max);
+    let coefficient_term = problem
+        .coefficient_term(p, &jac)
+        .filter(|_| problem.sigma_given() && regular);
+    let (vals, vecs) = match coefficient_term {
+        Some(c) => total_information(&vals, &vecs, &c)?,
+        None => (vals, vecs),
+    };
     let bounds = vals.map(|v| {
         if v > 0.0 {
             v.sqrt().recip()
@@ -234,6 +244,34 @@ pub fn analyse(
         },
         unobservable: reason,
     })
+}
+
+/// Eigen-pairs of the total covariance F⁻¹ + F⁻¹ C F⁻¹, returned as information (1/variance)
+/// ascending with their directions, like the Fisher analysis.
+fn total_information(
+    vals: &[f64; 3],
+    vecs: &[[f64; 3]; 3],
+    c: &[[f64; 3]; 3],
+) -> Result<([f64; 3], [[f64; 3]; 3]), InversionError> {
+    let f_inv = inverse_from_eigen(vals, vecs);
+    let mut total = f_inv;
+    for i in 0..3 {
+        for j in 0..3 {
+            let mut v = 0.0;
+            for a in 0..3 {
+                for b in 0..3 {
+                    v += f_inv[i][a] * c[a][b] * f_inv[b][j];
+                }
+            }
+            total[i][j] += v;
+        }
+    }
+    let (var, dirs) = symmetric_eigen(&total)?;
+    // Variance ascending = information descending: reverse.
+    Ok((
+        [var[2], var[1], var[0]].map(|v| if v > 0.0 { 1.0 / v } else { f64::INFINITY }),
+        [dirs[2], dirs[1], dirs[0]],
+    ))
 }
 
 /// Widens the bounds of the determined directions to their likelihood intervals: along each

@@ -22,6 +22,7 @@ use crate::error::InversionError;
 use crate::nnls::NnlsSystem;
 use crate::observation::Observation;
 use crate::serde_coeffs;
+use faer::linalg::solvers::Solve;
 use faer::Mat;
 use glint_physics::two_facet::{design_row, panel_normal, TwoFacetCoefficients, TERMS_PER_FACET};
 use nalgebra::Vector3;
@@ -43,6 +44,11 @@ pub struct Stage1Band {
     pub coeffs_m2: Option<TwoFacetCoefficients>,
     /// Relative reconstruction error ‖Φ − Φ_rec‖₂/‖Φ‖₂.
     pub recon_err: f64,
+    /// Covariance of x̃ (22 × 22, row-major) from the stable window's σ, on the NNLS passive set
+    /// (coefficients at their bound 0 are held there): `(G_Pᵀ W G_P)⁻¹`, W = 1/(σ‖T0‖²)².
+    /// `None` without σ.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coeff_covariance: Option<Vec<f64>>,
     /// NNLS outer iterations.
     pub nnls_iterations: usize,
 }
@@ -131,16 +137,60 @@ pub fn run_stage1(
             })
             .sum();
         let coeffs = coefficients_from_slice(&sol.x);
+        let coeff_covariance = coefficient_covariance(stable, &g, &sol.x, b);
         let coeffs_m2 = band_scale_w.map(|scale| scaled(&coeffs, 1.0 / scale[b]));
         out.push(Stage1Band {
             wavelength_nm,
             coeffs,
             coeffs_m2,
             recon_err: err_sq.sqrt() / flux_norm,
+            coeff_covariance,
             nnls_iterations: sol.iterations,
         });
     }
     Ok(out)
+}
+
+/// `(G_Pᵀ W G_P)⁻¹` on the passive set P = {m : x_m > 0} of band `b`, embedded in 22 × 22;
+/// `None` unless every stable sample carries σ.
+fn coefficient_covariance(
+    stable: &[Observation],
+    g: &Mat<f64>,
+    x: &[f64],
+    b: usize,
+) -> Option<Vec<f64>> {
+    let sigma: Vec<f64> = stable
+        .iter()
+        .map(|o| o.sigma_w.get(b).copied().filter(|s| *s > 0.0))
+        .collect::<Option<_>>()?;
+    let passive: Vec<usize> = (0..DESIGN_COLUMNS).filter(|&m| x[m] > 0.0).collect();
+    let n = passive.len();
+    if n == 0 {
+        return None;
+    }
+    let normal = Mat::from_fn(n, n, |i, k| {
+        stable
+            .iter()
+            .zip(&sigma)
+            .enumerate()
+            .map(|(j, (o, s))| {
+                let w = (s * o.range_m.powi(2)).powi(-2);
+                g[(j, passive[i])] * g[(j, passive[k])] * w
+            })
+            .sum::<f64>()
+    });
+    let inverse = normal
+        .llt(faer::Side::Lower)
+        .ok()?
+        .solve(Mat::<f64>::identity(n, n));
+    let inverse: Mat<f64> = inverse;
+    let mut cov = vec![0.0; DESIGN_COLUMNS * DESIGN_COLUMNS];
+    for (i, &mi) in passive.iter().enumerate() {
+        for (k, &mk) in passive.iter().enumerate() {
+            cov[mi * DESIGN_COLUMNS + mk] = inverse[(i, k)];
+        }
+    }
+    cov.iter().all(|v: &f64| v.is_finite()).then_some(cov)
 }
 
 /// `x[0..11]` → panel, `x[11..22]` → body.

@@ -78,7 +78,7 @@ fn y_rates_are_fitted_at_the_cramer_rao_bound_with_honest_covariances() {
     let (mut nees_sum, mut nees_dof) = (0.0, 0);
     for seed in 1..=SEEDS {
         let obs = noisy(&clean, seed);
-        let (sol, _) = fit_within_horizon(&obs, &[band], &model, &config).expect("fit");
+        let (sol, _) = fit_within_horizon(&obs, &[band], &[None], &model, &config).expect("fit");
         let fit = sol.fit().expect("determined");
         // The Sun and the observer lie in the body XZ plane here, so p and its mirror
         // (−w_x, w_y, −w_z) fit equally well (and stage 3 says so): a fit that landed on

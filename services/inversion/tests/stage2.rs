@@ -76,6 +76,7 @@ fn band(wavelength_nm: f64, coeffs: TwoFacetCoefficients) -> Stage1Band {
         coeffs_m2: None,
         recon_err: 0.0,
         nnls_iterations: 0,
+        coeff_covariance: None,
     }
 }
 
