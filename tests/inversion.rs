@@ -57,9 +57,7 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let off: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("offline/inversion.json")).unwrap())
-            .unwrap();
+    let off = read_json(&dir.join("offline/inversion.json"));
     assert_eq!(off["chosen_wavelength_nm"], inv["stage2"]["chosen_nm"]);
     // The band sweep fits stage 3 at every band; at λ* it is the solve's own fit.
     let sweep = off["band_sweep"].as_array().unwrap();
@@ -138,20 +136,7 @@ fn invert_config_errors_name_the_file_and_the_field() {
 #[test]
 fn a_campaign_runs_one_deployment_per_value_and_tabulates_them() {
     let dir = temp_dir("campaign");
-    let out = glint()
-        .arg("run")
-        .arg(scenario("campaign-axis.toml"))
-        .arg("--out")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let c: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("campaign.json")).unwrap()).unwrap();
+    let c = run_campaign_ok(&scenario("campaign-axis.toml"), &dir);
     let rows = c["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 2);
     assert_eq!(rows[0]["value"], "y");
@@ -159,10 +144,7 @@ fn a_campaign_runs_one_deployment_per_value_and_tabulates_them() {
     for (i, r) in rows.iter().enumerate() {
         assert_eq!(r["success"], true, "{r}");
         // Each value ran as its own deployment with its own report.
-        let sub: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(dir.join(format!("{i:02}/report.json"))).unwrap(),
-        )
-        .unwrap();
+        let sub = read_json(&dir.join(format!("{i:02}/report.json")));
         assert_eq!(
             sub["inversion"]["stage3"]["err_paper_metric"],
             r["err_paper_metric"]
@@ -217,35 +199,15 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
         ],
         &dir,
     );
-    let out = glint()
-        .arg("run")
-        .arg(&file)
-        .arg("--out")
-        .arg(dir.join("out"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let root = dir.join("out");
-    let c: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(root.join("campaign.json")).unwrap())
-            .unwrap();
+    let c = run_campaign_ok(&file, &root);
     let mc = &c["rows"][0]["monte_carlo"];
     assert_eq!(mc["runs"], 3);
     // Every run is its own deployment: the noise-free reference and seeds 1000..=1002.
-    let reference: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(root.join("00/reference/report.json")).unwrap(),
-    )
-    .unwrap();
+    let reference = read_json(&root.join("00/reference/report.json"));
     assert!(reference["inversion"]["windows"]["snr"].is_null());
     for k in 0..3 {
-        let run: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(root.join(format!("00/s{k:03}/report.json"))).unwrap(),
-        )
-        .unwrap();
+        let run = read_json(&root.join(format!("00/s{k:03}/report.json")));
         assert_eq!(run["inversion"]["windows"]["snr"], 20.0);
         assert_eq!(run["seed"], 1000 + k);
     }

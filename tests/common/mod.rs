@@ -66,6 +66,29 @@ pub fn run_ok(scenario: Option<&Path>, dir: &Path, extra: &[&str]) -> RunResult 
     r
 }
 
+/// The JSON file at `path` (panics with the path if missing or malformed).
+pub fn read_json(path: &Path) -> Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// `glint run CAMPAIGN --out dir`, which must succeed; returns its `campaign.json`.
+pub fn run_campaign_ok(scenario: &Path, dir: &Path) -> Value {
+    let out = glint()
+        .arg("run")
+        .arg(scenario)
+        .arg("--out")
+        .arg(dir)
+        .output()
+        .expect("spawning glint");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    read_json(&dir.join("campaign.json"))
+}
+
 /// A shipped scenario with text replacements applied, written into `dir`.
 pub fn scenario_variant(name: &str, replacements: &[(&str, &str)], dir: &Path) -> PathBuf {
     let mut text = std::fs::read_to_string(scenario(name)).unwrap();
