@@ -112,7 +112,8 @@ fn num(v: &Value) -> Option<f64> {
     v.as_f64()
 }
 
-fn fmt(v: &Value, digits: usize) -> String {
+/// A table cell: the number to `digits` decimals, or — when absent.
+pub(crate) fn fmt(v: &Value, digits: usize) -> String {
     num(v).map_or("—".into(), |x| format!("{x:.digits$}"))
 }
 

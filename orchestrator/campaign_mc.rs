@@ -28,11 +28,15 @@ use glint_inversion::{
 use serde_json::{json, Value};
 use shared_types::Scenario;
 
+use crate::campaign::fmt;
+use crate::report_inversion::finite;
 use crate::run::{self, RunOptions};
 use crate::score_debris::chi2_mean_bounds;
 
-/// A direction with a larger 1σ bound is unobservable \[deg/frame\] (as in stage 3).
-const OBSERVABLE_BOUND_DEG_PER_FRAME: f64 = 0.25;
+/// A direction with a larger 1σ bound is unobservable \[deg/frame\]: stage 3's threshold.
+fn observable_bound() -> f64 {
+    glint_inversion::observability::ObservabilityConfig::default().unobservable_bound_deg_per_frame
+}
 
 /// Runs the reference and the N noisy deployments of one campaign value under `dir`; returns
 /// the value's statistics and whether every deployment succeeded.
@@ -142,7 +146,7 @@ struct Bound {
 impl Bound {
     fn observable(&self) -> [bool; 3] {
         self.variances
-            .map(|v| v.is_finite() && v.sqrt() <= OBSERVABLE_BOUND_DEG_PER_FRAME)
+            .map(|v| v.is_finite() && v.sqrt() <= observable_bound())
     }
 }
 
@@ -315,21 +319,13 @@ impl Estimator {
     }
 }
 
-fn finite(v: f64) -> Value {
-    if v.is_finite() {
-        json!(v)
-    } else {
-        Value::Null
-    }
-}
-
 /// NEES of deviation d under a reported covariance, over its observable eigen-directions.
 fn nees(cov: &[[f64; 3]; 3], d: &[f64; 3]) -> Option<(f64, usize)> {
     let (vals, vecs) = symmetric_eigen(cov).ok()?;
     let mut sum = 0.0;
     let mut dof = 0;
     for (var, v) in vals.iter().zip(&vecs) {
-        if !(*var > 0.0 && var.sqrt() <= OBSERVABLE_BOUND_DEG_PER_FRAME) {
+        if !(*var > 0.0 && var.sqrt() <= observable_bound()) {
             continue;
         }
         let x: f64 = (0..3).map(|i| v[i] * d[i]).sum();
@@ -337,10 +333,6 @@ fn nees(cov: &[[f64; 3]; 3], d: &[f64; 3]) -> Option<(f64, usize)> {
         dof += 1;
     }
     (dof > 0).then_some((sum, dof))
-}
-
-fn fmt(v: &Value, digits: usize) -> String {
-    v.as_f64().map_or("—".into(), |x| format!("{x:.digits$}"))
 }
 
 fn fmt_e(v: &Value) -> String {

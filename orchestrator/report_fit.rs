@@ -44,28 +44,15 @@ pub fn plots(dir: &Path) -> Result<bool> {
             (j as f64, q / o.range_m.powi(2))
         })
         .collect();
-    line_chart(
+    observed_and_model(
         &dir.join("stage1-fit.svg"),
         &format!(
             "Stage 1 at {nm} nm: stable window (dots) and its NNLS reconstruction (line), ε_rec = {:.2e}",
             result.stage1[chosen].recon_err
         ),
         "stable-window sample",
-        "flux [W]",
-        &[
-            Series {
-                label: "observed",
-                points: observed,
-                color: RED,
-                markers: true,
-            },
-            Series {
-                label: "two-facet reconstruction",
-                points: rebuilt,
-                color: BLUE,
-                markers: false,
-            },
-        ],
+        observed,
+        ("two-facet reconstruction", rebuilt),
     )?;
 
     // Stage 3: the model at p̂ over the frames it was fitted on.
@@ -104,28 +91,15 @@ pub fn plots(dir: &Path) -> Result<bool> {
         .zip(&curve)
         .map(|((t, f), m)| (*t, (f - m) / mean))
         .collect();
-    line_chart(
+    observed_and_model(
         &dir.join("stage3-fit.svg"),
         &format!(
             "Stage 3 at {nm} nm: motion window (dots) and the model at p = [{:.4}, {:.4}, {:.4}] deg/frame (line)",
             p[0], p[1], p[2]
         ),
         "frame after the motion start",
-        "flux [W]",
-        &[
-            Series {
-                label: "observed",
-                points: observed,
-                color: RED,
-                markers: true,
-            },
-            Series {
-                label: "two-facet model at p̂",
-                points: modelled,
-                color: BLUE,
-                markers: false,
-            },
-        ],
+        observed,
+        ("two-facet model at p̂", modelled),
     )?;
     line_chart(
         &dir.join("stage3-residuals.svg"),
@@ -140,4 +114,34 @@ pub fn plots(dir: &Path) -> Result<bool> {
         }],
     )?;
     Ok(true)
+}
+
+/// Observed flux as dots and a model as a line, on one chart.
+fn observed_and_model(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    observed: Vec<(f64, f64)>,
+    (label, model): (&str, Vec<(f64, f64)>),
+) -> Result<()> {
+    line_chart(
+        path,
+        title,
+        x_label,
+        "flux [W]",
+        &[
+            Series {
+                label: "observed",
+                points: observed,
+                color: RED,
+                markers: true,
+            },
+            Series {
+                label,
+                points: model,
+                color: BLUE,
+                markers: false,
+            },
+        ],
+    )
 }

@@ -13,7 +13,8 @@ use shared_types::{SolveResponse, SolveStatus};
 
 use crate::plots::{line_chart, Series, BLUE, RED};
 
-fn finite(v: f64) -> Value {
+/// A number for JSON: non-finite values become `null`.
+pub(crate) fn finite(v: f64) -> Value {
     if v.is_finite() {
         json!(v)
     } else {

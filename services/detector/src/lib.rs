@@ -67,28 +67,8 @@ pub fn check_frame(frame: &[u16], width: usize, height: usize) -> Result<(), Fra
     Ok(())
 }
 
-/// A configuration value outside its allowed range.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{field} = {value} is out of range: allowed {allowed}")]
-pub struct ConfigError {
-    pub field: &'static str,
-    pub value: String,
-    pub allowed: &'static str,
-}
-
-impl ConfigError {
-    pub(crate) fn new(
-        field: &'static str,
-        value: impl std::fmt::Display,
-        allowed: &'static str,
-    ) -> Self {
-        Self {
-            field,
-            value: value.to_string(),
-            allowed,
-        }
-    }
-}
+/// A configuration value outside its allowed range (one type for every service core).
+pub use glint_runtime::ConfigError;
 
 /// Foreground rule.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

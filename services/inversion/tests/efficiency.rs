@@ -32,7 +32,7 @@ fn noisy(clean: &[Observation], seed: u64) -> Vec<Observation> {
         .map(|o| {
             let mut o = o.clone();
             o.sigma_w = vec![sigma];
-            o.flux_w[0] += sigma * g.sample();
+            o.flux_w[0] += sigma * g.gaussian();
             o
         })
         .collect()

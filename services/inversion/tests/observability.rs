@@ -41,7 +41,7 @@ fn with_noise(mut obs: Vec<Observation>, snr: f64, seed: Option<u64>) -> Vec<Obs
     for o in &mut obs {
         o.sigma_w = vec![sigma];
         if seed.is_some() {
-            o.flux_w[0] += sigma * g.sample();
+            o.flux_w[0] += sigma * g.gaussian();
         }
     }
     obs
@@ -299,8 +299,8 @@ fn coefficient_uncertainty_propagates_into_the_rate_covariance() {
     for _ in 0..draws {
         let mut drawn = b;
         for m in 0..11 {
-            drawn.coeffs.panel[m] *= 1.0 + REL * g.sample();
-            drawn.coeffs.body[m] *= 1.0 + REL * g.sample();
+            drawn.coeffs.panel[m] *= 1.0 + REL * g.gaussian();
+            drawn.coeffs.body[m] *= 1.0 + REL * g.gaussian();
         }
         let problem = RateProblem::new(&obs, &[drawn], &config).expect("problem");
         let p = glint_inversion::lm::levenberg_marquardt_prior(

@@ -5,15 +5,18 @@
 //! A service is a pure core plus a thin node loop; this crate is the loop's vocabulary.
 
 pub mod clock;
+pub mod config_error;
 pub mod credit;
 pub mod housekeeping;
 pub mod node;
 pub mod ports;
+pub mod rng;
 pub mod rpc;
 pub mod stats;
 pub mod waitloop;
 
 pub use clock::mono_ns;
+pub use config_error::ConfigError;
 pub use credit::{AckReader, Credit};
 pub use housekeeping::Housekeeping;
 pub use node::{init_tracing, open_node, remove_shm, shm_entries};

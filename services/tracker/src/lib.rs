@@ -20,28 +20,5 @@ pub use ekf::{CwEkf, CwEkfConfig, EkfEstimate, RangeFix};
 pub use pointing::{predict_pointing, PointingCommand};
 pub use track::{TrackManager, TrackManagerConfig, TrackObservation, TrackReport, TrackStatus};
 
-/// A configuration value outside its allowed range.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{field} = {value} is out of range: allowed {allowed}")]
-pub struct ConfigError {
-    pub field: &'static str,
-    pub value: String,
-    pub allowed: &'static str,
-}
-
-impl ConfigError {
-    pub(crate) fn new(
-        field: &'static str,
-        value: impl std::fmt::Display,
-        allowed: &'static str,
-    ) -> Self {
-        Self {
-            field,
-            value: value.to_string(),
-            allowed,
-        }
-    }
-}
-
-#[cfg(test)]
-pub(crate) mod test_rng;
+/// A configuration value outside its allowed range (one type for every service core).
+pub use glint_runtime::ConfigError;

@@ -172,23 +172,6 @@ pub fn scenario(stable_n: usize, motion_n: usize, p_true: [f64; 3]) -> Observati
     }
 }
 
-/// Deterministic Gaussian noise (Box–Muller on a splitmix64 stream).
-pub struct Gauss(u64);
-
-impl Gauss {
-    pub fn new(seed: u64) -> Self {
-        Self(seed)
-    }
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    pub fn sample(&mut self) -> f64 {
-        let (u1, u2) = (self.uniform(), self.uniform());
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
-}
+/// Deterministic Gaussian noise (Box–Muller on a SplitMix64 stream).
+#[allow(unused_imports)] // not every test binary draws noise
+pub use glint_runtime::rng::SplitMix64 as Gauss;

@@ -3,9 +3,9 @@
 //! stability, errors.
 
 use super::*;
-use crate::test_rng::Rng;
 use glint_physics::camera::angles_from_position;
 use glint_physics::cw::propagate_lvlhn;
+use glint_runtime::rng::SplitMix64 as Rng;
 use proptest::prelude::*;
 
 const DT: f64 = 0.04;

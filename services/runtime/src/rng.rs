@@ -1,8 +1,11 @@
-//! Test-only seeded PRNG: SplitMix64 with Box–Muller normals.
+//! A small seeded generator for synthetic test data: SplitMix64 with Box–Muller normals,
+//! reproducible across platforms. (The sensor's frame and spectrum noise uses its own
+//! xoshiro streams; this one is for tests and offline synthesis.)
 
-pub struct Rng(u64);
+/// SplitMix64 with Box–Muller normals.
+pub struct SplitMix64(u64);
 
-impl Rng {
+impl SplitMix64 {
     pub fn new(seed: u64) -> Self {
         Self(seed)
     }
@@ -20,6 +23,7 @@ impl Rng {
         ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
 
+    /// Standard normal (Box–Muller, one draw per two uniforms).
     pub fn gaussian(&mut self) -> f64 {
         (-2.0 * self.uniform().ln()).sqrt() * (std::f64::consts::TAU * self.uniform()).cos()
     }
