@@ -194,15 +194,34 @@ impl SeparationGrid {
                 dot(x, &in_plane_basis(theta_i, theta_r_deg(i)))
             }
         };
-        // Peak: argmax at each level within ±1 step of the previous level's argmax.
-        let (mut i_max, mut peak) = first_argmax(coarse.iter().copied().enumerate());
-        i_max *= COARSE_STRIDE;
-        for w in LEVEL_STRIDES.windows(2) {
-            let (outer, inner) = (w[0], w[1]);
-            let lo = i_max.saturating_sub(outer);
-            let hi = (i_max + outer).min(GRID_INTERVALS);
-            (i_max, peak) = first_argmax((lo..=hi).step_by(inner).map(|i| (i, fine(i))));
-        }
+        // Peak: from every coarse local maximum (the curve can have two nearly equal ones, e.g.
+        // a broad lobe and the 1/cos θ_R rise at grazing), argmax at each level within ±1 step
+        // of the previous level's argmax; the highest refined peak wins, the first on a tie.
+        let refine = |k: usize| -> (usize, f64) {
+            let (mut i_max, mut peak) = (k * COARSE_STRIDE, coarse[k]);
+            for w in LEVEL_STRIDES.windows(2) {
+                let (outer, inner) = (w[0], w[1]);
+                let lo = i_max.saturating_sub(outer);
+                let hi = (i_max + outer).min(GRID_INTERVALS);
+                (i_max, peak) = first_argmax((lo..=hi).step_by(inner).map(|i| (i, fine(i))));
+            }
+            (i_max, peak)
+        };
+        let local_maxima = (0..coarse.len()).filter(|&k| {
+            let left = k.checked_sub(1).map_or(f64::NEG_INFINITY, |j| coarse[j]);
+            let right = coarse.get(k + 1).copied().unwrap_or(f64::NEG_INFINITY);
+            coarse[k] >= left && coarse[k] >= right
+        });
+        let (i_max, peak) =
+            local_maxima
+                .map(refine)
+                .fold((0, f64::NEG_INFINITY), |best, (i, v)| {
+                    if v > best.1 || (v == best.1 && i < best.0) {
+                        (i, v)
+                    } else {
+                        best
+                    }
+                });
         let half = 0.5 * peak;
 
         // Left: first coarse point below half walking left, then refine the cell level by level:

@@ -349,7 +349,13 @@ fn process_noise_is_the_white_acceleration_integral() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(32))]
+    #![proptest_config(ProptestConfig {
+        cases: 32,
+        // Deterministic suite: the same cases on every run (shrunk failures are kept in the
+        // proptest-regressions files).
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x676c_696e_74),
+        ..ProptestConfig::default()
+    })]
 
     /// P stays symmetric positive definite under random step sizes and missing ranges.
     #[test]
