@@ -175,6 +175,21 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                 }
             );
         }
+        let held: Vec<&str> = (0..3)
+            .filter(|i| r.observable_mask & (1 << i) == 0)
+            .map(|i| {
+                let v = [0, 3, 6].map(|row| r.fisher_eigenvectors[row + i].abs());
+                let k = (0..3).max_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap_or(0);
+                ["w_x", "w_y", "w_z"][k]
+            })
+            .collect();
+        if !held.is_empty() && r.status == SolveStatus::Ok as u32 {
+            let _ = writeln!(
+                s,
+                "\nThe data do not determine the direction(s) marked **no**. p is reported under the stated prior that the rate about the body axis nearest each is zero ({} = 0); only the determined combinations come from the light curve. Without σ in the data, the bounds use the residual variance inflated for the residuals' serial correlation (model mismatch is smooth in time).",
+                held.join(", ")
+            );
+        }
     }
     s
 }

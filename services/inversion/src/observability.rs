@@ -5,7 +5,9 @@
 //! ```text
 //! F = JᵀJ / s²      s² = 1                        (σ given: J is whitened, F is the Fisher
 //!                                                  information, Cov = F⁻¹ is the CRB at p̂)
-//!                   s² = max(ε/(N − 3), s_min²)   (σ unknown: residual variance in units of Φ̄)
+//!                   s² = max(ε/(N − 3), s_min²)·(1 + ρ)/(1 − ρ)
+//!                                                 (σ unknown: residual variance in units of Φ̄,
+//!                                                  ρ = lag-1 autocorrelation of the residuals)
 //! F = V diag(λ_i) Vᵀ (faer self-adjoint eigendecomposition, λ ascending)
 //! bound_i = 1/sqrt(λ_i)  [deg/frame]: the 1σ extent along eigen-direction v_i
 //! Cov = V diag(1/λ_i) Vᵀ
@@ -17,6 +19,11 @@
 //!   flux change per deg/frame; e.g. no facet lit and visible, no glint);
 //! - JᵀJ is numerically rank deficient: `λ_min ≤ rank_tol · λ_max`;
 //! - or every direction exceeds the threshold.
+//!
+//! Without σ the residual is mostly model mismatch, smooth in time: N serially correlated
+//! residuals carry the evidence of about N(1 − ρ)/(1 + ρ) independent ones (AR(1) effective
+//! sample size), so the variance is inflated by (1 + ρ)/(1 − ρ), ρ clamped to [0, 0.99]. White
+//! residuals (ρ ≈ 0) leave it unchanged.
 //!
 //! CRB helper: `sqrt(diag((JᵀWJ)⁻¹))` at the true p with the observations' σ.
 
@@ -34,8 +41,11 @@ pub enum CovarianceSource {
     GivenSigma,
     /// Residual variance; `sigma_normalised` = s, the fitted 1σ in units of mean Φ_obs.
     ResidualVariance {
-        /// s (relative to mean flux), after the floor.
+        /// s (relative to mean flux), after the floor and the serial-correlation inflation.
         sigma_normalised: f64,
+        /// ρ, the residuals' lag-1 autocorrelation used for the inflation (clamped).
+        #[serde(default)]
+        serial_correlation: f64,
     },
 }
 
@@ -175,10 +185,15 @@ pub fn analyse(
     let (s2, source) = if problem.sigma_given() {
         (1.0, CovarianceSource::GivenSigma)
     } else {
-        let dof = n.saturating_sub(3).max(1) as f64;
-        let s2 = (cost / dof).max(config.min_sigma_rel.powi(2));
+        let (s2, serial_correlation) = residual_variance(problem, &r, cost, config);
         let sigma_normalised = s2.sqrt();
-        (s2, CovarianceSource::ResidualVariance { sigma_normalised })
+        (
+            s2,
+            CovarianceSource::ResidualVariance {
+                sigma_normalised,
+                serial_correlation,
+            },
+        )
     };
     let (raw_vals, vecs) = symmetric_eigen(&jtj)?;
     let lam_max = raw_vals[2].max(0.0);
@@ -246,6 +261,34 @@ pub fn analyse(
     })
 }
 
+/// Largest residual autocorrelation the variance inflation uses ((1 + ρ)/(1 − ρ) ≤ 199).
+const MAX_SERIAL_CORRELATION: f64 = 0.99;
+
+/// The noise variance estimated from residuals `r` (cost ε = Σ r²) when σ is unknown:
+/// max(ε/(N − 3), s_min²)·(1 + ρ)/(1 − ρ), and ρ (see the module docs).
+pub fn residual_variance(
+    problem: &RateProblem,
+    r: &[f64],
+    cost: f64,
+    config: &ObservabilityConfig,
+) -> (f64, f64) {
+    let dof = r.len().saturating_sub(3).max(1) as f64;
+    let rho =
+        lag1_correlation(r, problem.wavelengths_nm().len()).clamp(0.0, MAX_SERIAL_CORRELATION);
+    let s2 = (cost / dof).max(config.min_sigma_rel.powi(2));
+    (s2 * (1.0 + rho) / (1.0 - rho), rho)
+}
+
+/// Lag-1 autocorrelation of frame-major residuals (`r[t·bands + b]`), frame to next frame,
+/// pooled over bands; 0 when undefined (fewer than two frames, zero residuals).
+pub fn lag1_correlation(r: &[f64], bands: usize) -> f64 {
+    let energy: f64 = r.iter().map(|v| v * v).sum();
+    if bands == 0 || r.len() <= bands || energy <= 0.0 {
+        return 0.0;
+    }
+    r.iter().zip(&r[bands..]).map(|(a, b)| a * b).sum::<f64>() / energy
+}
+
 /// Eigen-pairs of the total covariance F⁻¹ + F⁻¹ C F⁻¹, returned as information (1/variance)
 /// ascending with their directions, like the Fisher analysis.
 fn total_information(
@@ -283,7 +326,9 @@ fn total_information(
 pub fn widen_to_likelihood_intervals(problem: &RateProblem, p: [f64; 3], analysis: &mut Analysis) {
     let s2 = match analysis.source {
         CovarianceSource::GivenSigma => 1.0,
-        CovarianceSource::ResidualVariance { sigma_normalised } => sigma_normalised.powi(2),
+        CovarianceSource::ResidualVariance {
+            sigma_normalised, ..
+        } => sigma_normalised.powi(2),
     };
     let obs = &mut analysis.observability;
     let cap = INTERVAL_CAP_FACTOR * obs.threshold_deg_per_frame;

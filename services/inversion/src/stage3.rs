@@ -31,8 +31,8 @@ use crate::lm::{
 };
 use crate::model::RateProblem;
 use crate::observability::{
-    analyse, widen_to_likelihood_intervals, CovarianceSource, Observability, ObservabilityConfig,
-    UnobservableReason,
+    analyse, residual_variance, widen_to_likelihood_intervals, CovarianceSource, Observability,
+    ObservabilityConfig, UnobservableReason,
 };
 use serde::{Deserialize, Serialize};
 
@@ -85,9 +85,12 @@ pub struct Stage3Config {
     pub start: StartConfig,
     /// Covariance and observability thresholds.
     pub observability: ObservabilityConfig,
-    /// Hold unobservable eigen-directions at the prior u·p = 0 and re-fit the rest (default);
+    /// Hold unobservable eigen-directions at the stated prior ([`Self::weak_prior`]) and re-fit
+    /// the rest (default);
     /// `false` reports the unconstrained optimum.
     pub hold_unobservable_at_prior: bool,
+    /// Which prior holds an unobservable direction u (see [`WeakPrior`]).
+    pub weak_prior: WeakPrior,
     /// Fit horizon: stage 3 fits the motion frames during which the body has turned at most
     /// this far from its stable attitude at the fitted rate \[deg\] (30; `None` or ∞ = every
     /// frame).
@@ -103,6 +106,7 @@ impl Default for Stage3Config {
             start: StartConfig::default(),
             observability: ObservabilityConfig::default(),
             hold_unobservable_at_prior: true,
+            weak_prior: WeakPrior::default(),
             max_rotation_deg: Some(DEFAULT_MAX_ROTATION_DEG),
         }
     }
@@ -110,6 +114,52 @@ impl Default for Stage3Config {
 
 /// Default fit horizon \[deg of rotation\].
 pub const DEFAULT_MAX_ROTATION_DEG: f64 = 30.0;
+
+/// The stated prior under which stage 3 holds a direction the data cannot determine.
+///
+/// Either way the held direction is reported unobservable and only the determined combinations
+/// of p come from the data; the prior decides where along u the reported p sits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WeakPrior {
+    /// The body rate about the body axis e nearest u is zero: e·p = 0 (default). The rate is
+    /// assumed to lie in the plane of the other two body axes, a statement about the body, not
+    /// about the observing geometry; in the co-orbital geometry u is within a few degrees of
+    /// body X and the prior reads w_x = 0.
+    #[default]
+    BodyAxis,
+    /// The component along u itself is zero: u·p = 0 (the minimum-norm choice). A truth with a
+    /// component along u (a Z rotation has u·p* = −0.03 deg/frame when u is 7° off body X) is
+    /// then biased by that component.
+    EigenDirection,
+}
+
+impl WeakPrior {
+    /// The constraint direction for each held u: u itself, or the body axis nearest u (falling
+    /// back to u when two held directions share that axis).
+    pub fn directions(self, weak: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let mut out: Vec<[f64; 3]> = Vec::with_capacity(weak.len());
+        for u in weak {
+            let d = match self {
+                WeakPrior::EigenDirection => *u,
+                WeakPrior::BodyAxis => {
+                    let k = (0..3)
+                        .max_by(|&a, &b| u[a].abs().total_cmp(&u[b].abs()))
+                        .unwrap_or(0);
+                    let mut e = [0.0; 3];
+                    e[k] = 1.0;
+                    if out.contains(&e) {
+                        *u
+                    } else {
+                        e
+                    }
+                }
+            };
+            out.push(d);
+        }
+        out
+    }
+}
 
 /// A determined rate estimate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -301,14 +351,18 @@ fn in_box(p: &[f64; 3], start: &StartConfig) -> bool {
 /// weakest direction at its prior (3σ for one degree of freedom).
 const HOLD_MAX_DELTA_CHI2: f64 = 9.0;
 
-/// One noise variance in cost units: 1 with σ given (whitened residuals), else the residual
-/// variance ε/(N − 3) of a fit of cost ε (floored as in the observability analysis).
-fn noise_variance(problem: &RateProblem, cost: f64, config: &Stage3Config) -> f64 {
+/// One noise variance in cost units for likelihood-ratio tests between two fits: 1 with σ
+/// given (whitened residuals), else the residual variance of the fit p̂ of cost ε, inflated
+/// for the residuals' serial correlation ([`residual_variance`]): without σ the residual is
+/// mostly model mismatch, and counting its N smooth residuals as independent would make any
+/// prior look rejected.
+fn noise_variance(problem: &RateProblem, p: [f64; 3], config: &Stage3Config) -> f64 {
     if problem.sigma_given() {
         return 1.0;
     }
-    let dof = problem.residual_count().saturating_sub(3).max(1) as f64;
-    (cost / dof).max(config.observability.min_sigma_rel.powi(2))
+    let mut r = vec![0.0; problem.residual_count()];
+    let cost = problem.residuals(p, &mut r);
+    residual_variance(problem, &r, cost, &config.observability).0
 }
 
 /// Re-fits with the prior u·p = 0 on `weak` (from p̂ projected onto the prior); returns the
@@ -326,16 +380,19 @@ fn hold_at_prior(
         .iter()
         .cloned()
         .fold(0.0f64, f64::max);
+    let directions = config.weak_prior.directions(weak);
     let prior = Prior {
-        directions: weak.to_vec(),
+        directions: directions.clone(),
         weight: PRIOR_WEIGHT_FACTOR * strongest.max(1.0),
     };
-    let p = best.p_deg_per_frame;
-    let mut p0 = p;
-    for u in weak {
-        let up: f64 = (0..3).map(|i| u[i] * p[i]).sum();
+    // Start on the prior's plane, reached by moving along the held direction only (so the
+    // determined combinations keep their fitted values): p₀ = p − u (e·p)/(e·u).
+    let dot = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
+    let mut p0 = best.p_deg_per_frame;
+    for (u, e) in weak.iter().zip(&directions) {
+        let t = dot(e, &p0) / dot(e, u);
         for i in 0..3 {
-            p0[i] -= u[i] * up;
+            p0[i] -= u[i] * t;
         }
     }
     let refit = levenberg_marquardt_prior(problem, p0, &config.lm, &prior, |_, _, _| false)?;
@@ -423,7 +480,7 @@ fn polish(
             let (held, held_analysis, iterations) =
                 hold_at_prior(problem, &best, &[u], &analysis, config)?;
             total_iterations += iterations;
-            let variance = noise_variance(problem, best.cost, config);
+            let variance = noise_variance(problem, best.p_deg_per_frame, config);
             let accepted = (held.cost - best.cost) / variance <= HOLD_MAX_DELTA_CHI2;
             if accepted
                 && held_analysis.unobservable.is_none()
@@ -492,7 +549,7 @@ fn mirror_if_ambiguous(
         return Ok(None);
     }
     let dof = problem.residual_count().saturating_sub(3).max(1) as f64;
-    let variance = noise_variance(problem, cost, config);
+    let variance = noise_variance(problem, p, config);
     // Noise-free data fitted exactly (cost ≈ 0): only an equally exact mirror qualifies.
     let tie = (out.cost - cost).abs() <= 1e-6 * cost.abs().max(1e-12 * dof);
     Ok(((out.cost - cost) / variance <= MIRROR_MAX_DELTA_CHI2 || tie).then_some(m))

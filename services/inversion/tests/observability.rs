@@ -4,7 +4,7 @@ mod common;
 
 use common::*;
 use glint_inversion::observability::{cramer_rao_bound, CovarianceSource, UnobservableReason};
-use glint_inversion::stage3::{fit_multistart, fit_single_start, Stage3Config};
+use glint_inversion::stage3::{fit_multistart, fit_single_start, Stage3Config, WeakPrior};
 use glint_inversion::{
     rate_error_metric, InversionError, MotionModelConfig, Observation, PanelNormalMode, RateBand,
     RateProblem, RateSolution,
@@ -177,31 +177,77 @@ fn in_plane_symmetric_geometry_is_rank_deficient() {
 
 #[test]
 fn an_unobservable_direction_is_held_at_the_prior_not_left_adrift() {
-    // SNR 20, 120 frames: the sun–observer bisector (≈ body X) is flagged unobservable. With the
-    // default prior its component of p̂ is held at 0; the observable components still fit.
+    // SNR 20, 120 frames: the sun–observer bisector (≈ body X) is flagged unobservable. Under
+    // either prior the held component is pinned and the observable components still fit; the
+    // two answers differ only along the unobservable direction.
     let obs = with_noise(y_window(120), 20.0, Some(11));
     let problem = RateProblem::new(&obs, &[band()], &MotionModelConfig::default()).expect("p");
-    let sol = fit_multistart(&problem, &Stage3Config::default()).expect("fit");
-    let fit = sol.fit().expect("determined");
-    let o = &fit.observability;
-    let weak: Vec<usize> = (0..3).filter(|&i| o.unobservable[i]).collect();
-    assert!(!weak.is_empty(), "{o:?}");
-    for &i in &weak {
-        let u = o.eigenvectors[i];
-        let along: f64 = (0..3).map(|k| u[k] * fit.rate_deg_per_frame[k]).sum();
-        // The reported eigen-directions are re-evaluated at the refitted p and differ slightly
-        // from the ones the prior held; the component is still ~1e-4 of its 1σ bound.
+    let dot = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|k| a[k] * b[k]).sum::<f64>();
+    let solve = |weak_prior| {
+        let config = Stage3Config {
+            weak_prior,
+            ..Default::default()
+        };
+        let sol = fit_multistart(&problem, &config).expect("fit");
+        sol.fit().expect("determined").clone()
+    };
+    let body = solve(WeakPrior::BodyAxis);
+    let eigen = solve(WeakPrior::EigenDirection);
+    assert_eq!(Stage3Config::default().weak_prior, WeakPrior::BodyAxis);
+    for fit in [&body, &eigen] {
+        // The determined rate about Y is close to the truth.
         assert!(
-            along.abs() < 1e-3 * o.bounds_1sigma_deg_per_frame[i].max(1.0),
-            "component along {u:?} is {along}"
+            (fit.rate_deg_per_frame[1] - 0.25).abs() < 0.01,
+            "{:?}",
+            fit.rate_deg_per_frame
         );
     }
-    // The determined rate about Y is close to the truth.
+    let o = &eigen.observability;
+    let weak: Vec<usize> = (0..3).filter(|&i| o.unobservable[i]).collect();
+    assert_eq!(weak.len(), 1, "{o:?}");
+    let u = o.eigenvectors[weak[0]];
+    // u·p = 0 under the eigen-direction prior. The reported eigen-directions are re-evaluated
+    // at the refitted p and differ slightly from the held one: ~1e-4 of the 1σ bound.
+    let along = dot(&u, &eigen.rate_deg_per_frame);
     assert!(
-        (fit.rate_deg_per_frame[1] - 0.25).abs() < 0.01,
-        "{:?}",
-        fit.rate_deg_per_frame
+        along.abs() < 1e-3 * o.bounds_1sigma_deg_per_frame[weak[0]].max(1.0),
+        "component along {u:?} is {along}"
     );
+    // The body axis nearest u is body X; w_x = 0 under the body-axis prior.
+    assert!(u[0].abs() > 0.9, "{u:?}");
+    assert!(
+        body.rate_deg_per_frame[0].abs() < 1e-9,
+        "{:?}",
+        body.rate_deg_per_frame
+    );
+    // Both answers agree on the determined combinations of p.
+    let diff: [f64; 3] =
+        std::array::from_fn(|k| body.rate_deg_per_frame[k] - eigen.rate_deg_per_frame[k]);
+    for i in (0..3).filter(|i| !o.unobservable[*i]) {
+        let v = o.eigenvectors[i];
+        assert!(
+            dot(&v, &diff).abs() < 0.1 * o.bounds_1sigma_deg_per_frame[i],
+            "determined direction {v:?} moved by {} (1σ {})",
+            dot(&v, &diff),
+            o.bounds_1sigma_deg_per_frame[i]
+        );
+    }
+}
+
+#[test]
+fn the_body_axis_prior_holds_the_axis_nearest_each_weak_direction() {
+    let weak = [[0.99, 0.0, -0.12], [0.1, 0.2, 0.97]];
+    assert_eq!(
+        WeakPrior::BodyAxis.directions(&weak),
+        vec![[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    );
+    // Two weak directions nearest the same axis: the second keeps its own direction.
+    let shared = [[0.99, 0.0, -0.12], [0.9, 0.4, 0.1]];
+    assert_eq!(
+        WeakPrior::BodyAxis.directions(&shared),
+        vec![[1.0, 0.0, 0.0], shared[1]]
+    );
+    assert_eq!(WeakPrior::EigenDirection.directions(&weak), weak.to_vec());
 }
 
 #[test]
