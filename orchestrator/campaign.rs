@@ -77,7 +77,10 @@ pub fn run(
             "value": value.to_string().trim_matches('"'),
             "run": sub.file_name().map(|n| n.to_string_lossy().to_string()),
             "success": report["success"],
-            "status": s3["status"],
+            "status": match s3["unobservable_reason"].as_str() {
+                Some(why) => json!(format!("{}: {why}", s3["status"].as_str().unwrap_or("?"))),
+                None => s3["status"].clone(),
+            },
             "band_nm": s3["band_nm"],
             "p_deg_per_frame": s3["p_deg_per_frame"],
             "err_paper_metric": s3["err_paper_metric"],

@@ -26,6 +26,15 @@ fn status(r: &SolveResponse) -> &'static str {
     SolveStatus::from_u32(r.status).map_or("unknown", |s| s.name())
 }
 
+/// The reason name of an unobservable answer, null for none.
+fn reason(code: u32) -> Value {
+    if code == 0 {
+        Value::Null
+    } else {
+        json!(SolveResponse::reason_name(code))
+    }
+}
+
 pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
     let windows = json!({
         "stable_samples": sp.stable_samples,
@@ -63,6 +72,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
         let mirror_ok = r.p_mirror_deg_per_frame.iter().all(|v| v.is_finite());
         json!({
             "status": status(r),
+            "unobservable_reason": reason(r.unobservable_reason),
             "band_nm": r.wavelength_nm[r.chosen_band as usize],
             "fitted_frames": r.fitted_frames,
             "fit_horizon_deg": glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG,
@@ -73,6 +83,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
             "mirror_deg_per_frame": if mirror_ok { json!(r.p_mirror_deg_per_frame) } else { Value::Null },
             "err_paper_metric_mirror": if mirror_ok { finite(rate_error_metric(r.p_mirror_deg_per_frame, truth)) } else { Value::Null },
             "joint": {
+                "unobservable_reason": reason(r.joint_unobservable_reason),
                 "p_deg_per_frame": if joint_ok { json!(pj) } else { Value::Null },
                 "err_paper_metric": if joint_ok { finite(rate_error_metric(pj, truth)) } else { Value::Null },
                 "covariance": r.p_joint_covariance.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
@@ -136,7 +147,13 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                 "\n![stage-1 fit](stage1-fit.svg)\n\n![stage-3 fit](stage3-fit.svg)\n\n![stage-3 residuals](stage3-residuals.svg)\n"
             );
         } else {
-            let _ = writeln!(s, "Stage 3: **{}** — no rate is reported.", status(r));
+            let _ = writeln!(
+                s,
+                "Stage 3 at {} nm: **{}** ({}) — no rate is reported.",
+                r.wavelength_nm[r.chosen_band as usize],
+                status(r),
+                SolveResponse::reason_name(r.unobservable_reason)
+            );
         }
         let m = r.p_mirror_deg_per_frame;
         if m.iter().all(|v| v.is_finite()) {

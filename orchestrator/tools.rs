@@ -132,7 +132,15 @@ pub fn invert(
                 }
                 text += "\n";
             }
-            None => text += &format!("{label}: unobservable — no rate reported\n"),
+            None => {
+                let why = match sol {
+                    glint_inversion::RateSolution::Unobservable { reason, .. } => {
+                        shared_types::SolveResponse::reason_name(reason.code())
+                    }
+                    _ => "unknown",
+                };
+                text += &format!("{label}: unobservable ({why}) — no rate reported\n");
+            }
         }
     }
     if let Some(t) = file.truth_rate_deg_per_frame {

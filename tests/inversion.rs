@@ -187,6 +187,30 @@ fn the_chain_recovers_the_exact_rate_when_the_satellite_is_the_two_facet_model()
 }
 
 #[test]
+fn without_a_glint_the_chain_answers_unobservable_with_its_reason() {
+    // Paper-like materials (no diffuse or broad lobes on body and panel) at phase 40°: the paper
+    // finds "no body or panel glint" and no solution; the inversion says so instead of a number.
+    let dir = temp_dir("no-glint");
+    let file = scenario_variant(
+        "geo-hover-zspin.toml",
+        &[
+            ("materials = \"physical\"", "materials = \"paper-like\""),
+            ("start_phase_deg = 15.0", "start_phase_deg = 40.0"),
+        ],
+        &dir,
+    );
+    let r = run_ok(Some(&file), &dir.join("out"), &[]);
+    let s3 = &r.report["inversion"]["stage3"];
+    assert_eq!(s3["status"], "unobservable", "{s3}");
+    let why = s3["unobservable_reason"].as_str().unwrap_or("");
+    assert!(why.starts_with("no glint"), "{s3}");
+    assert!(s3["p_deg_per_frame"].is_null(), "{s3}");
+    let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
+    assert!(summary.contains("no rate is reported"), "{summary}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
     let dir = temp_dir("campaign-mc");
     let file = scenario_variant(

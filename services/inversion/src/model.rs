@@ -432,6 +432,28 @@ impl RateProblem {
         self.residuals_with_nuisance(p, r).0
     }
 
+    /// Share of the light curve's sensitivity to p that the specular lobes (m ≥ 1) carry at
+    /// `p`: ‖J_lobes‖_F / ‖J‖_F, with J_lobes the Jacobian of the model with every diffuse
+    /// coefficient set to 0 (no re-fit). About 1 when a glint or a broad lobe moves with p, 0
+    /// when only the diffuse terms do. NaN when the light curve has no sensitivity at all.
+    pub fn lobe_sensitivity_share(&self, p: [f64; 3]) -> f64 {
+        let mut lobes = self.clone();
+        lobes.refit_diffuse = false;
+        for band in &mut lobes.bands {
+            band.x[0][0] = 0.0;
+            band.x[1][0] = 0.0;
+        }
+        let n = self.residual_count();
+        let mut r = vec![0.0; n];
+        let mut jac = vec![[0.0; 3]; n];
+        let norm =
+            |jac: &[[f64; 3]]| -> f64 { jac.iter().flatten().map(|v| v * v).sum::<f64>().sqrt() };
+        self.residuals_and_jacobian(p, &mut r, &mut jac);
+        let total = norm(&jac);
+        lobes.residuals_and_jacobian(p, &mut r, &mut jac);
+        norm(&jac) / total
+    }
+
     /// Residuals, cost and the nuisance coefficients per band (zeros without the re-fit).
     fn residuals_with_nuisance(&self, p: [f64; 3], r: &mut [f64]) -> (f64, Vec<[f64; NUISANCE]>) {
         let nb = self.bands.len();

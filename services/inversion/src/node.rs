@@ -71,8 +71,13 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
             out.starts = fit.starts_polished as u32;
             &fit.observability
         }
-        RateSolution::Unobservable { observability, .. } => {
+        RateSolution::Unobservable {
+            observability,
+            reason,
+            ..
+        } => {
             out.status = SolveStatus::Unobservable as u32;
+            out.unobservable_reason = reason.code();
             observability
         }
     };
@@ -90,6 +95,9 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
         .filter(|(_, u)| !**u)
         .map(|(i, _)| 1u32 << i)
         .sum();
+    if let Some(RateSolution::Unobservable { reason, .. }) = joint {
+        out.joint_unobservable_reason = reason.code();
+    }
     if let Some(RateSolution::Determined(fit)) = joint {
         out.p_joint_deg_per_frame = fit.rate_deg_per_frame;
         for r in 0..3 {

@@ -84,6 +84,28 @@ pub enum UnobservableReason {
     },
     /// Every eigen-direction's 1σ bound exceeds the threshold.
     AllDirectionsAboveThreshold,
+    /// No glint: at the fitted rate only the diffuse terms move the light curve (the lobes'
+    /// share of its sensitivity is below `min_lobe_share`). The stable window cannot tell
+    /// which surface the diffuse light comes from (in the co-orbital geometry the panel's,
+    /// the body face's and any Lambertian remainder's columns are nearly collinear), so a rate
+    /// read from the diffuse terms alone would rest on an arbitrary split (math.md §1.8: no
+    /// solution at phase 40°, "no body or panel glint").
+    NoGlint {
+        /// ‖J_lobes‖/‖J‖ at the fitted rate.
+        lobe_sensitivity_share: f64,
+    },
+}
+
+impl UnobservableReason {
+    /// Wire code of the reason (`SolveResponse::unobservable_reason`; 0 = none).
+    pub fn code(&self) -> u32 {
+        match self {
+            Self::FlatLightCurve { .. } => 1,
+            Self::RankDeficient { .. } => 2,
+            Self::AllDirectionsAboveThreshold => 3,
+            Self::NoGlint { .. } => 4,
+        }
+    }
 }
 
 /// Thresholds of the classification.
@@ -98,6 +120,8 @@ pub struct ObservabilityConfig {
     pub rank_tol: f64,
     /// Floor s_min on the residual σ relative to mean flux when σ is unknown (1e-9).
     pub min_sigma_rel: f64,
+    /// No-glint limit on the lobes' share of the sensitivity to p (0.01; 0 disables).
+    pub min_lobe_share: f64,
 }
 
 impl Default for ObservabilityConfig {
@@ -107,6 +131,7 @@ impl Default for ObservabilityConfig {
             flat_tol: 1e-9,
             rank_tol: 1e-13,
             min_sigma_rel: 1e-9,
+            min_lobe_share: 0.01,
         }
     }
 }

@@ -259,6 +259,9 @@ fn validate(config: &Stage3Config) -> Result<(), InversionError> {
             );
         }
     }
+    if !(0.0..=1.0).contains(&config.observability.min_lobe_share) {
+        return bad("observability.min_lobe_share", "must be in [0, 1]");
+    }
     let lambda_ok = config.lm.lambda_init > 0.0 && config.lm.lambda_init.is_finite();
     if config.lm.max_iterations == 0 || !lambda_ok {
         return bad("lm", "max_iterations ≥ 1 and lambda_init > 0 required");
@@ -489,6 +492,14 @@ fn polish(
                 analysis = held_analysis;
                 best = held;
             }
+        }
+    }
+    if analysis.unobservable.is_none() {
+        let share = problem.lobe_sensitivity_share(best.p_deg_per_frame);
+        if share < config.observability.min_lobe_share {
+            analysis.unobservable = Some(UnobservableReason::NoGlint {
+                lobe_sensitivity_share: share,
+            });
         }
     }
     if analysis.unobservable.is_none() {

@@ -235,6 +235,11 @@ pub struct SolveResponse {
     /// Stage 3: the mirror solution (−w_x, w_y, −w_z) when it fits the data as well as p — the
     /// sense of rotation about X and Z is then not observable; NaN when the data tell them apart.
     pub p_mirror_deg_per_frame: [f64; 3],
+    /// Stage 3: why no rate is reported at λ* (status `Unobservable`), see
+    /// [`SolveResponse::REASON_NAMES`]; 0 otherwise.
+    pub unobservable_reason: u32,
+    /// The same for the joint fit.
+    pub joint_unobservable_reason: u32,
 }
 
 impl Default for SolveResponse {
@@ -264,15 +269,41 @@ impl Default for SolveResponse {
             motion_samples: 0,
             fitted_frames: 0,
             p_mirror_deg_per_frame: [f64::NAN; 3],
+            unobservable_reason: 0,
+            joint_unobservable_reason: 0,
         }
     }
 }
 
 impl SolveResponse {
+    /// Names of the `unobservable_reason` codes (index = code).
+    pub const REASON_NAMES: [&'static str; 5] = [
+        "none",
+        "flat light curve",
+        "rank deficient",
+        "every direction above the threshold",
+        "no glint: only the diffuse terms move the light curve",
+    ];
+
+    /// The name of a reason code ("unknown" outside the table).
+    pub fn reason_name(code: u32) -> &'static str {
+        Self::REASON_NAMES
+            .get(code as usize)
+            .copied()
+            .unwrap_or("unknown")
+    }
+
     pub fn validate(&self) -> Result<(), Reject> {
         self.meta.validate()?;
         if SolveStatus::from_u32(self.status).is_none() {
             return Err(Reject::new("solve_response.status", "unknown status"));
+        }
+        let codes = Self::REASON_NAMES.len() as u32;
+        if self.unobservable_reason >= codes || self.joint_unobservable_reason >= codes {
+            return Err(Reject::new(
+                "solve_response.unobservable_reason",
+                "unknown reason code",
+            ));
         }
         if self.n_bands as usize > MAX_BANDS
             || (self.n_bands > 0 && self.chosen_band >= self.n_bands)
