@@ -11,7 +11,7 @@ use serde_json::{json, Value};
 use shared_types::scenario::SpectraScenario;
 use shared_types::{SolveResponse, SolveStatus};
 
-use crate::plots::{line_chart, Series, BLUE, RED};
+use crate::plots::{line_chart, Series, BLUE, GREEN, RED};
 
 /// A number for JSON: non-finite values become `null`.
 pub(crate) fn finite(v: f64) -> Value {
@@ -61,7 +61,9 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
         json!({
             "status": status(r),
             "sigma": bands(r, &|r, i| finite(r.separation[i]), "sigma"),
+            "specular_share": bands(r, &|r, i| finite(r.specular_share[i]), "specular_share"),
             "chosen_nm": r.wavelength_nm[r.chosen_band as usize],
+            "max_sigma_nm": r.wavelength_nm[r.separation_band as usize],
         })
     });
     let stage3 = get(3).map_or(Value::Null, |r| {
@@ -124,11 +126,14 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             .fold(0.0f64, f64::max);
         let _ = writeln!(
             s,
-            "Stage 1: reconstruction error ≤ {:.2e} over {} bands. Stage 2: chosen band {} nm (σ = {:.4}).\n\n![separation](inversion-sigma.svg)\n",
+            "Stage 1: reconstruction error ≤ {:.2e} over {} bands. Stage 2: chosen band {} nm (σ = {:.4}, specular share {:.3}); the largest σ is at {} nm (σ = {:.4}, the paper's rule). λ* is the band with the largest specular share among those with σ ≥ ½ max σ: the diffuse light is what the two-facet model misplaces.\n\n![separation](inversion-sigma.svg)\n",
             worst,
             r1.n_bands,
             r2.wavelength_nm[r2.chosen_band as usize],
-            r2.separation[r2.chosen_band as usize]
+            r2.separation[r2.chosen_band as usize],
+            r2.specular_share[r2.chosen_band as usize],
+            r2.wavelength_nm[r2.separation_band as usize],
+            r2.separation[r2.separation_band as usize],
         );
     }
     if let Some(r) = get(3) {
@@ -225,16 +230,25 @@ pub fn plots(dir: &Path, responses: &[SolveResponse]) -> Result<()> {
     let recon: Vec<(f64, f64)> = (0..n)
         .map(|i| (r1.wavelength_nm[i], r1.recon_err[i] * 100.0))
         .collect();
+    let specular: Vec<(f64, f64)> = (0..n)
+        .map(|i| (r2.wavelength_nm[i], r2.specular_share[i]))
+        .collect();
     line_chart(
         &dir.join("inversion-sigma.svg"),
-        "Stage 2: separation degree σ(λ) (line) and stage-1 reconstruction error ×100 (dots)",
+        "Stage 2: separation degree σ(λ), specular share, stage-1 reconstruction error ×100",
         "wavelength [nm]",
-        "σ(λ); 100·ε_rec",
+        "σ(λ); specular share; 100·ε_rec",
         &[
             Series {
                 label: "σ(λ)",
                 points: sigma,
                 color: BLUE,
+                markers: false,
+            },
+            Series {
+                label: "specular share",
+                points: specular,
+                color: GREEN,
                 markers: false,
             },
             Series {

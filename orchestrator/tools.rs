@@ -95,13 +95,14 @@ pub fn invert(
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let mut j = serde_json::to_value(&result)?;
     let mut text = format!(
-        "{}: {} bands, stable {} samples, motion {} frames\nstage 1: max reconstruction error {:.3e}\nstage 2: chosen band {} nm\n",
+        "{}: {} bands, stable {} samples, motion {} frames\nstage 1: max reconstruction error {:.3e}\nstage 2: chosen band {} nm (largest σ at {} nm)\n",
         path.display(),
         file.set.wavelengths_nm.len(),
         file.set.stable.len(),
         file.set.motion.len(),
         result.stage1.iter().map(|b| b.recon_err).fold(0.0f64, f64::max),
-        result.chosen_wavelength_nm
+        result.chosen_wavelength_nm,
+        result.stage2.bands[result.stage2.separation_index].wavelength_nm,
     );
     text += &format!(
         "stage 3: fitted {} of {} motion frames (horizon: {})\n",
@@ -174,6 +175,11 @@ fn sweep_bands(
             false,
         )?;
         let p = fits.rate.fit().map(|f| f.rate_deg_per_frame);
+        // Fit quality at the band: RMS residual relative to the band's mean flux.
+        let rms_residual = fits
+            .rate
+            .fit()
+            .map(|f| (f.cost / fits.fitted_frames.max(1) as f64).sqrt());
         let err = match (p, file.truth_rate_deg_per_frame) {
             (Some(p), Some(t)) => Some(glint_inversion::rate_error_metric(p, t)),
             _ => None,
@@ -182,10 +188,13 @@ fn sweep_bands(
             errors.push((band.wavelength_nm, e));
         }
         let sigma = result.stage2.bands.get(b).map(|s| s.sigma);
+        let share = result.stage2.bands.get(b).map(|s| s.specular_share);
         text += &format!(
-            "  {:>5.0} nm  σ = {:>8.4}  {}{}\n",
+            "  {:>5.0} nm  σ = {:>8.4}  specular {:>5.3}  rms residual {:>9.3e}  {}{}\n",
             band.wavelength_nm,
             sigma.unwrap_or(f64::NAN),
+            share.unwrap_or(f64::NAN),
+            rms_residual.unwrap_or(f64::NAN),
             p.map_or("unobservable".into(), |p| format!(
                 "p = [{:.5}, {:.5}, {:.5}]",
                 p[0], p[1], p[2]
@@ -195,8 +204,10 @@ fn sweep_bands(
         rows.push(json!({
             "wavelength_nm": band.wavelength_nm,
             "sigma": sigma,
+            "specular_share": share,
             "p_deg_per_frame": p,
             "err_paper_metric": err,
+            "rms_residual": rms_residual,
         }));
     }
     let chosen = result.chosen_wavelength_nm;

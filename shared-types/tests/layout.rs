@@ -219,7 +219,7 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, flags), 44);
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (1968, 8)
+        (2488, 8)
     );
     assert_eq!(offset_of!(SolveResponse, status), 44);
     assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
@@ -237,4 +237,6 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveResponse, p_mirror_deg_per_frame), 1936);
     assert_eq!(offset_of!(SolveResponse, unobservable_reason), 1960);
     assert_eq!(offset_of!(SolveResponse, joint_unobservable_reason), 1964);
+    assert_eq!(offset_of!(SolveResponse, separation_band), 1968);
+    assert_eq!(offset_of!(SolveResponse, specular_share), 1976);
 }

@@ -41,7 +41,7 @@ pub use model::{MotionModelConfig, PanelNormalMode, RateBand, RateProblem};
 pub use observation::{Observation, ObservationSet};
 pub use rotation::AttitudeModel;
 pub use stage1::Stage1Band;
-pub use stage2::Stage2Result;
+pub use stage2::{BandSelection, Stage2Config, Stage2Result};
 pub use stage3::{RateFit, RateSolution, Stage3Config, WeakPrior};
 
 use nalgebra::Vector3;
@@ -55,6 +55,8 @@ pub struct InversionConfig {
     pub model: MotionModelConfig,
     /// Per-band `E_sun Δλ A_ap` \[W\], to report stage-1 coefficients in m² as well.
     pub band_scale_w: Option<Vec<f64>>,
+    /// Band selection.
+    pub stage2: Stage2Config,
     /// LM, start strategy and observability thresholds.
     pub stage3: Stage3Config,
     /// Also fit one p to the stacked residuals of all bands.
@@ -101,7 +103,7 @@ pub fn solve_three_stage(
         body_normal,
         config.band_scale_w.as_deref(),
     )?;
-    let stage2 = stage2::run_stage2(&stage1)?;
+    let stage2 = stage2::run_stage2_with(&stage1, &config.stage2)?;
     let fits = fit_rates(
         &set.motion,
         &stage1,

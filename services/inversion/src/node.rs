@@ -149,10 +149,12 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
         }
     }
     if let Some(s2) = &session.stage2 {
-        for (slot, b) in out.separation.iter_mut().zip(&s2.bands) {
-            *slot = b.sigma;
+        for (i, b) in s2.bands.iter().enumerate().take(out.separation.len()) {
+            out.separation[i] = b.sigma;
+            out.specular_share[i] = b.specular_share;
         }
         out.chosen_band = s2.chosen_index as u32;
+        out.separation_band = s2.separation_index as u32;
     }
     if req.stage == 3 {
         if let Some(rate) = &session.rate {

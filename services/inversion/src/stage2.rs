@@ -16,6 +16,17 @@
 //! σ is reported (it can be negative, or NaN when M_b = 0 or W_p = 0; NaN bands are never
 //! chosen).
 //!
+//! Band selection (beyond the paper; [`BandSelection`]). σ(λ) says whether the facets' lobes
+//! can be told apart; it says nothing about the diffuse light, and the diffuse light is what
+//! the two-facet model gets wrong: in the co-orbital geometry the stable window cannot tell
+//! which surface it comes from (the diffuse columns of panel, body face and any Lambertian
+//! remainder are nearly collinear), so stage 3 rotates it with the wrong surface. The default
+//! rule therefore keeps the bands whose σ is at least half the best σ and picks, among them,
+//! the band with the largest specular share `Σ_{m≥1} x_m / Σ_m x_m` (both facets' stage-1
+//! coefficients, i.e. the lobes' share of the reflected power, each lobe's albedo ≈ 1); ties
+//! go to the larger σ. On the cube (physical materials) that is 400 nm where σ alone picks
+//! 430 nm, and the band sweep's stage-3 errors rank the same way (README, band sweep).
+//!
 //! Search: the result is the fine-grid definition above, evaluated coarse-to-fine over strides
 //! 100, 10 and 1 (0.1°, 0.01°, 0.001°). The band-independent basis β_m is tabulated at 0.1°; the
 //! argmax is refined within ±1 coarse step at each level, and each crossing is located on the
@@ -76,6 +87,41 @@ pub struct Stage2Band {
     pub per_incidence: Vec<SeparationAtIncidence>,
     /// σ(λ), the mean over incidences.
     pub sigma: f64,
+    /// Σ_{m≥1} x_m / Σ_m x_m over both facets: the lobes' share of the reflected power
+    /// (NaN when every coefficient is 0).
+    #[serde(default)]
+    pub specular_share: f64,
+}
+
+/// How stage 2 picks λ*.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BandSelection {
+    /// The paper's eq (14): λ* = argmax σ(λ).
+    Separation,
+    /// Among the bands with σ ≥ `min_relative_separation` · max σ, the largest specular share
+    /// (ties: larger σ). Default.
+    #[default]
+    SeparationThenSpecular,
+}
+
+/// Stage-2 settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Stage2Config {
+    /// The selection rule.
+    pub selection: BandSelection,
+    /// Fraction of the best σ a band needs to be a candidate (0.5; in (0, 1]).
+    pub min_relative_separation: f64,
+}
+
+impl Default for Stage2Config {
+    fn default() -> Self {
+        Self {
+            selection: BandSelection::default(),
+            min_relative_separation: 0.5,
+        }
+    }
 }
 
 /// Stage-2 output: every band's σ and the chosen band λ*.
@@ -85,6 +131,10 @@ pub struct Stage2Result {
     pub bands: Vec<Stage2Band>,
     /// Index of λ*.
     pub chosen_index: usize,
+    /// Index of argmax σ(λ), the paper's choice (equal to `chosen_index` under
+    /// [`BandSelection::Separation`]).
+    #[serde(default)]
+    pub separation_index: usize,
     /// λ* \[nm\].
     pub chosen_wavelength_nm: f64,
 }
@@ -300,15 +350,41 @@ pub fn band_separation(
         })
         .collect();
     let sigma = per_incidence.iter().map(|s| s.sigma).sum::<f64>() / per_incidence.len() as f64;
+    let total: f64 = panel.iter().chain(body).sum();
+    let specular_share = if total > 0.0 {
+        (total - panel[0] - body[0]) / total
+    } else {
+        f64::NAN
+    };
     Stage2Band {
         wavelength_nm,
         per_incidence,
         sigma,
+        specular_share,
     }
 }
 
-/// Stage 2 over all stage-1 bands: σ(λ) and λ* = argmax over finite σ (first on ties).
+/// Specular shares closer than this to the largest count as equal.
+const SAME_SHARE: f64 = 0.01;
+
+/// Stage 2 with the default settings ([`Stage2Config`]).
 pub fn run_stage2(bands: &[Stage1Band]) -> Result<Stage2Result, InversionError> {
+    run_stage2_with(bands, &Stage2Config::default())
+}
+
+/// Stage 2 over all stage-1 bands: σ(λ), the specular shares and λ* by `config.selection`
+/// (argmax σ over finite σ, first on ties, under [`BandSelection::Separation`]).
+pub fn run_stage2_with(
+    bands: &[Stage1Band],
+    config: &Stage2Config,
+) -> Result<Stage2Result, InversionError> {
+    let r = config.min_relative_separation;
+    if !(r > 0.0 && r <= 1.0) {
+        return Err(InversionError::InvalidConfig {
+            field: "stage2.min_relative_separation",
+            reason: "must be in (0, 1]",
+        });
+    }
     // The table depends on nothing but the constants: build it once per process.
     static GRID: OnceLock<SeparationGrid> = OnceLock::new();
     let grid = GRID.get_or_init(|| SeparationGrid::new(&INCIDENCES_DEG));
@@ -324,12 +400,41 @@ pub fn run_stage2(bands: &[Stage1Band]) -> Result<Stage2Result, InversionError> 
             Some((_, s)) if s >= b.sigma => best,
             _ => Some((i, b.sigma)),
         });
-    let Some((chosen_index, _)) = chosen else {
+    let Some((separation_index, best_sigma)) = chosen else {
         return Err(InversionError::NoSeparableBand);
+    };
+    let chosen_index = match config.selection {
+        BandSelection::Separation => separation_index,
+        BandSelection::SeparationThenSpecular => {
+            let floor = if best_sigma > 0.0 {
+                r * best_sigma
+            } else {
+                best_sigma
+            };
+            let candidates: Vec<usize> = (0..out.len())
+                .filter(|&i| out[i].sigma.is_finite() && out[i].sigma >= floor)
+                .filter(|&i| out[i].specular_share.is_finite())
+                .collect();
+            let top_share = candidates
+                .iter()
+                .map(|&i| out[i].specular_share)
+                .fold(f64::NEG_INFINITY, f64::max);
+            // Shares within SAME_SHARE of the top are a tie (stage-1 round-off leaves tiny
+            // diffuse coefficients on lobe-only materials); the larger σ breaks it.
+            candidates
+                .into_iter()
+                .filter(|&i| out[i].specular_share >= top_share - SAME_SHARE)
+                .fold(None, |best: Option<usize>, i| match best {
+                    Some(b) if out[b].sigma >= out[i].sigma => Some(b),
+                    _ => Some(i),
+                })
+                .unwrap_or(separation_index)
+        }
     };
     Ok(Stage2Result {
         chosen_wavelength_nm: out[chosen_index].wavelength_nm,
         bands: out,
         chosen_index,
+        separation_index,
     })
 }

@@ -2,7 +2,8 @@
 
 use glint_inversion::stage1::Stage1Band;
 use glint_inversion::stage2::{
-    band_separation, lobe_shape_full_scan, run_stage2, LobeShape, SeparationGrid, INCIDENCES_DEG,
+    band_separation, lobe_shape_full_scan, run_stage2, run_stage2_with, BandSelection, LobeShape,
+    SeparationGrid, Stage2Config, INCIDENCES_DEG,
 };
 use glint_inversion::InversionError;
 use glint_physics::two_facet::TwoFacetCoefficients;
@@ -98,14 +99,74 @@ fn selects_the_most_separated_band_and_skips_nan() {
         panel: t4.panel,
         body: [0.0; 11],
     };
-    let result = run_stage2(&[band(400.0, broad), band(650.0, t4), band(700.0, dark_body)])
-        .expect("stage 2");
+    let paper = Stage2Config {
+        selection: BandSelection::Separation,
+        ..Default::default()
+    };
+    let result = run_stage2_with(
+        &[band(400.0, broad), band(650.0, t4), band(700.0, dark_body)],
+        &paper,
+    )
+    .expect("stage 2");
     assert!(result.bands[2].sigma.is_nan());
     assert!(result.bands[0].sigma < result.bands[1].sigma);
     assert_eq!(result.chosen_index, 1);
+    assert_eq!(result.separation_index, 1);
     assert_eq!(result.chosen_wavelength_nm, 650.0);
     assert_eq!(
         run_stage2(&[band(700.0, dark_body)]),
         Err(InversionError::NoSeparableBand)
     );
+}
+
+#[test]
+fn the_default_rule_prefers_the_most_specular_of_the_well_separated_bands() {
+    let t4 = TwoFacetCoefficients::table4();
+    // Same lobes (same σ), plus diffuse light: 20 % and 40 % of the reflected power.
+    let with_diffuse = |fraction: f64| {
+        let mut c = t4;
+        let lobes: f64 = c.panel.iter().chain(&c.body).sum();
+        c.panel[0] = fraction / (1.0 - fraction) * lobes;
+        c
+    };
+    // A band with less separation but no diffuse light at all: excluded when σ < ½ max σ.
+    let mut poorly_separated = t4;
+    poorly_separated.body = poorly_separated.panel;
+    let bands = [
+        band(400.0, with_diffuse(0.4)),
+        band(450.0, with_diffuse(0.2)),
+        band(500.0, poorly_separated),
+    ];
+    let result = run_stage2(&bands).expect("stage 2");
+    let shares: Vec<f64> = result.bands.iter().map(|b| b.specular_share).collect();
+    assert!((shares[0] - 0.6).abs() < 1e-12 && (shares[1] - 0.8).abs() < 1e-12);
+    assert_eq!(shares[2], 1.0);
+    assert!(
+        result.bands[2].sigma < 0.5 * result.bands[0].sigma,
+        "{result:?}"
+    );
+    assert_eq!(result.chosen_wavelength_nm, 450.0);
+    // The paper's rule picks by σ alone (the diffuse floor changes the panel curve's peak and
+    // width, so σ differs between the first two bands), and both rules report its choice.
+    let paper = run_stage2_with(
+        &bands,
+        &Stage2Config {
+            selection: BandSelection::Separation,
+            ..Default::default()
+        },
+    )
+    .expect("stage 2");
+    assert_eq!(paper.chosen_index, paper.separation_index);
+    assert_eq!(result.separation_index, paper.separation_index);
+    // A bad fraction is a config error naming the field.
+    let bad = Stage2Config {
+        min_relative_separation: 0.0,
+        ..Default::default()
+    };
+    match run_stage2_with(&bands, &bad) {
+        Err(InversionError::InvalidConfig { field, .. }) => {
+            assert_eq!(field, "stage2.min_relative_separation")
+        }
+        other => panic!("{other:?}"),
+    }
 }

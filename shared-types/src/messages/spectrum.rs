@@ -240,6 +240,12 @@ pub struct SolveResponse {
     pub unobservable_reason: u32,
     /// The same for the joint fit.
     pub joint_unobservable_reason: u32,
+    /// Stage 2: index of argmax σ(λ), the paper's choice (λ* may differ, see the inversion's
+    /// band-selection rule).
+    pub separation_band: u32,
+    pub _pad: u32,
+    /// Stage 2: the lobes' share of the stage-1 coefficients per band.
+    pub specular_share: [f64; MAX_BANDS],
 }
 
 impl Default for SolveResponse {
@@ -271,6 +277,9 @@ impl Default for SolveResponse {
             p_mirror_deg_per_frame: [f64::NAN; 3],
             unobservable_reason: 0,
             joint_unobservable_reason: 0,
+            separation_band: 0,
+            _pad: 0,
+            specular_share: [f64::NAN; MAX_BANDS],
         }
     }
 }
@@ -306,7 +315,8 @@ impl SolveResponse {
             ));
         }
         if self.n_bands as usize > MAX_BANDS
-            || (self.n_bands > 0 && self.chosen_band >= self.n_bands)
+            || (self.n_bands > 0
+                && (self.chosen_band >= self.n_bands || self.separation_band >= self.n_bands))
         {
             return Err(Reject::new(
                 "solve_response.n_bands/chosen_band",
