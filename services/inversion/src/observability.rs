@@ -4,10 +4,13 @@
 //!
 //! ```text
 //! F = JᵀJ / s²      s² = 1                        (σ given: J is whitened, F is the Fisher
-//!                                                  information, Cov = F⁻¹ is the CRB at p̂)
-//!                   s² = max(ε/(N − 3), s_min²)·(1 + ρ)/(1 − ρ)
+//!                                                  information, Cov = F⁻¹ is the CRB at p̂;
+//!                                                  s² = χ²/(N − 3)·τ instead
+//!                                                  when χ²/(N − 3) exceeds 1 by 3σ: the
+//!                                                  residuals reject the model)
+//!                   s² = max(ε/(N − 3), s_min²)·τ
 //!                                                 (σ unknown: residual variance in units of Φ̄,
-//!                                                  ρ = lag-1 autocorrelation of the residuals)
+//!                                                  τ = the residuals' correlation time)
 //! F = V diag(λ_i) Vᵀ (faer self-adjoint eigendecomposition, λ ascending)
 //! bound_i = 1/sqrt(λ_i)  [deg/frame]: the 1σ extent along eigen-direction v_i
 //! Cov = V diag(1/λ_i) Vᵀ
@@ -21,9 +24,11 @@
 //! - or every direction exceeds the threshold.
 //!
 //! Without σ the residual is mostly model mismatch, smooth in time: N serially correlated
-//! residuals carry the evidence of about N(1 − ρ)/(1 + ρ) independent ones (AR(1) effective
-//! sample size), so the variance is inflated by (1 + ρ)/(1 − ρ), ρ clamped to [0, 0.99]. White
-//! residuals (ρ ≈ 0) leave it unchanged.
+//! residuals carry the evidence of about N/τ independent ones, τ = (1 + ρ)/(1 − ρ) the AR(1)
+//! correlation time of the residuals (ρ their lag-1 autocorrelation over frames, pooled over
+//! bands, clamped to [0, 0.99]). The variance is inflated by τ. White residuals (ρ ≈ 0) leave
+//! it unchanged. (Geyer's initial-positive-sequence estimate of τ was tried: the glint's
+//! residuals oscillate, it stops early, and the mismatch still looked like evidence.)
 //!
 //! CRB helper: `sqrt(diag((JᵀWJ)⁻¹))` at the true p with the observations' σ.
 
@@ -39,13 +44,23 @@ use serde::{Deserialize, Serialize};
 pub enum CovarianceSource {
     /// The observations' σ (whitened residuals; Cov = (JᵀWJ)⁻¹).
     GivenSigma,
+    /// The observations' σ, but the residuals reject the model (χ²/(N − 3) above its 3σ
+    /// level): Cov = s²(JᵀWJ)⁻¹ with s² = χ²/(N − 3)·τ, so that the reported covariance
+    /// covers the model mismatch as well as the noise (Birge ratio with the correlation-time
+    /// inflation of the unknown-σ case).
+    GivenSigmaScaled {
+        /// s² ≥ 1.
+        variance_scale: f64,
+        /// τ, the residuals' correlation time \[frames\].
+        correlation_time: f64,
+    },
     /// Residual variance; `sigma_normalised` = s, the fitted 1σ in units of mean Φ_obs.
     ResidualVariance {
         /// s (relative to mean flux), after the floor and the serial-correlation inflation.
         sigma_normalised: f64,
-        /// ρ, the residuals' lag-1 autocorrelation used for the inflation (clamped).
+        /// τ, the residuals' correlation time used for the inflation \[frames\].
         #[serde(default)]
-        serial_correlation: f64,
+        correlation_time: f64,
     },
 }
 
@@ -208,15 +223,15 @@ pub fn analyse(
     let cost = problem.residuals_and_jacobian(p, &mut r, &mut jac);
     let (jtj, _) = normal_equations(&jac, &r);
     let (s2, source) = if problem.sigma_given() {
-        (1.0, CovarianceSource::GivenSigma)
+        given_sigma_scale(problem, &r, cost)
     } else {
-        let (s2, serial_correlation) = residual_variance(problem, &r, cost, config);
+        let (s2, correlation_time) = residual_variance(problem, &r, cost, config);
         let sigma_normalised = s2.sqrt();
         (
             s2,
             CovarianceSource::ResidualVariance {
                 sigma_normalised,
-                serial_correlation,
+                correlation_time,
             },
         )
     };
@@ -236,7 +251,7 @@ pub fn analyse(
         .coefficient_term(p, &jac)
         .filter(|_| problem.sigma_given() && regular);
     let (vals, vecs) = match coefficient_term {
-        Some(c) => total_information(&vals, &vecs, &c)?,
+        Some(c) => total_information(&raw_vals, &vecs, s2, &c)?,
         None => (vals, vecs),
     };
     let bounds = vals.map(|v| {
@@ -286,11 +301,8 @@ pub fn analyse(
     })
 }
 
-/// Largest residual autocorrelation the variance inflation uses ((1 + ρ)/(1 − ρ) ≤ 199).
-const MAX_SERIAL_CORRELATION: f64 = 0.99;
-
 /// The noise variance estimated from residuals `r` (cost ε = Σ r²) when σ is unknown:
-/// max(ε/(N − 3), s_min²)·(1 + ρ)/(1 − ρ), and ρ (see the module docs).
+/// max(ε/(N − 3), s_min²)·τ, and τ (see the module docs).
 pub fn residual_variance(
     problem: &RateProblem,
     r: &[f64],
@@ -298,31 +310,58 @@ pub fn residual_variance(
     config: &ObservabilityConfig,
 ) -> (f64, f64) {
     let dof = r.len().saturating_sub(3).max(1) as f64;
-    let rho =
-        lag1_correlation(r, problem.wavelengths_nm().len()).clamp(0.0, MAX_SERIAL_CORRELATION);
+    let tau = correlation_time(r, problem.wavelengths_nm().len());
     let s2 = (cost / dof).max(config.min_sigma_rel.powi(2));
-    (s2 * (1.0 + rho) / (1.0 - rho), rho)
+    (s2 * tau, tau)
 }
 
-/// Lag-1 autocorrelation of frame-major residuals (`r[t·bands + b]`), frame to next frame,
-/// pooled over bands; 0 when undefined (fewer than two frames, zero residuals).
-pub fn lag1_correlation(r: &[f64], bands: usize) -> f64 {
+/// With σ given: 1 while χ²/(N − 3) is within 3σ of 1 (the model explains the data to the
+/// noise), else the inflated Birge ratio (see [`CovarianceSource::GivenSigmaScaled`]).
+pub fn given_sigma_scale(problem: &RateProblem, r: &[f64], chi2: f64) -> (f64, CovarianceSource) {
+    let dof = r.len().saturating_sub(3).max(1) as f64;
+    let birge = chi2 / dof;
+    if birge <= 1.0 + 3.0 * (2.0 / dof).sqrt() {
+        return (1.0, CovarianceSource::GivenSigma);
+    }
+    let correlation_time = correlation_time(r, problem.wavelengths_nm().len());
+    let variance_scale = birge * correlation_time;
+    (
+        variance_scale,
+        CovarianceSource::GivenSigmaScaled {
+            variance_scale,
+            correlation_time,
+        },
+    )
+}
+
+/// Correlation time τ = (1 + ρ)/(1 − ρ) of frame-major residuals (`r[t·bands + b]`) under an
+/// AR(1) model, ρ the lag-1 autocorrelation pooled over bands and clamped to [0, 0.99]
+/// (τ ≤ 199); 1 when undefined (no bands, fewer than two frames, zero residuals).
+pub fn correlation_time(r: &[f64], bands: usize) -> f64 {
     let energy: f64 = r.iter().map(|v| v * v).sum();
     if bands == 0 || r.len() <= bands || energy <= 0.0 {
-        return 0.0;
+        return 1.0;
     }
-    r.iter().zip(&r[bands..]).map(|(a, b)| a * b).sum::<f64>() / energy
+    let lagged: f64 = r.iter().zip(&r[bands..]).map(|(a, b)| a * b).sum();
+    let rho = (lagged / energy).clamp(0.0, MAX_SERIAL_CORRELATION);
+    (1.0 + rho) / (1.0 - rho)
 }
 
-/// Eigen-pairs of the total covariance F⁻¹ + F⁻¹ C F⁻¹, returned as information (1/variance)
-/// ascending with their directions, like the Fisher analysis.
+/// Largest lag-1 autocorrelation [`correlation_time`] uses.
+const MAX_SERIAL_CORRELATION: f64 = 0.99;
+
+/// Eigen-pairs of the total covariance s² G⁻¹ + G⁻¹ C G⁻¹ (G = JᵀJ, whitened), returned as
+/// information (1/variance) ascending with their directions, like the Fisher analysis.
 fn total_information(
-    vals: &[f64; 3],
+    raw_vals: &[f64; 3],
     vecs: &[[f64; 3]; 3],
+    s2: f64,
     c: &[[f64; 3]; 3],
 ) -> Result<([f64; 3], [[f64; 3]; 3]), InversionError> {
-    let f_inv = inverse_from_eigen(vals, vecs);
-    let mut total = f_inv;
+    // G = JᵀJ (whitened): the noise term is s² G⁻¹, the coefficients' G⁻¹ C G⁻¹ (their
+    // covariance comes from stage 1's own σ and is not rescaled).
+    let f_inv = inverse_from_eigen(raw_vals, vecs);
+    let mut total = f_inv.map(|row| row.map(|v| s2 * v));
     for i in 0..3 {
         for j in 0..3 {
             let mut v = 0.0;
@@ -351,6 +390,7 @@ fn total_information(
 pub fn widen_to_likelihood_intervals(problem: &RateProblem, p: [f64; 3], analysis: &mut Analysis) {
     let s2 = match analysis.source {
         CovarianceSource::GivenSigma => 1.0,
+        CovarianceSource::GivenSigmaScaled { variance_scale, .. } => variance_scale,
         CovarianceSource::ResidualVariance {
             sigma_normalised, ..
         } => sigma_normalised.powi(2),

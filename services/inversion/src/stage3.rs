@@ -31,8 +31,8 @@ use crate::lm::{
 };
 use crate::model::RateProblem;
 use crate::observability::{
-    analyse, residual_variance, widen_to_likelihood_intervals, CovarianceSource, Observability,
-    ObservabilityConfig, UnobservableReason,
+    analyse, given_sigma_scale, residual_variance, widen_to_likelihood_intervals, CovarianceSource,
+    Observability, ObservabilityConfig, UnobservableReason,
 };
 use serde::{Deserialize, Serialize};
 
@@ -354,17 +354,17 @@ fn in_box(p: &[f64; 3], start: &StartConfig) -> bool {
 /// weakest direction at its prior (3σ for one degree of freedom).
 const HOLD_MAX_DELTA_CHI2: f64 = 9.0;
 
-/// One noise variance in cost units for likelihood-ratio tests between two fits: 1 with σ
-/// given (whitened residuals), else the residual variance of the fit p̂ of cost ε, inflated
-/// for the residuals' serial correlation ([`residual_variance`]): without σ the residual is
-/// mostly model mismatch, and counting its N smooth residuals as independent would make any
-/// prior look rejected.
+/// One noise variance in cost units for likelihood-ratio tests between two fits: with σ given,
+/// 1 (whitened residuals) unless the residuals reject the model, then the inflated Birge ratio
+/// ([`given_sigma_scale`]); without σ, the residual variance of the fit p̂, inflated for the
+/// residuals' serial correlation ([`residual_variance`]). Model mismatch is smooth in time, and
+/// counting its N residuals as independent would make any prior look rejected.
 fn noise_variance(problem: &RateProblem, p: [f64; 3], config: &Stage3Config) -> f64 {
-    if problem.sigma_given() {
-        return 1.0;
-    }
     let mut r = vec![0.0; problem.residual_count()];
     let cost = problem.residuals(p, &mut r);
+    if problem.sigma_given() {
+        return given_sigma_scale(problem, &r, cost).0;
+    }
     residual_variance(problem, &r, cost, &config.observability).0
 }
 

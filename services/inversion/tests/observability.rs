@@ -463,3 +463,63 @@ fn with_a_glint_the_lobes_carry_the_sensitivity() {
         .map_or(f64::INFINITY, |m| rate_error_metric(m, p_true));
     assert!(error.min(mirror_error) < 0.01, "{fit:?}");
 }
+
+#[test]
+fn correlation_time_is_one_for_white_residuals_and_large_for_smooth_ones() {
+    use glint_inversion::observability::correlation_time;
+    let mut g = Gauss::new(3);
+    let white: Vec<f64> = (0..4000).map(|_| g.gaussian()).collect();
+    let tau = correlation_time(&white, 1);
+    assert!((tau - 1.0).abs() < 0.1, "{tau}");
+    // AR(1) with φ = 0.8: τ = (1 + φ)/(1 − φ) = 9.
+    let mut ar = vec![0.0; 20_000];
+    for t in 1..ar.len() {
+        ar[t] = 0.8 * ar[t - 1] + g.gaussian();
+    }
+    let tau = correlation_time(&ar, 1);
+    assert!((tau - 9.0).abs() < 1.0, "{tau}");
+    // Two bands interleaved frame-major: the lag is one frame, not one sample.
+    let two: Vec<f64> = ar.iter().flat_map(|v| [*v, -*v]).collect();
+    assert!((correlation_time(&two, 2) - tau).abs() < 1e-9);
+}
+
+#[test]
+fn with_sigma_given_a_rejected_model_scales_the_covariance_up() {
+    // SNR 100 on the Y window, plus a slow 3 % ripple the two-facet model does not contain:
+    // χ²/dof is far above 1 and the residuals are smooth, so the reported covariance is
+    // scaled by the Birge ratio times the correlation time; without the ripple it is not.
+    let p_true = [0.0, 0.25, 0.0];
+    let clean = with_noise(y_window(120), 100.0, Some(5));
+    let mean = clean.iter().map(|o| o.flux_w[0]).sum::<f64>() / clean.len() as f64;
+    let mut rippled = clean.clone();
+    for (t, o) in rippled.iter_mut().enumerate() {
+        o.flux_w[0] += 0.03 * mean * (t as f64 / 15.0).sin();
+    }
+    let analyse = |obs: &[Observation]| {
+        let problem = RateProblem::new(obs, &[band()], &MotionModelConfig::default()).expect("p");
+        glint_inversion::observability::analyse(&problem, p_true, &Default::default())
+            .expect("analysis")
+    };
+    let (a, b) = (analyse(&clean), analyse(&rippled));
+    assert_eq!(a.source, CovarianceSource::GivenSigma);
+    let CovarianceSource::GivenSigmaScaled {
+        variance_scale,
+        correlation_time,
+    } = b.source
+    else {
+        panic!("{:?}", b.source);
+    };
+    assert!(
+        correlation_time > 5.0 && variance_scale > 10.0,
+        "{:?}",
+        b.source
+    );
+    // The determined direction's bound grows by about sqrt(scale) (same geometry, same J).
+    let ratio = b.observability.bounds_1sigma_deg_per_frame[2]
+        / a.observability.bounds_1sigma_deg_per_frame[2];
+    assert!(
+        (ratio / variance_scale.sqrt() - 1.0).abs() < 0.05,
+        "{ratio} vs {}",
+        variance_scale.sqrt()
+    );
+}
