@@ -69,6 +69,7 @@ pub fn run(
             out_dir: Some(sub.clone()),
             progress,
         })?;
+        run::bail_if_interrupted("campaign")?;
         all_ok &= ok;
         let report: Value =
             serde_json::from_str(&std::fs::read_to_string(run_dir.join("report.json"))?)?;

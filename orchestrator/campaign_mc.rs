@@ -66,6 +66,7 @@ pub fn run_value(
             out_dir: Some(sub.to_path_buf()),
             progress,
         })?;
+        run::bail_if_interrupted("campaign")?;
         let report = std::fs::read_to_string(run_dir.join("report.json"))?;
         Ok((serde_json::from_str(&report)?, ok))
     };

@@ -30,6 +30,18 @@ enum Phase {
 }
 
 /// Runs a deployment to the end. Returns the run directory and whether the run succeeded.
+/// Set once a deployment of this process was stopped by SIGINT/SIGTERM: campaigns stop there
+/// instead of starting the next deployment.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// An error if a deployment of this process was interrupted by a signal.
+pub fn bail_if_interrupted(what: &str) -> Result<()> {
+    if INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst) {
+        anyhow::bail!("{what} interrupted by a signal");
+    }
+    Ok(())
+}
+
 pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let scenario = &opts.scenario;
     let out_dir = opts.out_dir.clone().unwrap_or_else(|| {
@@ -186,8 +198,11 @@ fn deploy_and_run(
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
-    if exit == glint_runtime::Exit::Terminated && failure.is_none() {
-        failure = Some("interrupted by a signal".into());
+    if exit == glint_runtime::Exit::Terminated {
+        INTERRUPTED.store(true, std::sync::atomic::Ordering::SeqCst);
+        if failure.is_none() {
+            failure = Some("interrupted by a signal".into());
+        }
     }
 
     // Stop ladder; drain final heartbeats while waiting so the last counters are captured.

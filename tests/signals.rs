@@ -105,3 +105,71 @@ fn sigstop_sigcont_does_not_end_a_service_and_shutdown_does() {
     remove_shm(&prefix);
     assert!(shm_entries(&prefix).is_empty());
 }
+
+#[test]
+fn sigterm_stops_a_campaign_instead_of_starting_the_next_deployment() {
+    // A 30-seed Monte-Carlo campaign; SIGTERM once the first noisy deployment has started.
+    let dir = temp_dir("campaign-sigterm");
+    let file = scenario_variant(
+        "campaign-efficiency.toml",
+        &[("seeds = 50", "seeds = 30")],
+        &dir,
+    );
+    let out = dir.join("out");
+    let child = glint()
+        .arg("run")
+        .arg(&file)
+        .arg("--out")
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn glint");
+    let mut child = KillOnDrop(child);
+    let t0 = Instant::now();
+    while !out.join("00/s000").exists() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "no deployment started"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    unsafe { libc::kill(child.0.id() as i32, libc::SIGTERM) };
+    let t1 = Instant::now();
+    let status = loop {
+        if let Some(s) = child.0.try_wait().expect("wait") {
+            break s;
+        }
+        assert!(
+            t1.elapsed() < Duration::from_secs(60),
+            "campaign kept running"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut stderr = String::new();
+    use std::io::Read;
+    child
+        .0
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut stderr)
+        .unwrap();
+    assert!(!status.success(), "{stderr}");
+    assert!(
+        stderr.contains("campaign interrupted by a signal"),
+        "{stderr}"
+    );
+    let seeds = std::fs::read_dir(out.join("00"))
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .starts_with('s')
+        })
+        .count();
+    assert!(seeds < 30, "{seeds} deployments ran");
+    let _ = std::fs::remove_dir_all(&dir);
+}
