@@ -350,33 +350,44 @@ pub fn correlation_time(r: &[f64], bands: usize) -> f64 {
 /// Largest lag-1 autocorrelation [`correlation_time`] uses.
 const MAX_SERIAL_CORRELATION: f64 = 0.99;
 
-/// Eigen-pairs of the total covariance s² G⁻¹ + G⁻¹ C G⁻¹ (G = JᵀJ, whitened), returned as
-/// information (1/variance) ascending with their directions, like the Fisher analysis.
+/// Eigen-pairs of the total information, the inverse of the covariance s² G⁻¹ + G⁻¹ C G⁻¹
+/// (G = JᵀJ whitened; the coefficients' covariance C comes from stage 1's own σ and is not
+/// rescaled), ascending with their directions like the Fisher analysis.
+///
+/// Near the bisector G spans many decades: the covariance is formed in G's eigenbasis
+/// (s² Λ⁻¹ + Λ⁻¹ C' Λ⁻¹, C' = Vᵀ C V, exact scaling) and rotated back. Its eigen-decomposition
+/// resolves the large variances (the weak directions, the ones that matter); a small variance
+/// lost to round-off is floored at the noise-only s²/λ_max(G), since C only adds variance.
 fn total_information(
     raw_vals: &[f64; 3],
     vecs: &[[f64; 3]; 3],
     s2: f64,
     c: &[[f64; 3]; 3],
 ) -> Result<([f64; 3], [[f64; 3]; 3]), InversionError> {
-    // G = JᵀJ (whitened): the noise term is s² G⁻¹, the coefficients' G⁻¹ C G⁻¹ (their
-    // covariance comes from stage 1's own σ and is not rescaled).
-    let f_inv = inverse_from_eigen(raw_vals, vecs);
-    let mut total = f_inv.map(|row| row.map(|v| s2 * v));
-    for i in 0..3 {
-        for j in 0..3 {
-            let mut v = 0.0;
-            for a in 0..3 {
-                for b in 0..3 {
-                    v += f_inv[i][a] * c[a][b] * f_inv[b][j];
-                }
-            }
-            total[i][j] += v;
-        }
-    }
+    let dot3 = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
+    let c_v: [[f64; 3]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|j| dot3(&c[i], &vecs[j])));
+    let inner: [[f64; 3]; 3] = std::array::from_fn(|k| {
+        std::array::from_fn(|l| {
+            let c_kl: f64 = (0..3).map(|i| vecs[k][i] * c_v[i][l]).sum();
+            let noise = if k == l { s2 / raw_vals[k] } else { 0.0 };
+            noise + c_kl / (raw_vals[k] * raw_vals[l])
+        })
+    });
+    let total: [[f64; 3]; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            (0..3)
+                .flat_map(|k| (0..3).map(move |l| (k, l)))
+                .map(|(k, l)| vecs[k][i] * inner[k][l] * vecs[l][j])
+                .sum()
+        })
+    });
     let (var, dirs) = symmetric_eigen(&total)?;
+    let floor = s2 / raw_vals.iter().cloned().fold(0.0f64, f64::max);
+    let var = var.map(|v| v.max(floor));
     // Variance ascending = information descending: reverse.
     Ok((
-        [var[2], var[1], var[0]].map(|v| if v > 0.0 { 1.0 / v } else { f64::INFINITY }),
+        [var[2], var[1], var[0]].map(|v| 1.0 / v),
         [dirs[2], dirs[1], dirs[0]],
     ))
 }
@@ -464,4 +475,63 @@ pub fn cramer_rao_bound(
     let (vals, vecs) = symmetric_eigen(&fisher)?;
     let cov = inverse_from_eigen(&vals, &vecs);
     Ok([0, 1, 2].map(|i| cov[i][i].sqrt()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn eigen_of_diag(d: [f64; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
+        (d, [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    }
+
+    #[test]
+    fn total_information_matches_the_inverse_of_the_total_covariance() {
+        // Well conditioned: compare with inverting s² G⁻¹ + G⁻¹ C G⁻¹ directly.
+        let (g, v) = eigen_of_diag([2.0, 5.0, 11.0]);
+        let c = [[0.3, 0.1, 0.0], [0.1, 0.4, 0.05], [0.0, 0.05, 0.2]];
+        let s2 = 1.7;
+        let (info, dirs) = total_information(&g, &v, s2, &c).unwrap();
+        let g_inv = [1.0 / 2.0, 1.0 / 5.0, 1.0 / 11.0];
+        let cov: [[f64; 3]; 3] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| {
+                let noise = if i == j { s2 * g_inv[i] } else { 0.0 };
+                noise + g_inv[i] * c[i][j] * g_inv[j]
+            })
+        });
+        let (var, _) = symmetric_eigen(&cov).unwrap();
+        for k in 0..3 {
+            let want = 1.0 / var[2 - k];
+            assert!(
+                (info[k] - want).abs() <= 1e-12 * want,
+                "{info:?} vs {var:?}"
+            );
+        }
+        assert!(dirs.iter().flatten().all(|x| x.is_finite()));
+    }
+
+    #[test]
+    fn total_information_stays_finite_when_g_spans_many_decades() {
+        // The co-orbital bisector: G's eigenvalues 1e-4 … 1e12. Inverting G first loses the
+        // strongest direction to round-off (a zero or negative variance, infinite information).
+        let g = [1e-4, 1.0, 1e12];
+        // Eigenvectors: the body axes turned by a generic rotation (rows are unit, orthogonal).
+        let r = nalgebra::Rotation3::from_euler_angles(0.3, -0.7, 1.1);
+        let v: [[f64; 3]; 3] = std::array::from_fn(|k| std::array::from_fn(|i| r[(i, k)]));
+        let c = [[1e-3, 2e-4, 1e-4], [2e-4, 1e-3, 3e-4], [1e-4, 3e-4, 1e-3]];
+        let (info, dirs) = total_information(&g, &v, 1.0, &c).unwrap();
+        assert!(info.iter().all(|x| x.is_finite() && *x > 0.0), "{info:?}");
+        // Information never exceeds the noise-only Fisher information.
+        assert!(info[2] <= 1e12 * (1.0 + 1e-9), "{info:?}");
+        // The weak direction, the one that matters, is exact: v₀ with variance
+        // 1/g₀ + v₀ᵀ C v₀ / g₀².
+        let c00: f64 = (0..3)
+            .flat_map(|i| (0..3).map(move |j| (i, j)))
+            .map(|(i, j)| v[0][i] * c[i][j] * v[0][j])
+            .sum();
+        let want = 1.0 / (1.0 / g[0] + c00 / (g[0] * g[0]));
+        assert!((info[0] / want - 1.0).abs() < 1e-9, "{} vs {want}", info[0]);
+        let along: f64 = (0..3).map(|i| dirs[0][i] * v[0][i]).sum();
+        assert!(along.abs() > 1.0 - 1e-9, "{along}");
+    }
 }

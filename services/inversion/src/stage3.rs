@@ -382,6 +382,7 @@ fn hold_at_prior(
         .information_eigenvalues
         .iter()
         .cloned()
+        .filter(|v| v.is_finite())
         .fold(0.0f64, f64::max);
     let directions = config.weak_prior.directions(weak);
     let prior = Prior {
