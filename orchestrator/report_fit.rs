@@ -21,7 +21,12 @@ use crate::plots::{line_chart, Series, BLUE, RED};
 pub fn plots(dir: &Path) -> Result<bool> {
     let path = dir.join("observations.csv");
     let file = crate::observations::read(&path)?;
-    let config = InversionConfig::default();
+    // As the service solves (the orchestrator always asks for the joint fit, which can decide
+    // the sense of rotation at λ*).
+    let config = InversionConfig {
+        joint_fit: true,
+        ..Default::default()
+    };
     let result =
         solve_three_stage(&file.set, &config).map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let chosen = result.stage2.chosen_index;

@@ -77,6 +77,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
             "unobservable_reason": reason(r.unobservable_reason),
             "band_nm": r.wavelength_nm[r.chosen_band as usize],
             "fitted_frames": r.fitted_frames,
+            "sense_from_joint": r.stage3_flags & SolveResponse::SENSE_FROM_JOINT != 0,
             "fit_horizon_deg": glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG,
             "p_deg_per_frame": if determined { json!(p) } else { Value::Null },
             "truth_deg_per_frame": truth,
@@ -147,6 +148,13 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                 rate_error_metric(p, truth), r.fitted_frames, r.motion_samples,
                 glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG, r.iterations, r.starts
             );
+            if r.stage3_flags & SolveResponse::SENSE_FROM_JOINT != 0 {
+                let _ = writeln!(
+                    s,
+                    "\nAt {} nm alone this rate and its mirror fit equally well; the sense of rotation is the joint fit's (all bands).",
+                    r.wavelength_nm[r.chosen_band as usize]
+                );
+            }
             let _ = writeln!(
                 s,
                 "\n![stage-1 fit](stage1-fit.svg)\n\n![stage-3 fit](stage3-fit.svg)\n\n![stage-3 residuals](stage3-residuals.svg)\n"

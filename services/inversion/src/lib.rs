@@ -80,6 +80,9 @@ pub struct InversionResult {
     pub fitted_frames: usize,
     /// Motion frames of the joint fit (its own horizon), when run.
     pub joint_fitted_frames: Option<usize>,
+    /// The λ* data fit p̂ and its mirror equally well; the joint fit decided the sense.
+    #[serde(default)]
+    pub sense_from_joint: bool,
 }
 
 /// The paper's error metric ε_p = 100·‖p̂ − p*‖₂ (p in deg/frame; §1.6, not relative).
@@ -120,6 +123,7 @@ pub fn solve_three_stage(
         joint_rate: fits.joint_rate,
         fitted_frames: fits.fitted_frames,
         joint_fitted_frames: fits.joint_fitted_frames,
+        sense_from_joint: fits.sense_from_joint,
     })
 }
 
@@ -143,32 +147,56 @@ pub fn fit_rates(
             .map(|&b| stage1[b].coeff_covariance.clone())
             .collect()
     };
-    let (rate, fitted_frames) = fit_within_horizon(
+    let (mut rate, problem) = horizon_fit(
         motion,
         &[band(chosen)],
         &covariances(&[chosen]),
         model,
         config,
     )?;
+    let fitted_frames = problem.frame_count();
     let joint_rate = if joint {
         let all: Vec<usize> = (0..stage1.len()).collect();
         let bands: Vec<RateBand> = all.iter().map(|&b| band(b)).collect();
-        Some(fit_within_horizon(
-            motion,
-            &bands,
-            &covariances(&all),
-            model,
-            config,
-        )?)
+        let (j, joint_problem) = horizon_fit(motion, &bands, &covariances(&all), model, config)?;
+        Some((j, joint_problem.frame_count()))
     } else {
         None
     };
+    let mut sense_from_joint = false;
+    if let Some(p) = joint_rate.as_ref().and_then(|(j, _)| sense_from(&rate, j)) {
+        if let Ok(flipped @ RateSolution::Determined(_)) =
+            stage3::fit_from_starts(&problem, &[p], config)
+        {
+            rate = flipped;
+            sense_from_joint = true;
+        }
+    }
     Ok(RateFits {
         rate,
         fitted_frames,
         joint_fitted_frames: joint_rate.as_ref().map(|j| j.1),
         joint_rate: joint_rate.map(|j| j.0),
+        sense_from_joint,
     })
+}
+
+/// When the λ* data fit p̂ and its mirror equally well (the sense of rotation about X and Z is
+/// not observable in that band) but the joint fit over all bands is not ambiguous, the mirror
+/// to start from if it is the one nearer the joint solution: the other bands' evidence decides
+/// the sense. `None` to keep p̂.
+fn sense_from(rate: &RateSolution, joint: &RateSolution) -> Option<[f64; 3]> {
+    let (fit, joint) = (rate.fit()?, joint.fit()?);
+    let mirror = fit.mirror_deg_per_frame?;
+    if joint.mirror_deg_per_frame.is_some() {
+        return None;
+    }
+    let distance = |a: [f64; 3]| -> f64 {
+        (0..3)
+            .map(|i| (a[i] - joint.rate_deg_per_frame[i]).powi(2))
+            .sum::<f64>()
+    };
+    (distance(mirror) < distance(fit.rate_deg_per_frame)).then_some(mirror)
 }
 
 /// Multi-start fit on the frames within the fit horizon: the first window is valid for every
@@ -188,6 +216,18 @@ pub fn fit_within_horizon(
     model: &MotionModelConfig,
     config: &Stage3Config,
 ) -> Result<(RateSolution, usize), InversionError> {
+    let (rate, problem) = horizon_fit(motion, bands, coefficient_covariance, model, config)?;
+    Ok((rate, problem.frame_count()))
+}
+
+/// [`fit_within_horizon`], returning the problem of the frames finally fitted.
+fn horizon_fit(
+    motion: &[Observation],
+    bands: &[RateBand],
+    coefficient_covariance: &[Option<Vec<f64>>],
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+) -> Result<(RateSolution, RateProblem), InversionError> {
     let epoch = model
         .epoch_frame
         .unwrap_or_else(|| motion.iter().map(|o| o.frame_index).min().unwrap_or(0));
@@ -207,14 +247,13 @@ pub fn fit_within_horizon(
             .collect()
     };
     let Some(max_deg) = config.max_rotation_deg.filter(|d| d.is_finite()) else {
-        return Ok((
-            stage3::fit_multistart(&build(motion)?, config)?,
-            motion.len(),
-        ));
+        let problem = build(motion)?;
+        return Ok((stage3::fit_multistart(&problem, config)?, problem));
     };
     let fastest = 3f64.sqrt() * config.start.half_width_deg_per_frame;
     let mut frames = within((max_deg / fastest).max(MIN_FIT_FRAMES));
-    let mut rate = stage3::fit_multistart(&build(&frames)?, config)?;
+    let mut problem = build(&frames)?;
+    let mut rate = stage3::fit_multistart(&problem, config)?;
     let mut fastest_fitted_deg_per_frame = 0.0f64;
     for _ in 0..HORIZON_ROUNDS {
         let Some(fit) = rate.fit() else { break };
@@ -226,11 +265,12 @@ pub fn fit_within_horizon(
             break;
         }
         frames = next;
+        problem = build(&frames)?;
         // A fresh global search on the longer window (it can rank the minima the short one
         // could not), with the short window's solution as one more start.
-        rate = stage3::fit_multistart_with(&build(&frames)?, config, &[p])?;
+        rate = stage3::fit_multistart_with(&problem, config, &[p])?;
     }
-    Ok((rate, frames.len()))
+    Ok((rate, problem))
 }
 
 /// The fit horizon never shrinks below this many frames.
@@ -249,4 +289,58 @@ pub struct RateFits {
     pub fitted_frames: usize,
     /// Motion frames of the joint fit.
     pub joint_fitted_frames: Option<usize>,
+    /// The λ* data could not tell p̂ from its mirror and the joint fit decided the sense of
+    /// rotation (see [`fit_rates`]).
+    pub sense_from_joint: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lm::StopReason;
+    use crate::observability::{CovarianceSource, Observability};
+    use crate::stage3::RateFit;
+
+    fn fit(p: [f64; 3], mirror: Option<[f64; 3]>) -> RateSolution {
+        RateSolution::Determined(RateFit {
+            wavelengths_nm: vec![400.0],
+            rate_deg_per_frame: p,
+            covariance_deg2_per_frame2: [[0.0; 3]; 3],
+            covariance_source: CovarianceSource::GivenSigma,
+            cost: 1.0,
+            iterations: 1,
+            total_iterations: 1,
+            stop: StopReason::SmallStep,
+            grid_points: 0,
+            starts_screened: 0,
+            starts_polished: 1,
+            start_deg_per_frame: p,
+            observability: Observability {
+                information_eigenvalues: [1.0; 3],
+                eigenvectors: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                bounds_1sigma_deg_per_frame: [1.0; 3],
+                unobservable: [false; 3],
+                threshold_deg_per_frame: 0.25,
+                condition_number: 1.0,
+                rms_sensitivity_per_deg_per_frame: 1.0,
+            },
+            mirror_deg_per_frame: mirror,
+        })
+    }
+
+    #[test]
+    fn the_joint_fit_decides_the_sense_only_when_lambda_star_cannot() {
+        let p = [0.0, -0.006, -0.25];
+        let m = [0.0, -0.006, 0.25];
+        let joint = fit([0.0, -0.001, 0.249], None);
+        // λ* ambiguous, joint not: start from the mirror, the one nearer the joint fit.
+        assert_eq!(sense_from(&fit(p, Some(m)), &joint), Some(m));
+        // λ* already on the joint's side: keep it.
+        assert_eq!(sense_from(&fit(m, Some(p)), &joint), None);
+        // λ* not ambiguous: its own answer stands.
+        assert_eq!(sense_from(&fit(p, None), &joint), None);
+        // The joint fit ambiguous too: no evidence either way.
+        let joint_ambiguous = fit([0.0, -0.001, 0.249], Some([0.0, -0.001, -0.249]));
+        assert_eq!(sense_from(&fit(p, Some(m)), &joint_ambiguous), None);
+    }
 }

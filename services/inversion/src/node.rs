@@ -160,6 +160,9 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
         if let Some(rate) = &session.rate {
             fill_rate(&mut out, rate, session.joint_rate.as_ref());
             out.fitted_frames = session.fitted_frames as u32;
+            if session.sense_from_joint {
+                out.stage3_flags |= SolveResponse::SENSE_FROM_JOINT;
+            }
         }
     }
     out

@@ -31,6 +31,8 @@ pub struct Session {
     pub joint_rate: Option<RateSolution>,
     /// Motion frames stage 3 fitted (within its horizon).
     pub fitted_frames: usize,
+    /// The joint fit decided the sense of rotation at λ* (see `fit_rates`).
+    pub sense_from_joint: bool,
 }
 
 pub enum StageOutcome {
@@ -61,6 +63,7 @@ impl Session {
             rate: None,
             joint_rate: None,
             fitted_frames: 0,
+            sense_from_joint: false,
         }
     }
 
@@ -122,6 +125,7 @@ impl Session {
         self.rate = Some(fits.rate);
         self.joint_rate = fits.joint_rate;
         self.fitted_frames = fits.fitted_frames;
+        self.sense_from_joint = fits.sense_from_joint;
         Ok(StageOutcome::Done)
     }
 }

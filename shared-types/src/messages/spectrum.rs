@@ -243,7 +243,8 @@ pub struct SolveResponse {
     /// Stage 2: index of argmax σ(λ), the paper's choice (λ* may differ, see the inversion's
     /// band-selection rule).
     pub separation_band: u32,
-    pub _pad: u32,
+    /// Stage 3 flags: [`SolveResponse::SENSE_FROM_JOINT`].
+    pub stage3_flags: u32,
     /// Stage 2: the lobes' share of the stage-1 coefficients per band.
     pub specular_share: [f64; MAX_BANDS],
 }
@@ -278,13 +279,16 @@ impl Default for SolveResponse {
             unobservable_reason: 0,
             joint_unobservable_reason: 0,
             separation_band: 0,
-            _pad: 0,
+            stage3_flags: 0,
             specular_share: [f64::NAN; MAX_BANDS],
         }
     }
 }
 
 impl SolveResponse {
+    /// The λ* data fit p and its mirror equally well; the joint fit decided the sense.
+    pub const SENSE_FROM_JOINT: u32 = 1;
+
     /// Names of the `unobservable_reason` codes (index = code).
     pub const REASON_NAMES: [&'static str; 5] = [
         "none",
