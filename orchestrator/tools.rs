@@ -227,14 +227,33 @@ fn sweep_bands(
     Ok((rows, text))
 }
 
+/// A TOML error as `FILE:LINE: message (in `the line`)`, so that errors whose message does not
+/// name the key (an unknown enum variant, a wrong type) still point at the field.
+fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> anyhow::Error {
+    let Some(span) = e.span() else {
+        return anyhow!("{}: {}", path.display(), e.message());
+    };
+    let line_no = text[..span.start.min(text.len())].matches('\n').count() + 1;
+    let line = text.lines().nth(line_no - 1).unwrap_or("").trim();
+    anyhow!(
+        "{}:{line_no}: {} (in `{line}`)",
+        path.display(),
+        e.message()
+    )
+}
+
 /// Reads solver settings for `glint invert --config` (TOML; unknown fields are errors).
 fn read_inversion_config(path: &Path) -> Result<glint_inversion::InversionConfig> {
     let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let config: glint_inversion::InversionConfig =
-        toml::from_str(&text).map_err(|e| anyhow!("{}: {}", path.display(), e.message()))?;
+        toml::from_str(&text).map_err(|e| toml_error(path, &text, &e))?;
     config
         .stage3
         .validate()
         .map_err(|e| anyhow!("{}: [stage3] {e}", path.display()))?;
+    config
+        .stage2
+        .validate()
+        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     Ok(config)
 }

@@ -116,6 +116,15 @@ fn invert_config_errors_name_the_file_and_the_field() {
         ("[stage3]\nmax_rotation_deg = 0.0\n", "max_rotation_deg"),
         ("[stage3]\nmax_rotatoin_deg = 10.0\n", "max_rotatoin_deg"),
         ("[stage3.start]\npoints_per_axis = 0\n", "start"),
+        (
+            "[stage2]\nmin_relative_separation = 2.0\n",
+            "stage2.min_relative_separation",
+        ),
+        ("[stage3]\nweak_prior = \"nearest\"\n", "weak_prior"),
+        (
+            "[stage3.observability]\nmin_lobe_share = -1.0\n",
+            "min_lobe_share",
+        ),
     ] {
         let cfg = dir.join("solver.toml");
         std::fs::write(&cfg, text).unwrap();

@@ -115,6 +115,20 @@ pub struct Stage2Config {
     pub min_relative_separation: f64,
 }
 
+impl Stage2Config {
+    /// Checks the settings (the error names the field).
+    pub fn validate(&self) -> Result<(), InversionError> {
+        let r = self.min_relative_separation;
+        if !(r > 0.0 && r <= 1.0) {
+            return Err(InversionError::InvalidConfig {
+                field: "stage2.min_relative_separation",
+                reason: "must be in (0, 1]",
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Default for Stage2Config {
     fn default() -> Self {
         Self {
@@ -378,13 +392,8 @@ pub fn run_stage2_with(
     bands: &[Stage1Band],
     config: &Stage2Config,
 ) -> Result<Stage2Result, InversionError> {
+    config.validate()?;
     let r = config.min_relative_separation;
-    if !(r > 0.0 && r <= 1.0) {
-        return Err(InversionError::InvalidConfig {
-            field: "stage2.min_relative_separation",
-            reason: "must be in (0, 1]",
-        });
-    }
     // The table depends on nothing but the constants: build it once per process.
     static GRID: OnceLock<SeparationGrid> = OnceLock::new();
     let grid = GRID.get_or_init(|| SeparationGrid::new(&INCIDENCES_DEG));
