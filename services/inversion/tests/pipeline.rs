@@ -108,7 +108,7 @@ fn config_round_trips_and_rejects_unknown_fields() {
     assert!(serde_json::from_str::<InversionConfig>(r#"{"joint": true}"#).is_err());
 }
 
-/// The fit horizon: stage 3 fits only the frames within 30° of rotation at the fitted rate, so
+/// The fit horizon: stage 3 fits only the frames within 25° of rotation at the fitted rate, so
 /// light the two-facet model does not contain beyond it (here: a strong extra term from frame
 /// 150 on, like the panel back or another face turning into view) does not bias the rates; the
 /// same data fitted on every frame do.
@@ -130,11 +130,11 @@ fn fit_horizon_keeps_light_beyond_the_model_out_of_the_fit() {
         }
     }
     let horizon = InversionConfig::default();
-    assert_eq!(horizon.stage3.max_rotation_deg, Some(30.0));
+    assert_eq!(horizon.stage3.max_rotation_deg, Some(25.0));
     let result = solve_three_stage(&set, &horizon).expect("solve");
-    // 30° / 0.25 deg/frame = 120 frames after the epoch (frames 0..=120), at the fitted rate.
+    // 25° / 0.25 deg/frame = 100 frames after the epoch (frames 0..=100), at the fitted rate.
     assert!(
-        (115..=125).contains(&result.fitted_frames),
+        (95..=105).contains(&result.fitted_frames),
         "{}",
         result.fitted_frames
     );
