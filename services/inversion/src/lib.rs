@@ -151,6 +151,7 @@ pub fn fit_rates(
         motion,
         &[band(chosen)],
         &covariances(&[chosen]),
+        None,
         model,
         config,
     )?;
@@ -158,7 +159,19 @@ pub fn fit_rates(
     let joint_rate = if joint {
         let all: Vec<usize> = (0..stage1.len()).collect();
         let bands: Vec<RateBand> = all.iter().map(|&b| band(b)).collect();
-        let (j, joint_problem) = horizon_fit(motion, &bands, &covariances(&all), model, config)?;
+        let covs = covariances(&all);
+        let (mut j, mut joint_problem) = horizon_fit(motion, &bands, &covs, None, model, config)?;
+        // Without σ every band gets weight 1 (in units of its mean flux), an assumption that
+        // its noise is the same fraction of its flux. Feasible weighted least squares replaces
+        // it by an estimate: each band's noise is its own residual level at the first solution
+        // (with its correlation time), so the bands the two-facet model explains worst (the
+        // diffuse-heavy ones) do not pull the common p; then fit again. With σ given the
+        // weights are σ's, and mismatch only scales the covariance (Birge ratio).
+        if let (Some(fit), false) = (j.fit(), joint_problem.sigma_given()) {
+            let scales = joint_problem.band_mismatch_scales(fit.rate_deg_per_frame);
+            let (j2, p2) = horizon_fit(motion, &bands, &covs, Some(&scales), model, config)?;
+            (j, joint_problem) = (j2, p2);
+        }
         Some((j, joint_problem.frame_count()))
     } else {
         None
@@ -216,7 +229,7 @@ pub fn fit_within_horizon(
     model: &MotionModelConfig,
     config: &Stage3Config,
 ) -> Result<(RateSolution, usize), InversionError> {
-    let (rate, problem) = horizon_fit(motion, bands, coefficient_covariance, model, config)?;
+    let (rate, problem) = horizon_fit(motion, bands, coefficient_covariance, None, model, config)?;
     Ok((rate, problem.frame_count()))
 }
 
@@ -225,6 +238,7 @@ fn horizon_fit(
     motion: &[Observation],
     bands: &[RateBand],
     coefficient_covariance: &[Option<Vec<f64>>],
+    band_scales: Option<&[f64]>,
     model: &MotionModelConfig,
     config: &Stage3Config,
 ) -> Result<(RateSolution, RateProblem), InversionError> {
@@ -236,8 +250,12 @@ fn horizon_fit(
         ..model.clone()
     };
     let build = |frames: &[Observation]| -> Result<RateProblem, InversionError> {
-        Ok(RateProblem::new(frames, bands, &model)?
-            .with_coefficient_covariance(coefficient_covariance.to_vec()))
+        let problem = RateProblem::new(frames, bands, &model)?
+            .with_coefficient_covariance(coefficient_covariance.to_vec());
+        Ok(match band_scales {
+            Some(scales) => problem.with_band_scales(scales),
+            None => problem,
+        })
     };
     let within = |horizon_frames: f64| -> Vec<Observation> {
         motion

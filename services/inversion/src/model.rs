@@ -253,6 +253,38 @@ impl RateProblem {
         })
     }
 
+    /// Divides each band's weights by its scale (> 0): the band's noise is taken `scale` times
+    /// larger. Used to down-weight the bands the model fits worst (see
+    /// [`Self::band_mismatch_scales`]).
+    pub fn with_band_scales(mut self, scales: &[f64]) -> Self {
+        for (band, s) in self.bands.iter_mut().zip(scales) {
+            if *s > 0.0 && s.is_finite() {
+                band.w.iter_mut().for_each(|w| *w /= s);
+            }
+        }
+        self
+    }
+
+    /// Per band, the factor by which its residuals at `p` exceed their noise, counting serial
+    /// correlation: sqrt(χ²_b/T · τ_b), τ_b the band's AR(1) correlation time, floored at 1
+    /// with σ given (a band the model explains to the noise keeps its weight). Without σ the
+    /// residual is all mismatch and the factors are relative (floored at 1e-12).
+    pub fn band_mismatch_scales(&self, p: [f64; 3]) -> Vec<f64> {
+        let nb = self.bands.len();
+        let t = self.frames.len().max(1);
+        let mut r = vec![0.0; self.residual_count()];
+        self.residuals(p, &mut r);
+        (0..nb)
+            .map(|b| {
+                let band: Vec<f64> = (0..t).map(|k| r[k * nb + b]).collect();
+                let chi2: f64 = band.iter().map(|v| v * v).sum();
+                let tau = crate::observability::correlation_time(&band, 1);
+                let floor = if self.sigma_given { 1.0 } else { 1e-12 };
+                (chi2 / t as f64 * tau).sqrt().max(floor)
+            })
+            .collect()
+    }
+
     /// Attaches the stage-1 coefficient covariance of each band (x̃ units, 22 × 22 row-major;
     /// `None` where unknown) so that [`Self::coefficient_term`] can propagate it.
     pub fn with_coefficient_covariance(mut self, per_band: Vec<Option<Vec<f64>>>) -> Self {

@@ -4,8 +4,8 @@ mod common;
 
 use common::*;
 use glint_inversion::{
-    rate_error_metric, solve_three_stage, InversionConfig, InversionError, InversionResult,
-    ObservationSet,
+    fit_within_horizon, rate_error_metric, solve_three_stage, InversionConfig, InversionError,
+    InversionResult, ObservationSet, RateBand,
 };
 
 #[test]
@@ -156,5 +156,58 @@ fn fit_horizon_keeps_light_beyond_the_model_out_of_the_fit() {
     assert!(
         worse > 5.0 * eps.min(mirror).max(0.1),
         "every frame: {worse}, horizon: {eps}"
+    );
+}
+
+/// Without σ, the joint fit estimates each band's noise from its own residuals (feasible
+/// weighted least squares): bands carrying light the model does not contain stop pulling the
+/// common p. Here three of eight bands get an unmodelled ripple in the motion window.
+#[test]
+fn joint_fit_down_weights_the_bands_the_model_fits_worst() {
+    let p_true = [0.0, 0.25, 0.0];
+    let mut set = scenario(720, 360, p_true);
+    let n = set.motion.len() as f64;
+    let mean: Vec<f64> = (0..BANDS_NM.len())
+        .map(|b| set.motion.iter().map(|o| o.flux_w[b]).sum::<f64>() / n)
+        .collect();
+    for (t, o) in set.motion.iter_mut().enumerate() {
+        for (f, m) in o.flux_w.iter_mut().zip(&mean).skip(5) {
+            *f += 0.2 * m * (t as f64 / 20.0).sin();
+        }
+    }
+    let config = InversionConfig {
+        joint_fit: true,
+        ..InversionConfig::default()
+    };
+    let result = solve_three_stage(&set, &config).expect("solve");
+    let joint = result
+        .joint_rate
+        .as_ref()
+        .and_then(|j| j.fit())
+        .expect("joint");
+    let weighted = rate_error_metric(joint.rate_deg_per_frame, p_true);
+    // The same stacked problem with every band at weight 1.
+    let bands: Vec<RateBand> = result
+        .stage1
+        .iter()
+        .enumerate()
+        .map(|(b, s1)| RateBand {
+            band_index: b,
+            wavelength_nm: s1.wavelength_nm,
+            coeffs: s1.coeffs,
+        })
+        .collect();
+    let (equal, _) = fit_within_horizon(
+        &set.motion,
+        &bands,
+        &vec![None; bands.len()],
+        &config.model,
+        &config.stage3,
+    )
+    .expect("fit");
+    let equal = rate_error_metric(equal.fit().expect("determined").rate_deg_per_frame, p_true);
+    assert!(
+        weighted < 0.5 && weighted < 0.5 * equal,
+        "weighted {weighted}, equal weights {equal}"
     );
 }
