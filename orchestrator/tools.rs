@@ -166,20 +166,21 @@ fn sweep_bands(
     let mut text = String::from("band sweep (stage 3 at each band):\n");
     let mut errors = Vec::new();
     for (b, band) in result.stage1.iter().enumerate() {
-        let fits = glint_inversion::fit_rates(
+        // Each band as λ* would be fitted: with the joint fit (when run) deciding the sense of
+        // rotation where the band alone cannot.
+        let (rate, fitted_frames, _) = glint_inversion::fit_band(
             &file.set.motion,
             &result.stage1,
             b,
             &config.model,
             &config.stage3,
-            false,
+            result.joint_rate.as_ref(),
         )?;
-        let p = fits.rate.fit().map(|f| f.rate_deg_per_frame);
+        let p = rate.fit().map(|f| f.rate_deg_per_frame);
         // Fit quality at the band: RMS residual relative to the band's mean flux.
-        let rms_residual = fits
-            .rate
+        let rms_residual = rate
             .fit()
-            .map(|f| (f.cost / fits.fitted_frames.max(1) as f64).sqrt());
+            .map(|f| (f.cost / fitted_frames.max(1) as f64).sqrt());
         let err = match (p, file.truth_rate_deg_per_frame) {
             (Some(p), Some(t)) => Some(glint_inversion::rate_error_metric(p, t)),
             _ => None,

@@ -70,6 +70,13 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
         at_chosen["p_deg_per_frame"],
         off["rate"]["rate_deg_per_frame"]
     );
+    // Stage 2's target: λ*'s stage-3 error is the lowest of the sweep or within 10 % of it.
+    let lowest = sweep
+        .iter()
+        .filter_map(|r| r["err_paper_metric"].as_f64())
+        .fold(f64::INFINITY, f64::min);
+    let own = at_chosen["err_paper_metric"].as_f64().unwrap();
+    assert!(own <= 1.1 * lowest, "λ* error {own}, lowest {lowest}");
     if s3["status"] == "ok" {
         let p_service = &s3["p_deg_per_frame"];
         let p_offline = &off["rate"]["rate_deg_per_frame"];

@@ -136,55 +136,19 @@ pub fn fit_rates(
     config: &Stage3Config,
     joint: bool,
 ) -> Result<RateFits, InversionError> {
-    let band = |b: usize| RateBand {
-        band_index: b,
-        wavelength_nm: stage1[b].wavelength_nm,
-        coeffs: stage1[b].coeffs,
-    };
-    let covariances = |bands: &[usize]| -> Vec<Option<Vec<f64>>> {
-        bands
-            .iter()
-            .map(|&b| stage1[b].coeff_covariance.clone())
-            .collect()
-    };
-    let (mut rate, problem) = horizon_fit(
-        motion,
-        &[band(chosen)],
-        &covariances(&[chosen]),
-        None,
-        model,
-        config,
-    )?;
-    let fitted_frames = problem.frame_count();
     let joint_rate = if joint {
-        let all: Vec<usize> = (0..stage1.len()).collect();
-        let bands: Vec<RateBand> = all.iter().map(|&b| band(b)).collect();
-        let covs = covariances(&all);
-        let (mut j, mut joint_problem) = horizon_fit(motion, &bands, &covs, None, model, config)?;
-        // Without σ every band gets weight 1 (in units of its mean flux), an assumption that
-        // its noise is the same fraction of its flux. Feasible weighted least squares replaces
-        // it by an estimate: each band's noise is its own residual level at the first solution
-        // (with its correlation time), so the bands the two-facet model explains worst (the
-        // diffuse-heavy ones) do not pull the common p; then fit again. With σ given the
-        // weights are σ's, and mismatch only scales the covariance (Birge ratio).
-        if let (Some(fit), false) = (j.fit(), joint_problem.sigma_given()) {
-            let scales = joint_problem.band_mismatch_scales(fit.rate_deg_per_frame);
-            let (j2, p2) = horizon_fit(motion, &bands, &covs, Some(&scales), model, config)?;
-            (j, joint_problem) = (j2, p2);
-        }
-        Some((j, joint_problem.frame_count()))
+        Some(fit_joint(motion, stage1, model, config)?)
     } else {
         None
     };
-    let mut sense_from_joint = false;
-    if let Some(p) = joint_rate.as_ref().and_then(|(j, _)| sense_from(&rate, j)) {
-        if let Ok(flipped @ RateSolution::Determined(_)) =
-            stage3::fit_from_starts(&problem, &[p], config)
-        {
-            rate = flipped;
-            sense_from_joint = true;
-        }
-    }
+    let (rate, fitted_frames, sense_from_joint) = fit_band(
+        motion,
+        stage1,
+        chosen,
+        model,
+        config,
+        joint_rate.as_ref().map(|j| &j.0),
+    )?;
     Ok(RateFits {
         rate,
         fitted_frames,
@@ -192,6 +156,69 @@ pub fn fit_rates(
         joint_rate: joint_rate.map(|j| j.0),
         sense_from_joint,
     })
+}
+
+fn rate_band(stage1: &[Stage1Band], b: usize) -> RateBand {
+    RateBand {
+        band_index: b,
+        wavelength_nm: stage1[b].wavelength_nm,
+        coeffs: stage1[b].coeffs,
+    }
+}
+
+/// Stage 3 at band `b` over its fit horizon. With a `joint` solution, when p̂ and its mirror
+/// fit this band equally well and the joint fit is not ambiguous, the sense of rotation is the
+/// joint fit's (see [`sense_from`]). Returns the solution, the frames fitted and whether the
+/// joint fit decided the sense.
+pub fn fit_band(
+    motion: &[Observation],
+    stage1: &[Stage1Band],
+    b: usize,
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+    joint: Option<&RateSolution>,
+) -> Result<(RateSolution, usize, bool), InversionError> {
+    let covariance = vec![stage1[b].coeff_covariance.clone()];
+    let (rate, problem) = horizon_fit(
+        motion,
+        &[rate_band(stage1, b)],
+        &covariance,
+        None,
+        model,
+        config,
+    )?;
+    if let Some(p) = joint.and_then(|j| sense_from(&rate, j)) {
+        if let Ok(flipped @ RateSolution::Determined(_)) =
+            stage3::fit_from_starts(&problem, &[p], config)
+        {
+            return Ok((flipped, problem.frame_count(), true));
+        }
+    }
+    Ok((rate, problem.frame_count(), false))
+}
+
+/// One p for all bands over its fit horizon; returns the solution and the frames fitted.
+///
+/// Without σ every band gets weight 1 (in units of its mean flux), an assumption that its noise
+/// is the same fraction of its flux. Feasible weighted least squares replaces it by an
+/// estimate: each band's noise is its own residual level at the first solution (with its
+/// correlation time), so the bands the two-facet model explains worst (the diffuse-heavy ones)
+/// do not pull the common p; then it fits again. With σ given the weights are σ's, and
+/// mismatch only scales the covariance (Birge ratio).
+pub fn fit_joint(
+    motion: &[Observation],
+    stage1: &[Stage1Band],
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+) -> Result<(RateSolution, usize), InversionError> {
+    let bands: Vec<RateBand> = (0..stage1.len()).map(|b| rate_band(stage1, b)).collect();
+    let covs: Vec<Option<Vec<f64>>> = stage1.iter().map(|s| s.coeff_covariance.clone()).collect();
+    let (mut j, mut problem) = horizon_fit(motion, &bands, &covs, None, model, config)?;
+    if let (Some(fit), false) = (j.fit(), problem.sigma_given()) {
+        let scales = problem.band_mismatch_scales(fit.rate_deg_per_frame);
+        (j, problem) = horizon_fit(motion, &bands, &covs, Some(&scales), model, config)?;
+    }
+    Ok((j, problem.frame_count()))
 }
 
 /// When the λ* data fit p̂ and its mirror equally well (the sense of rotation about X and Z is
