@@ -271,21 +271,25 @@ impl SeparationGrid {
             }
             (i_max, peak)
         };
+        // Candidates: the first point of every coarse local maximum (a plateau, e.g. where
+        // every lobe has underflowed to 0, counts once) within 10 % of the highest coarse
+        // value; no feature of N_k is narrow enough to rise more than that between two 0.1°
+        // samples (the narrowest lobe's FWHM is ≈ 1.9°).
+        let coarse_max = coarse.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
         let local_maxima = (0..coarse.len()).filter(|&k| {
             let left = k.checked_sub(1).map_or(f64::NEG_INFINITY, |j| coarse[j]);
             let right = coarse.get(k + 1).copied().unwrap_or(f64::NEG_INFINITY);
-            coarse[k] >= left && coarse[k] >= right
+            coarse[k] > left && coarse[k] >= right && coarse[k] >= 0.9 * coarse_max
         });
+        let best = local_maxima
+            .map(refine)
+            .fold(None, |best: Option<(usize, f64)>, (i, v)| match best {
+                Some((bi, bv)) if !(v > bv || (v == bv && i < bi)) => best,
+                _ => Some((i, v)),
+            });
+        // No candidate only when the curve is not a number anywhere: the coarse argmax.
         let (i_max, peak) =
-            local_maxima
-                .map(refine)
-                .fold((0, f64::NEG_INFINITY), |best, (i, v)| {
-                    if v > best.1 || (v == best.1 && i < best.0) {
-                        (i, v)
-                    } else {
-                        best
-                    }
-                });
+            best.unwrap_or_else(|| refine(first_argmax(coarse.iter().copied().enumerate()).0));
         let half = 0.5 * peak;
 
         // Left: first coarse point below half walking left, then refine the cell level by level:
