@@ -188,10 +188,19 @@ pub fn fit_band(
         config,
     )?;
     if let Some(p) = joint.and_then(|j| sense_from(&rate, j)) {
-        if let Ok(flipped @ RateSolution::Determined(_)) =
-            stage3::fit_from_starts(&problem, &[p], config)
+        if let (Ok(RateSolution::Determined(mut flipped)), Some(first)) =
+            (stage3::fit_from_starts(&problem, &[p], config), rate.fit())
         {
-            return Ok((flipped, problem.frame_count(), true));
+            // The record covers the whole search: the first multi-start and the re-polish.
+            flipped.total_iterations += first.total_iterations;
+            flipped.starts_polished += first.starts_polished;
+            flipped.grid_points = first.grid_points;
+            flipped.starts_screened = first.starts_screened;
+            return Ok((
+                RateSolution::Determined(flipped),
+                problem.frame_count(),
+                true,
+            ));
         }
     }
     Ok((rate, problem.frame_count(), false))
