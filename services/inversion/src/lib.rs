@@ -208,12 +208,13 @@ pub fn fit_band(
 
 /// One p for all bands over its fit horizon; returns the solution and the frames fitted.
 ///
-/// Without σ every band gets weight 1 (in units of its mean flux), an assumption that its noise
-/// is the same fraction of its flux. Feasible weighted least squares replaces it by an
-/// estimate: each band's noise is its own residual level at the first solution (with its
-/// correlation time), so the bands the two-facet model explains worst (the diffuse-heavy ones)
-/// do not pull the common p; then it fits again. With σ given the weights are σ's, and
-/// mismatch only scales the covariance (Birge ratio).
+/// Feasible weighted least squares: a first fit weights every band by its σ (or, without σ,
+/// equally, in units of its mean flux). Each band's noise is then re-estimated from its own
+/// residual level at that solution, with its correlation time, floored at σ when σ is given
+/// ([`RateProblem::band_mismatch_scales`]), and the fit is run again. The bands the two-facet
+/// model explains worst (the diffuse-heavy ones, whose mismatch exceeds their noise) then stop
+/// pulling the common p. Down-weighting them also weakens the evidence for the sense of
+/// rotation, so the reweighted fit keeps the first fit's sense (see [`keep_sense`]).
 pub fn fit_joint(
     motion: &[Observation],
     stage1: &[Stage1Band],
@@ -222,13 +223,47 @@ pub fn fit_joint(
 ) -> Result<(RateSolution, usize), InversionError> {
     let bands: Vec<RateBand> = (0..stage1.len()).map(|b| rate_band(stage1, b)).collect();
     let covs: Vec<Option<Vec<f64>>> = stage1.iter().map(|s| s.coeff_covariance.clone()).collect();
-    let (mut j, mut problem) = horizon_fit(motion, &bands, &covs, None, model, config)?;
-    if let (Some(fit), false) = (j.fit(), problem.sigma_given()) {
-        let scales = problem.band_mismatch_scales(fit.rate_deg_per_frame);
-        (j, problem) = horizon_fit(motion, &bands, &covs, Some(&scales), model, config)?;
-    }
-    Ok((j, problem.frame_count()))
+    let (j, problem) = horizon_fit(motion, &bands, &covs, None, model, config)?;
+    let Some(first) = j.fit().map(|f| f.rate_deg_per_frame) else {
+        return Ok((j, problem.frame_count()));
+    };
+    let scales = problem.band_mismatch_scales(first);
+    let (reweighted, reweighted_problem) =
+        horizon_fit(motion, &bands, &covs, Some(&scales), model, config)?;
+    Ok(
+        match keep_sense(reweighted, &reweighted_problem, first, config) {
+            Some(j2) => (j2, reweighted_problem.frame_count()),
+            None => (j, problem.frame_count()),
+        },
+    )
 }
+
+/// The reweighted joint solution with the sense of rotation of `first`: as it is when it is
+/// nearer `first` than its mirror (−w_x, w_y, −w_z) is (or the two are too close to tell),
+/// else re-polished from the mirror; `None` (keep the first fit) when that fails or does not
+/// hold the sense.
+fn keep_sense(
+    reweighted: RateSolution,
+    problem: &RateProblem,
+    first: [f64; 3],
+    config: &Stage3Config,
+) -> Option<RateSolution> {
+    let q = reweighted.fit()?.rate_deg_per_frame;
+    let mirror = |p: [f64; 3]| [-p[0], p[1], -p[2]];
+    let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
+    let wrong_side = |p: [f64; 3]| {
+        d2(p, mirror(p)).sqrt() > SAME_SENSE_DEG_PER_FRAME && d2(mirror(p), first) < d2(p, first)
+    };
+    if !wrong_side(q) {
+        return Some(reweighted);
+    }
+    let flipped = stage3::fit_from_starts(problem, &[mirror(q)], config).ok()?;
+    let p = flipped.fit()?.rate_deg_per_frame;
+    (!wrong_side(p)).then_some(flipped)
+}
+
+/// A rate closer than this to its own mirror has no sense of rotation to keep \[deg/frame\].
+const SAME_SENSE_DEG_PER_FRAME: f64 = 1e-2;
 
 /// When the λ* data fit p̂ and its mirror equally well (the sense of rotation about X and Z is
 /// not observable in that band) but the joint fit over all bands is not ambiguous, the mirror
