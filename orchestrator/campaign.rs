@@ -121,21 +121,33 @@ pub(crate) fn fmt(v: &Value, digits: usize) -> String {
     num(v).map_or("—".into(), |x| format!("{x:.digits$}"))
 }
 
-fn summary(scenario: &Scenario, parameter: &str, rows: &[Value]) -> String {
+/// A campaign summary's title, the scenario's description and its windows (every figure
+/// depends on them); `seeds` for a Monte-Carlo campaign.
+pub(crate) fn summary_head(scenario: &Scenario, parameter: &str, seeds: Option<u32>) -> String {
+    let per_value = seeds.map_or(String::new(), |n| format!(", {n} seeds per value"));
     let mut s = format!(
-        "# glint campaign: {} — sweep of `{parameter}`\n\n",
+        "# glint campaign: {} — sweep of `{parameter}`{per_value}\n\n",
         scenario.name
     );
     if !scenario.description.is_empty() {
         let _ = writeln!(s, "{}\n", scenario.description.trim());
     }
     if let Some(sp) = &scenario.spectra {
+        let last_seed = scenario.seed + seeds.map_or(0, |n| u64::from(n.max(1) - 1));
         let _ = writeln!(
             s,
-            "Windows: stable {} samples from phase {}°, motion {} frames {} s apart; materials `{:?}`; seed {}. Error = 100·‖p − p*‖ (deg/frame), as the paper prints it; 1σ bounds along the Fisher eigen-directions (weakest first).\n",
-            sp.stable_samples, sp.stable_start_phase_deg, sp.motion_frames, sp.frame_interval_s, sp.materials, scenario.seed
+            "Windows: stable {} samples from phase {}°, motion {} frames {} s apart (stage 3 fits the frames within {}° of rotation); materials `{:?}`, body `{:?}`; seeds {}…{}.\n",
+            sp.stable_samples, sp.stable_start_phase_deg, sp.motion_frames, sp.frame_interval_s,
+            glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG, sp.materials, sp.body_shape,
+            scenario.seed, last_seed
         );
     }
+    s
+}
+
+fn summary(scenario: &Scenario, parameter: &str, rows: &[Value]) -> String {
+    let mut s = summary_head(scenario, parameter, None);
+    s.push_str("Error = 100·‖p − p*‖ (deg/frame), as the paper prints it; 1σ bounds along the Fisher eigen-directions (weakest first).\n\n");
     let _ = writeln!(s, "| {parameter} | status | band [nm] | p [deg/frame] | error (ours, λ*) | error of the equally good mirror | error (ours, joint) | paper | 1σ bounds [deg/frame] | run |\n|---|---|---|---|---|---|---|---|---|---|");
     for r in rows {
         let p = r["p_deg_per_frame"].as_array().map_or("—".into(), |p| {

@@ -344,21 +344,8 @@ fn fmt_e(v: &Value) -> String {
 /// efficiency and NEES table.
 pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value]) -> String {
     use std::fmt::Write as _;
-    let mut s = format!(
-        "# glint campaign: {} — sweep of `{parameter}`, {seeds} seeds per value\n\n",
-        scenario.name
-    );
-    if !scenario.description.is_empty() {
-        let _ = writeln!(s, "{}\n", scenario.description.trim());
-    }
-    if let Some(sp) = &scenario.spectra {
-        let _ = writeln!(
-            s,
-            "Windows: stable {} samples from phase {}°, motion {} frames {} s apart (stage 3 fits the frames within 30° of rotation); materials `{:?}`, body `{:?}`; seeds {}…{}. Noise σ = mean Φ / SNR per band and window, both windows noisy.\n",
-            sp.stable_samples, sp.stable_start_phase_deg, sp.motion_frames, sp.frame_interval_s,
-            sp.materials, sp.body_shape, scenario.seed, scenario.seed + seeds as u64 - 1
-        );
-    }
+    let mut s = crate::campaign::summary_head(scenario, parameter, Some(seeds));
+    s.push_str("Noise σ = mean Φ / SNR per band and window, both windows noisy.\n\n");
     s.push_str("## Error against the truth (median over seeds; paper metric 100·‖p − p*‖)\n\n");
     let _ = writeln!(
         s,
