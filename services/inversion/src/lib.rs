@@ -168,7 +168,7 @@ fn rate_band(stage1: &[Stage1Band], b: usize) -> RateBand {
 
 /// Stage 3 at band `b` over its fit horizon. With a `joint` solution, when p̂ and its mirror
 /// fit this band equally well and the joint fit is not ambiguous, the sense of rotation is the
-/// joint fit's (see [`sense_from`]). Returns the solution, the frames fitted and whether the
+/// joint fit's (`stage3::sense_from`). Returns the solution, the frames fitted and whether the
 /// joint fit decided the sense.
 pub fn fit_band(
     motion: &[Observation],
@@ -187,7 +187,7 @@ pub fn fit_band(
         model,
         config,
     )?;
-    if let Some(p) = joint.and_then(|j| sense_from(&rate, j)) {
+    if let Some(p) = joint.and_then(|j| stage3::sense_from(&rate, j)) {
         if let (Ok(RateSolution::Determined(mut flipped)), Some(first)) =
             (stage3::fit_from_starts(&problem, &[p], config), rate.fit())
         {
@@ -214,7 +214,7 @@ pub fn fit_band(
 /// ([`RateProblem::band_mismatch_scales`]), and the fit is run again. The bands the two-facet
 /// model explains worst (the diffuse-heavy ones, whose mismatch exceeds their noise) then stop
 /// pulling the common p. Down-weighting them also weakens the evidence for the sense of
-/// rotation, so the reweighted fit keeps the first fit's sense (see [`keep_sense`]).
+/// rotation, so the reweighted fit keeps the first fit's sense (`stage3::keep_sense`).
 pub fn fit_joint(
     motion: &[Observation],
     stage1: &[Stage1Band],
@@ -231,56 +231,11 @@ pub fn fit_joint(
     let (reweighted, reweighted_problem) =
         horizon_fit(motion, &bands, &covs, Some(&scales), model, config)?;
     Ok(
-        match keep_sense(reweighted, &reweighted_problem, first, config) {
+        match stage3::keep_sense(reweighted, &reweighted_problem, first, config) {
             Some(j2) => (j2, reweighted_problem.frame_count()),
             None => (j, problem.frame_count()),
         },
     )
-}
-
-/// The reweighted joint solution with the sense of rotation of `first`: as it is when it is
-/// nearer `first` than its mirror (−w_x, w_y, −w_z) is (or the two are too close to tell),
-/// else re-polished from the mirror; `None` (keep the first fit) when that fails or does not
-/// hold the sense.
-fn keep_sense(
-    reweighted: RateSolution,
-    problem: &RateProblem,
-    first: [f64; 3],
-    config: &Stage3Config,
-) -> Option<RateSolution> {
-    let q = reweighted.fit()?.rate_deg_per_frame;
-    let mirror = |p: [f64; 3]| [-p[0], p[1], -p[2]];
-    let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
-    let wrong_side = |p: [f64; 3]| {
-        d2(p, mirror(p)).sqrt() > SAME_SENSE_DEG_PER_FRAME && d2(mirror(p), first) < d2(p, first)
-    };
-    if !wrong_side(q) {
-        return Some(reweighted);
-    }
-    let flipped = stage3::fit_from_starts(problem, &[mirror(q)], config).ok()?;
-    let p = flipped.fit()?.rate_deg_per_frame;
-    (!wrong_side(p)).then_some(flipped)
-}
-
-/// A rate closer than this to its own mirror has no sense of rotation to keep \[deg/frame\].
-const SAME_SENSE_DEG_PER_FRAME: f64 = 1e-2;
-
-/// When the λ* data fit p̂ and its mirror equally well (the sense of rotation about X and Z is
-/// not observable in that band) but the joint fit over all bands is not ambiguous, the mirror
-/// to start from if it is the one nearer the joint solution: the other bands' evidence decides
-/// the sense. `None` to keep p̂.
-fn sense_from(rate: &RateSolution, joint: &RateSolution) -> Option<[f64; 3]> {
-    let (fit, joint) = (rate.fit()?, joint.fit()?);
-    let mirror = fit.mirror_deg_per_frame?;
-    if joint.mirror_deg_per_frame.is_some() {
-        return None;
-    }
-    let distance = |a: [f64; 3]| -> f64 {
-        (0..3)
-            .map(|i| (a[i] - joint.rate_deg_per_frame[i]).powi(2))
-            .sum::<f64>()
-    };
-    (distance(mirror) < distance(fit.rate_deg_per_frame)).then_some(mirror)
 }
 
 /// Multi-start fit on the frames within the fit horizon: the first window is valid for every
@@ -381,55 +336,4 @@ pub struct RateFits {
     /// The λ* data could not tell p̂ from its mirror and the joint fit decided the sense of
     /// rotation (see [`fit_rates`]).
     pub sense_from_joint: bool,
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::lm::StopReason;
-    use crate::observability::{CovarianceSource, Observability};
-    use crate::stage3::RateFit;
-
-    fn fit(p: [f64; 3], mirror: Option<[f64; 3]>) -> RateSolution {
-        RateSolution::Determined(RateFit {
-            wavelengths_nm: vec![400.0],
-            rate_deg_per_frame: p,
-            covariance_deg2_per_frame2: [[0.0; 3]; 3],
-            covariance_source: CovarianceSource::GivenSigma,
-            cost: 1.0,
-            iterations: 1,
-            total_iterations: 1,
-            stop: StopReason::SmallStep,
-            grid_points: 0,
-            starts_screened: 0,
-            starts_polished: 1,
-            start_deg_per_frame: p,
-            observability: Observability {
-                information_eigenvalues: [1.0; 3],
-                eigenvectors: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-                bounds_1sigma_deg_per_frame: [1.0; 3],
-                unobservable: [false; 3],
-                threshold_deg_per_frame: 0.25,
-                condition_number: 1.0,
-                rms_sensitivity_per_deg_per_frame: 1.0,
-            },
-            mirror_deg_per_frame: mirror,
-        })
-    }
-
-    #[test]
-    fn the_joint_fit_decides_the_sense_only_when_lambda_star_cannot() {
-        let p = [0.0, -0.006, -0.25];
-        let m = [0.0, -0.006, 0.25];
-        let joint = fit([0.0, -0.001, 0.249], None);
-        // λ* ambiguous, joint not: start from the mirror, the one nearer the joint fit.
-        assert_eq!(sense_from(&fit(p, Some(m)), &joint), Some(m));
-        // λ* already on the joint's side: keep it.
-        assert_eq!(sense_from(&fit(m, Some(p)), &joint), None);
-        // λ* not ambiguous: its own answer stands.
-        assert_eq!(sense_from(&fit(p, None), &joint), None);
-        // The joint fit ambiguous too: no evidence either way.
-        let joint_ambiguous = fit([0.0, -0.001, 0.249], Some([0.0, -0.001, -0.249]));
-        assert_eq!(sense_from(&fit(p, Some(m)), &joint_ambiguous), None);
-    }
 }

@@ -25,16 +25,17 @@
 //! (same p), see [`RateProblem::new`].
 
 use crate::error::InversionError;
-use crate::lm::{
-    levenberg_marquardt, levenberg_marquardt_prior, levenberg_marquardt_with, LmConfig, LmOutcome,
-    Prior, StopReason,
-};
+use crate::lm::{levenberg_marquardt, levenberg_marquardt_with, LmConfig, LmOutcome, StopReason};
 use crate::model::RateProblem;
 use crate::observability::{
-    analyse, given_sigma_scale, residual_variance, widen_to_likelihood_intervals, CovarianceSource,
-    Observability, ObservabilityConfig, UnobservableReason,
+    analyse, widen_to_likelihood_intervals, CovarianceSource, Observability, ObservabilityConfig,
+    UnobservableReason,
 };
 use serde::{Deserialize, Serialize};
+
+mod weak;
+pub(crate) use weak::{keep_sense, sense_from};
+pub use weak::{mirror, WeakPrior};
 
 /// Multi-start settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -117,52 +118,6 @@ impl Default for Stage3Config {
 /// the window, the more light from surfaces outside the two-facet model. 25° keeps 100 frames
 /// at 0.25 deg/frame for the noise.
 pub const DEFAULT_MAX_ROTATION_DEG: f64 = 25.0;
-
-/// The stated prior under which stage 3 holds a direction the data cannot determine.
-///
-/// Either way the held direction is reported unobservable and only the determined combinations
-/// of p come from the data; the prior decides where along u the reported p sits.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum WeakPrior {
-    /// The body rate about the body axis e nearest u is zero: e·p = 0 (default). The rate is
-    /// assumed to lie in the plane of the other two body axes, a statement about the body, not
-    /// about the observing geometry; in the co-orbital geometry u is within a few degrees of
-    /// body X and the prior reads w_x = 0.
-    #[default]
-    BodyAxis,
-    /// The component along u itself is zero: u·p = 0 (the minimum-norm choice). A truth with a
-    /// component along u (a Z rotation has u·p* = −0.03 deg/frame when u is 7° off body X) is
-    /// then biased by that component.
-    EigenDirection,
-}
-
-impl WeakPrior {
-    /// The constraint direction for each held u: u itself, or the body axis nearest u (falling
-    /// back to u when two held directions share that axis).
-    pub fn directions(self, weak: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        let mut out: Vec<[f64; 3]> = Vec::with_capacity(weak.len());
-        for u in weak {
-            let d = match self {
-                WeakPrior::EigenDirection => *u,
-                WeakPrior::BodyAxis => {
-                    let k = (0..3)
-                        .max_by(|&a, &b| u[a].abs().total_cmp(&u[b].abs()))
-                        .unwrap_or(0);
-                    let mut e = [0.0; 3];
-                    e[k] = 1.0;
-                    if out.contains(&e) {
-                        *u
-                    } else {
-                        e
-                    }
-                }
-            };
-            out.push(d);
-        }
-        out
-    }
-}
 
 /// A determined rate estimate.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -353,70 +308,7 @@ fn in_box(p: &[f64; 3], start: &StartConfig) -> bool {
     p.iter().all(|v| v.abs() <= start.half_width_deg_per_frame)
 }
 
-/// Largest cost increase, in noise variances, at which the data still accept holding the
-/// weakest direction at its prior (3σ for one degree of freedom).
-const HOLD_MAX_DELTA_CHI2: f64 = 9.0;
-
-/// One noise variance in cost units for likelihood-ratio tests between two fits: with σ given,
-/// 1 (whitened residuals) unless the residuals reject the model, then the inflated Birge ratio
-/// ([`given_sigma_scale`]); without σ, the residual variance of the fit p̂, inflated for the
-/// residuals' serial correlation ([`residual_variance`]). Model mismatch is smooth in time, and
-/// counting its N residuals as independent would make any prior look rejected.
-fn noise_variance(problem: &RateProblem, p: [f64; 3], config: &Stage3Config) -> f64 {
-    let mut r = vec![0.0; problem.residual_count()];
-    let cost = problem.residuals(p, &mut r);
-    if problem.sigma_given() {
-        return given_sigma_scale(problem, &r, cost).0;
-    }
-    residual_variance(problem, &r, cost, &config.observability).0
-}
-
-/// Re-fits with the prior u·p = 0 on `weak` (from p̂ projected onto the prior); returns the
-/// held outcome (cost without the prior), the analysis there and the LM iterations used.
-fn hold_at_prior(
-    problem: &RateProblem,
-    best: &LmOutcome,
-    weak: &[[f64; 3]],
-    analysis: &crate::observability::Analysis,
-    config: &Stage3Config,
-) -> Result<(LmOutcome, crate::observability::Analysis, usize), InversionError> {
-    let strongest = analysis
-        .observability
-        .information_eigenvalues
-        .iter()
-        .cloned()
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, f64::max);
-    let directions = config.weak_prior.directions(weak);
-    let prior = Prior {
-        directions: directions.clone(),
-        weight: PRIOR_WEIGHT_FACTOR * strongest.max(1.0),
-    };
-    // Start on the prior's plane, reached by moving along the held direction only (so the
-    // determined combinations keep their fitted values): p₀ = p − u (e·p)/(e·u).
-    let dot = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
-    let mut p0 = best.p_deg_per_frame;
-    for (u, e) in weak.iter().zip(&directions) {
-        let t = dot(e, &p0) / dot(e, u);
-        for i in 0..3 {
-            p0[i] -= u[i] * t;
-        }
-    }
-    let refit = levenberg_marquardt_prior(problem, p0, &config.lm, &prior, |_, _, _| false)?;
-    let held_analysis = analyse(problem, refit.p_deg_per_frame, &config.observability)?;
-    let iterations = refit.iterations;
-    let held = LmOutcome {
-        cost: problem.cost(refit.p_deg_per_frame),
-        ..refit
-    };
-    Ok((held, held_analysis, iterations))
-}
-
 /// Polishes `starts`; `counts` = (grid points, screened starts) for the record.
-/// Weight of the prior on unobservable directions, relative to the largest eigenvalue of the
-/// information matrix: large enough that the prior decides those components.
-const PRIOR_WEIGHT_FACTOR: f64 = 1e6;
-
 fn polish(
     problem: &RateProblem,
     starts: &[[f64; 3]],
@@ -430,10 +322,7 @@ fn polish(
         // A later start is dropped once it rejoins the best solution or stays clearly worse.
         let known = best.map(|(b, _)| (b.p_deg_per_frame, b.cost));
         let abandon = |p: &[f64; 3], cost: f64, _k: usize| match known {
-            Some((q, c)) => {
-                let d2: f64 = (0..3).map(|i| (p[i] - q[i]).powi(2)).sum();
-                d2.sqrt() < REJOIN_DEG_PER_FRAME && cost >= c
-            }
+            Some((q, c)) => weak::distance(*p, q) < REJOIN_DEG_PER_FRAME && cost >= c,
             None => false,
         };
         let out = levenberg_marquardt_with(problem, p0, &config.lm, abandon)?;
@@ -460,43 +349,11 @@ fn polish(
     let mut analysis = analyse(problem, best.p_deg_per_frame, &config.observability)?;
     let wavelengths_nm = problem.wavelengths_nm().to_vec();
     let mut best = best;
-    // Directions the data cannot determine (math.md §1.6: the sun–observer bisector) are held
-    // at the stated prior u·p = 0 and the rest re-fitted, instead of reporting wherever LM
-    // drifted along them. The returned observability still marks them unobservable.
-    let weak: Vec<[f64; 3]> = (0..3)
-        .filter(|&i| analysis.observability.unobservable[i])
-        .map(|i| analysis.observability.eigenvectors[i])
-        .collect();
+    // Directions the data cannot determine are held under the stated prior.
     if analysis.unobservable.is_none() && config.hold_unobservable_at_prior {
-        if !weak.is_empty() {
-            let (held, mut held_analysis, iterations) =
-                hold_at_prior(problem, &best, &weak, &analysis, config)?;
-            total_iterations += iterations;
-            // The classification stays the one at the unconstrained optimum.
-            held_analysis.observability.unobservable = analysis.observability.unobservable;
-            held_analysis.unobservable = None;
-            analysis = held_analysis;
-            best = held;
-        } else {
-            // The bisector is invisible to first order only near u·p = 0 (the light curve
-            // depends on it about quadratically there); a fit that drifted along it sees
-            // curvature that is not there at the prior. So the weakest direction is judged
-            // where the prior puts it: held if it is unobservable at the held solution and the
-            // data do not reject the prior (likelihood ratio: Δχ² ≤ 9, 3σ).
-            let u = analysis.observability.eigenvectors[0];
-            let (held, held_analysis, iterations) =
-                hold_at_prior(problem, &best, &[u], &analysis, config)?;
-            total_iterations += iterations;
-            let variance = noise_variance(problem, best.p_deg_per_frame, config);
-            let accepted = (held.cost - best.cost) / variance <= HOLD_MAX_DELTA_CHI2;
-            if accepted
-                && held_analysis.unobservable.is_none()
-                && held_analysis.observability.unobservable[0]
-            {
-                analysis = held_analysis;
-                best = held;
-            }
-        }
+        let iterations;
+        (best, analysis, iterations) = weak::hold_weak_direction(problem, best, analysis, config)?;
+        total_iterations += iterations;
     }
     if analysis.unobservable.is_none() {
         let share = problem.lobe_sensitivity_share(best.p_deg_per_frame);
@@ -531,43 +388,13 @@ fn polish(
         starts_polished: starts.len(),
         start_deg_per_frame: start,
         observability: analysis.observability,
-        mirror_deg_per_frame: mirror_if_ambiguous(
+        mirror_deg_per_frame: weak::mirror_if_ambiguous(
             problem,
             best.p_deg_per_frame,
             best.cost,
             config,
         )?,
     }))
-}
-
-/// Mirror solutions closer than this to p̂ are not reported \[deg/frame\].
-const MIRROR_MIN_DISTANCE_DEG_PER_FRAME: f64 = 1e-2;
-/// The mirror is reported when its cost exceeds p̂'s by at most this many noise variances
-/// (Δχ² ≤ 4: the data cannot tell them apart at 2σ).
-const MIRROR_MAX_DELTA_CHI2: f64 = 4.0;
-
-/// The mirror solution of p̂ when the data cannot tell them apart: LM polished from
-/// (−w_x, w_y, −w_z) (an exact minimum when every geometry vector lies in the body XZ plane, a
-/// nearby one otherwise), reported if its cost is within Δχ² ≤ 4 of p̂'s, in units of the noise
-/// variance (1 with σ given, else the residual variance ε/(N − 3)).
-fn mirror_if_ambiguous(
-    problem: &RateProblem,
-    p: [f64; 3],
-    cost: f64,
-    config: &Stage3Config,
-) -> Result<Option<[f64; 3]>, InversionError> {
-    let start = [-p[0], p[1], -p[2]];
-    let out = levenberg_marquardt(problem, start, &config.lm)?;
-    let m = out.p_deg_per_frame;
-    let distance: f64 = (0..3).map(|i| (m[i] - p[i]).powi(2)).sum::<f64>().sqrt();
-    if distance < MIRROR_MIN_DISTANCE_DEG_PER_FRAME || !out.cost.is_finite() {
-        return Ok(None);
-    }
-    let dof = problem.residual_count().saturating_sub(3).max(1) as f64;
-    let variance = noise_variance(problem, p, config);
-    // Noise-free data fitted exactly (cost ≈ 0): only an equally exact mirror qualifies.
-    let tie = (out.cost - cost).abs() <= 1e-6 * cost.abs().max(1e-12 * dof);
-    Ok(((out.cost - cost) / variance <= MIRROR_MAX_DELTA_CHI2 || tie).then_some(m))
 }
 
 /// LM from one explicit start (e.g. the seed's p₀ = 0), no grid.

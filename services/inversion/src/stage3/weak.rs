@@ -1,0 +1,295 @@
+//! What the data cannot determine: the weak direction held under a stated prior, and the sense
+//! of rotation (a rate and its mirror (−w_x, w_y, −w_z) that fit equally well).
+//!
+//! - [`WeakPrior`] and [`hold_weak_direction`]: an unobservable eigen-direction u (the
+//!   sun–observer bisector in the co-orbital geometry, math.md §1.6) is held under the stated
+//!   prior and the rest re-fitted, unless the data reject the prior.
+//! - [`mirror_if_ambiguous`]: the mirror reported beside a fit it cannot be told from.
+//! - [`sense_from`] / [`keep_sense`]: which fit's evidence decides the sense when one cannot.
+
+use super::{fit_from_starts, RateSolution, Stage3Config};
+use crate::error::InversionError;
+use crate::lm::{levenberg_marquardt, levenberg_marquardt_prior, LmOutcome, Prior};
+use crate::model::RateProblem;
+use crate::observability::{analyse, given_sigma_scale, residual_variance, Analysis};
+use serde::{Deserialize, Serialize};
+
+/// The mirror (−w_x, w_y, −w_z) of a rate: the same light curve when every geometry vector
+/// lies in the body XZ plane.
+pub fn mirror(p: [f64; 3]) -> [f64; 3] {
+    [-p[0], p[1], -p[2]]
+}
+
+/// ‖a − b‖ \[deg/frame\].
+pub(crate) fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
+}
+
+/// The stated prior under which stage 3 holds a direction the data cannot determine.
+///
+/// Either way the held direction is reported unobservable and only the determined combinations
+/// of p come from the data; the prior decides where along u the reported p sits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WeakPrior {
+    /// The body rate about the body axis e nearest u is zero: e·p = 0 (default). The rate is
+    /// assumed to lie in the plane of the other two body axes, a statement about the body, not
+    /// about the observing geometry; in the co-orbital geometry u is within a few degrees of
+    /// body X and the prior reads w_x = 0.
+    #[default]
+    BodyAxis,
+    /// The component along u itself is zero: u·p = 0 (the minimum-norm choice). A truth with a
+    /// component along u (a Z rotation has u·p* = −0.03 deg/frame when u is 7° off body X) is
+    /// then biased by that component.
+    EigenDirection,
+}
+
+impl WeakPrior {
+    /// The constraint direction for each held u: u itself, or the body axis nearest u (falling
+    /// back to u when two held directions share that axis).
+    pub fn directions(self, weak: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let mut out: Vec<[f64; 3]> = Vec::with_capacity(weak.len());
+        for u in weak {
+            let d = match self {
+                WeakPrior::EigenDirection => *u,
+                WeakPrior::BodyAxis => {
+                    let k = (0..3)
+                        .max_by(|&a, &b| u[a].abs().total_cmp(&u[b].abs()))
+                        .unwrap_or(0);
+                    let mut e = [0.0; 3];
+                    e[k] = 1.0;
+                    if out.contains(&e) {
+                        *u
+                    } else {
+                        e
+                    }
+                }
+            };
+            out.push(d);
+        }
+        out
+    }
+}
+
+/// Largest cost increase, in noise variances, at which the data still accept holding the
+/// weakest direction at its prior (3σ for one degree of freedom).
+const HOLD_MAX_DELTA_CHI2: f64 = 9.0;
+
+/// One noise variance in cost units for likelihood-ratio tests between two fits: with σ given,
+/// 1 (whitened residuals) unless the residuals reject the model, then the inflated Birge ratio
+/// ([`given_sigma_scale`]); without σ, the residual variance of the fit p̂, inflated for the
+/// residuals' serial correlation ([`residual_variance`]). Model mismatch is smooth in time, and
+/// counting its N residuals as independent would make any prior look rejected.
+fn noise_variance(problem: &RateProblem, p: [f64; 3], config: &Stage3Config) -> f64 {
+    let mut r = vec![0.0; problem.residual_count()];
+    let cost = problem.residuals(p, &mut r);
+    if problem.sigma_given() {
+        return given_sigma_scale(problem, &r, cost).0;
+    }
+    residual_variance(problem, &r, cost, &config.observability).0
+}
+
+/// Re-fits with the stated prior on `weak` (from p̂ moved onto the prior's plane); returns the
+/// held outcome (cost without the prior), the analysis there and the LM iterations used.
+fn hold_at_prior(
+    problem: &RateProblem,
+    best: &LmOutcome,
+    weak: &[[f64; 3]],
+    analysis: &Analysis,
+    config: &Stage3Config,
+) -> Result<(LmOutcome, Analysis, usize), InversionError> {
+    let strongest = analysis
+        .observability
+        .information_eigenvalues
+        .iter()
+        .cloned()
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max);
+    let directions = config.weak_prior.directions(weak);
+    let prior = Prior {
+        directions: directions.clone(),
+        weight: PRIOR_WEIGHT_FACTOR * strongest.max(1.0),
+    };
+    // Start on the prior's plane, reached by moving along the held direction only (so the
+    // determined combinations keep their fitted values): p₀ = p − u (e·p)/(e·u).
+    let dot = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
+    let mut p0 = best.p_deg_per_frame;
+    for (u, e) in weak.iter().zip(&directions) {
+        let t = dot(e, &p0) / dot(e, u);
+        for i in 0..3 {
+            p0[i] -= u[i] * t;
+        }
+    }
+    let refit = levenberg_marquardt_prior(problem, p0, &config.lm, &prior, |_, _, _| false)?;
+    let held_analysis = analyse(problem, refit.p_deg_per_frame, &config.observability)?;
+    let iterations = refit.iterations;
+    let held = LmOutcome {
+        cost: problem.cost(refit.p_deg_per_frame),
+        ..refit
+    };
+    Ok((held, held_analysis, iterations))
+}
+
+/// Weight of the prior on unobservable directions, relative to the largest eigenvalue of the
+/// information matrix: large enough that the prior decides those components.
+const PRIOR_WEIGHT_FACTOR: f64 = 1e6;
+
+/// Holds the directions the data cannot determine (math.md §1.6: the sun–observer bisector)
+/// under the stated prior ([`WeakPrior`]) and re-fits the rest, instead of reporting wherever
+/// LM drifted along them. Returns the (possibly held) outcome, its analysis and the LM
+/// iterations spent; the returned observability still marks held directions unobservable.
+pub(super) fn hold_weak_direction(
+    problem: &RateProblem,
+    best: LmOutcome,
+    analysis: Analysis,
+    config: &Stage3Config,
+) -> Result<(LmOutcome, Analysis, usize), InversionError> {
+    let weak: Vec<[f64; 3]> = (0..3)
+        .filter(|&i| analysis.observability.unobservable[i])
+        .map(|i| analysis.observability.eigenvectors[i])
+        .collect();
+    if !weak.is_empty() {
+        let (held, mut held_analysis, iterations) =
+            hold_at_prior(problem, &best, &weak, &analysis, config)?;
+        // The classification stays the one at the unconstrained optimum.
+        held_analysis.observability.unobservable = analysis.observability.unobservable;
+        held_analysis.unobservable = None;
+        return Ok((held, held_analysis, iterations));
+    }
+    // The bisector is invisible to first order only near the prior (the light curve depends
+    // on it about quadratically there); a fit that drifted along it sees curvature that is not
+    // there at the prior. So the weakest direction is judged where the prior puts it: held if
+    // it is unobservable at the held solution and the data do not reject the prior
+    // (likelihood ratio: Δχ² ≤ 9, 3σ).
+    let u = analysis.observability.eigenvectors[0];
+    let (held, held_analysis, iterations) = hold_at_prior(problem, &best, &[u], &analysis, config)?;
+    let variance = noise_variance(problem, best.p_deg_per_frame, config);
+    let accepted = (held.cost - best.cost) / variance <= HOLD_MAX_DELTA_CHI2;
+    if accepted
+        && held_analysis.unobservable.is_none()
+        && held_analysis.observability.unobservable[0]
+    {
+        Ok((held, held_analysis, iterations))
+    } else {
+        Ok((best, analysis, iterations))
+    }
+}
+
+/// Mirror solutions closer than this to p̂ are not reported \[deg/frame\].
+const MIRROR_MIN_DISTANCE_DEG_PER_FRAME: f64 = 1e-2;
+/// The mirror is reported when its cost exceeds p̂'s by at most this many noise variances
+/// (Δχ² ≤ 4: the data cannot tell them apart at 2σ).
+const MIRROR_MAX_DELTA_CHI2: f64 = 4.0;
+
+/// The mirror solution of p̂ when the data cannot tell them apart: LM polished from
+/// (−w_x, w_y, −w_z) (an exact minimum when every geometry vector lies in the body XZ plane, a
+/// nearby one otherwise), reported if its cost is within Δχ² ≤ 4 of p̂'s, in units of the noise
+/// variance ([`noise_variance`]).
+pub(super) fn mirror_if_ambiguous(
+    problem: &RateProblem,
+    p: [f64; 3],
+    cost: f64,
+    config: &Stage3Config,
+) -> Result<Option<[f64; 3]>, InversionError> {
+    let out = levenberg_marquardt(problem, mirror(p), &config.lm)?;
+    let m = out.p_deg_per_frame;
+    if distance(m, p) < MIRROR_MIN_DISTANCE_DEG_PER_FRAME || !out.cost.is_finite() {
+        return Ok(None);
+    }
+    let dof = problem.residual_count().saturating_sub(3).max(1) as f64;
+    let variance = noise_variance(problem, p, config);
+    // Noise-free data fitted exactly (cost ≈ 0): only an equally exact mirror qualifies.
+    let tie = (out.cost - cost).abs() <= 1e-6 * cost.abs().max(1e-12 * dof);
+    Ok(((out.cost - cost) / variance <= MIRROR_MAX_DELTA_CHI2 || tie).then_some(m))
+}
+
+/// The reweighted joint solution with the sense of rotation of `first`: as it is when it is
+/// nearer `first` than its mirror (−w_x, w_y, −w_z) is (or the two are too close to tell),
+/// else re-polished from the mirror; `None` (keep the first fit) when that fails or does not
+/// hold the sense.
+pub(crate) fn keep_sense(
+    reweighted: RateSolution,
+    problem: &RateProblem,
+    first: [f64; 3],
+    config: &Stage3Config,
+) -> Option<RateSolution> {
+    let q = reweighted.fit()?.rate_deg_per_frame;
+    let wrong_side = |p: [f64; 3]| {
+        distance(p, mirror(p)) > SAME_SENSE_DEG_PER_FRAME
+            && distance(mirror(p), first) < distance(p, first)
+    };
+    if !wrong_side(q) {
+        return Some(reweighted);
+    }
+    let flipped = fit_from_starts(problem, &[mirror(q)], config).ok()?;
+    let p = flipped.fit()?.rate_deg_per_frame;
+    (!wrong_side(p)).then_some(flipped)
+}
+
+/// A rate closer than this to its own mirror has no sense of rotation to keep \[deg/frame\].
+const SAME_SENSE_DEG_PER_FRAME: f64 = 1e-2;
+
+/// When the λ* data fit p̂ and its mirror equally well (the sense of rotation about X and Z is
+/// not observable in that band) but the joint fit over all bands is not ambiguous, the mirror
+/// to start from if it is the one nearer the joint solution: the other bands' evidence decides
+/// the sense. `None` to keep p̂.
+pub(crate) fn sense_from(rate: &RateSolution, joint: &RateSolution) -> Option<[f64; 3]> {
+    let (fit, joint) = (rate.fit()?, joint.fit()?);
+    let mirror = fit.mirror_deg_per_frame?;
+    if joint.mirror_deg_per_frame.is_some() {
+        return None;
+    }
+    let to_joint = |a: [f64; 3]| distance(a, joint.rate_deg_per_frame);
+    (to_joint(mirror) < to_joint(fit.rate_deg_per_frame)).then_some(mirror)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lm::StopReason;
+    use crate::observability::{CovarianceSource, Observability};
+    use crate::stage3::RateFit;
+
+    fn fit(p: [f64; 3], mirror: Option<[f64; 3]>) -> RateSolution {
+        RateSolution::Determined(RateFit {
+            wavelengths_nm: vec![400.0],
+            rate_deg_per_frame: p,
+            covariance_deg2_per_frame2: [[0.0; 3]; 3],
+            covariance_source: CovarianceSource::GivenSigma,
+            cost: 1.0,
+            iterations: 1,
+            total_iterations: 1,
+            stop: StopReason::SmallStep,
+            grid_points: 0,
+            starts_screened: 0,
+            starts_polished: 1,
+            start_deg_per_frame: p,
+            observability: Observability {
+                information_eigenvalues: [1.0; 3],
+                eigenvectors: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                bounds_1sigma_deg_per_frame: [1.0; 3],
+                unobservable: [false; 3],
+                threshold_deg_per_frame: 0.25,
+                condition_number: 1.0,
+                rms_sensitivity_per_deg_per_frame: 1.0,
+            },
+            mirror_deg_per_frame: mirror,
+        })
+    }
+
+    #[test]
+    fn the_joint_fit_decides_the_sense_only_when_lambda_star_cannot() {
+        let p = [0.0, -0.006, -0.25];
+        let m = [0.0, -0.006, 0.25];
+        let joint = fit([0.0, -0.001, 0.249], None);
+        // λ* ambiguous, joint not: start from the mirror, the one nearer the joint fit.
+        assert_eq!(sense_from(&fit(p, Some(m)), &joint), Some(m));
+        // λ* already on the joint's side: keep it.
+        assert_eq!(sense_from(&fit(m, Some(p)), &joint), None);
+        // λ* not ambiguous: its own answer stands.
+        assert_eq!(sense_from(&fit(p, None), &joint), None);
+        // The joint fit ambiguous too: no evidence either way.
+        let joint_ambiguous = fit([0.0, -0.001, 0.249], Some([0.0, -0.001, -0.249]));
+        assert_eq!(sense_from(&fit(p, Some(m)), &joint_ambiguous), None);
+    }
+}
