@@ -31,6 +31,8 @@ use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_1_PI;
 
+mod diagnostics;
+
 /// Panel normal during the motion window (§1.6 \[ASSUMP\]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -253,38 +255,6 @@ impl RateProblem {
         })
     }
 
-    /// Divides each band's weights by its scale (> 0): the band's noise is taken `scale` times
-    /// larger. Used to down-weight the bands the model fits worst (see
-    /// [`Self::band_mismatch_scales`]).
-    pub fn with_band_scales(mut self, scales: &[f64]) -> Self {
-        for (band, s) in self.bands.iter_mut().zip(scales) {
-            if *s > 0.0 && s.is_finite() {
-                band.w.iter_mut().for_each(|w| *w /= s);
-            }
-        }
-        self
-    }
-
-    /// Per band, the factor by which its residuals at `p` exceed their noise, counting serial
-    /// correlation: sqrt(χ²_b/T · τ_b), τ_b the band's AR(1) correlation time, floored at 1
-    /// with σ given (a band the model explains to the noise keeps its weight). Without σ the
-    /// residual is all mismatch and the factors are relative (floored at 1e-12).
-    pub fn band_mismatch_scales(&self, p: [f64; 3]) -> Vec<f64> {
-        let nb = self.bands.len();
-        let t = self.frames.len().max(1);
-        let mut r = vec![0.0; self.residual_count()];
-        self.residuals(p, &mut r);
-        (0..nb)
-            .map(|b| {
-                let band: Vec<f64> = (0..t).map(|k| r[k * nb + b]).collect();
-                let chi2: f64 = band.iter().map(|v| v * v).sum();
-                let tau = crate::observability::correlation_time(&band, 1);
-                let floor = if self.sigma_given { 1.0 } else { 1e-12 };
-                (chi2 / t as f64 * tau).sqrt().max(floor)
-            })
-            .collect()
-    }
-
     /// Attaches the stage-1 coefficient covariance of each band (x̃ units, 22 × 22 row-major;
     /// `None` where unknown) so that [`Self::coefficient_term`] can propagate it.
     pub fn with_coefficient_covariance(mut self, per_band: Vec<Option<Vec<f64>>>) -> Self {
@@ -462,28 +432,6 @@ impl RateProblem {
     /// Writes residuals `r` (length T·B) and returns the cost Σ r².
     pub fn residuals(&self, p: [f64; 3], r: &mut [f64]) -> f64 {
         self.residuals_with_nuisance(p, r).0
-    }
-
-    /// Share of the light curve's sensitivity to p that the specular lobes (m ≥ 1) carry at
-    /// `p`: ‖J_lobes‖_F / ‖J‖_F, with J_lobes the Jacobian of the model with every diffuse
-    /// coefficient set to 0 (no re-fit). About 1 when a glint or a broad lobe moves with p, 0
-    /// when only the diffuse terms do. NaN when the light curve has no sensitivity at all.
-    pub fn lobe_sensitivity_share(&self, p: [f64; 3]) -> f64 {
-        let mut lobes = self.clone();
-        lobes.refit_diffuse = false;
-        for band in &mut lobes.bands {
-            band.x[0][0] = 0.0;
-            band.x[1][0] = 0.0;
-        }
-        let n = self.residual_count();
-        let mut r = vec![0.0; n];
-        let mut jac = vec![[0.0; 3]; n];
-        let norm =
-            |jac: &[[f64; 3]]| -> f64 { jac.iter().flatten().map(|v| v * v).sum::<f64>().sqrt() };
-        self.residuals_and_jacobian(p, &mut r, &mut jac);
-        let total = norm(&jac);
-        lobes.residuals_and_jacobian(p, &mut r, &mut jac);
-        norm(&jac) / total
     }
 
     /// Residuals, cost and the nuisance coefficients per band (zeros without the re-fit).
