@@ -205,12 +205,19 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                 }
             );
         }
-        let held: Vec<&str> = (0..3)
+        // The rates the service's default prior held: the body axis nearest each weak direction.
+        let weak: Vec<[f64; 3]> = (0..3)
             .filter(|i| r.observable_mask & (1 << i) == 0)
-            .map(|i| {
-                let v = [0, 3, 6].map(|row| r.fisher_eigenvectors[row + i].abs());
-                let k = (0..3).max_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap_or(0);
-                ["w_x", "w_y", "w_z"][k]
+            .map(|i| [0, 3, 6].map(|row| r.fisher_eigenvectors[row + i]))
+            .collect();
+        let held: Vec<&str> = glint_inversion::WeakPrior::BodyAxis
+            .directions(&weak)
+            .iter()
+            .map(|e| match e {
+                [1.0, 0.0, 0.0] => "w_x",
+                [0.0, 1.0, 0.0] => "w_y",
+                [0.0, 0.0, 1.0] => "w_z",
+                _ => "the weak direction itself",
             })
             .collect();
         if !held.is_empty() && r.status == SolveStatus::Ok as u32 {
