@@ -55,7 +55,16 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 .collect()
         };
     let stage1 = get(1).map_or(Value::Null, |r| {
-        json!({ "status": status(r), "bands": bands(r, &|r, i| finite(r.recon_err[i]), "recon_err") })
+        json!({
+            "status": status(r),
+            "bands": bands(r, &|r, i| finite(r.recon_err[i]), "recon_err"),
+            "basis": {
+                "lobes_kept": r.stage1_lobes_kept,
+                "widest_lobe_mu": finite(r.stage1_widest_lobe_mu),
+                "delta_chi2": finite(r.stage1_basis_delta_chi2),
+                "dof": r.stage1_basis_dof,
+            },
+        })
     });
     let stage2 = get(2).map_or(Value::Null, |r| {
         json!({
@@ -127,9 +136,10 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             .fold(0.0f64, f64::max);
         let _ = writeln!(
             s,
-            "Stage 1: reconstruction error ≤ {:.2e} over {} bands. Stage 2: chosen band {} nm (σ = {:.4}, specular share {:.3}); the largest σ is at {} nm (σ = {:.4}, the paper's rule). λ* is the band with the largest specular share among those with σ ≥ ½ max σ: the diffuse light is what the two-facet model misplaces.\n\n![separation](inversion-sigma.svg)\n",
+            "Stage 1: reconstruction error ≤ {:.2e} over {} bands; {}. Stage 2: chosen band {} nm (σ = {:.4}, specular share {:.3}); the largest σ is at {} nm (σ = {:.4}, the paper's rule). λ* is the band with the largest specular share among those with σ ≥ ½ max σ: the diffuse light is what the two-facet model misplaces.\n\n![separation](inversion-sigma.svg)\n",
             worst,
             r1.n_bands,
+            basis_phrase(r1),
             r2.wavelength_nm[r2.chosen_band as usize],
             r2.separation[r2.chosen_band as usize],
             r2.specular_share[r2.chosen_band as usize],
@@ -273,5 +283,16 @@ pub fn plots(dir: &Path, responses: &[SolveResponse]) -> Result<()> {
                 markers: true,
             },
         ],
+    )
+}
+
+/// How stage 1's basis test ended, in words.
+fn basis_phrase(r: &SolveResponse) -> String {
+    if r.stage1_lobes_kept >= 10 || !r.stage1_widest_lobe_mu.is_finite() {
+        return "basis: diffuse + all 10 lobes (the data support each of them)".to_string();
+    }
+    format!(
+        "basis: diffuse + the {} narrowest lobes (μ ≤ {}); the broader ones, which the stable window cannot tell from diffuse light, add nothing the data support (Δχ² = {:.1} for k = {} parameters)",
+        r.stage1_lobes_kept, r.stage1_widest_lobe_mu, r.stage1_basis_delta_chi2, r.stage1_basis_dof
     )
 }

@@ -95,12 +95,16 @@ pub fn invert(
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let mut j = serde_json::to_value(&result)?;
     let mut text = format!(
-        "{}: {} bands, stable {} samples, motion {} frames\nstage 1: max reconstruction error {:.3e}\nstage 2: chosen band {} nm (largest σ at {} nm)\n",
+        "{}: {} bands, stable {} samples, motion {} frames\nstage 1: max reconstruction error {:.3e}; lobes kept {} of 10 (widest μ = {}, Δχ² = {:.1} for k = {})\nstage 2: chosen band {} nm (largest σ at {} nm)\n",
         path.display(),
         file.set.wavelengths_nm.len(),
         file.set.stable.len(),
         file.set.motion.len(),
         result.stage1.iter().map(|b| b.recon_err).fold(0.0f64, f64::max),
+        result.stage1_basis.lobes_kept,
+        result.stage1_basis.widest_lobe_mu,
+        result.stage1_basis.delta_chi2,
+        result.stage1_basis.dof,
         result.chosen_wavelength_nm,
         result.stage2.bands[result.stage2.separation_index].wavelength_nm,
     );

@@ -13,6 +13,14 @@ pub enum NnlsError {
         /// Entries of the right-hand side.
         rhs_len: usize,
     },
+    /// A column subset does not have one flag per column of G.
+    #[error("NNLS column subset has {got} flags, G has {columns} columns")]
+    SubsetLength {
+        /// Columns of G.
+        columns: usize,
+        /// Flags given.
+        got: usize,
+    },
     /// G or the right-hand side contains NaN or ±∞.
     #[error("NNLS input is not finite")]
     NonFinite,

@@ -40,7 +40,7 @@ pub use error::{InversionError, NnlsError};
 pub use model::{MotionModelConfig, PanelNormalMode, RateBand, RateProblem};
 pub use observation::{Observation, ObservationSet};
 pub use rotation::AttitudeModel;
-pub use stage1::Stage1Band;
+pub use stage1::{BasisChoice, Stage1Band, Stage1Config};
 pub use stage2::{BandSelection, Stage2Config, Stage2Result};
 pub use stage3::{RateFit, RateSolution, Stage3Config, WeakPrior};
 
@@ -55,6 +55,8 @@ pub struct InversionConfig {
     pub model: MotionModelConfig,
     /// Per-band `E_sun Δλ A_ap` \[W\], to report stage-1 coefficients in m² as well.
     pub band_scale_w: Option<Vec<f64>>,
+    /// Stage-1 basis selection.
+    pub stage1: Stage1Config,
     /// Band selection.
     pub stage2: Stage2Config,
     /// LM, start strategy and observability thresholds.
@@ -68,6 +70,9 @@ pub struct InversionConfig {
 pub struct InversionResult {
     /// Stage 1 per band: coefficients and ε_rec.
     pub stage1: Vec<Stage1Band>,
+    /// The lobes stage 1 kept ([`stage1::basis`]).
+    #[serde(default)]
+    pub stage1_basis: BasisChoice,
     /// Stage 2: σ(λ, θ_I), σ(λ) and λ*.
     pub stage2: Stage2Result,
     /// λ* \[nm\].
@@ -100,11 +105,12 @@ pub fn solve_three_stage(
 ) -> Result<InversionResult, InversionError> {
     set.validate()?;
     let body_normal = Vector3::from(config.model.body_normal);
-    let stage1 = stage1::run_stage1(
+    let (stage1, stage1_basis) = stage1::run_stage1_with(
         &set.stable,
         &set.wavelengths_nm,
         body_normal,
         config.band_scale_w.as_deref(),
+        &config.stage1,
     )?;
     let stage2 = stage2::run_stage2_with(&stage1, &config.stage2)?;
     let fits = fit_rates(
@@ -118,6 +124,7 @@ pub fn solve_three_stage(
     Ok(InversionResult {
         chosen_wavelength_nm: stage2.chosen_wavelength_nm,
         stage1,
+        stage1_basis,
         stage2,
         rate: fits.rate,
         joint_rate: fits.joint_rate,

@@ -138,10 +138,28 @@ impl NnlsSystem {
 
     /// Solves the NNLS problem for right-hand side `k` (panics if `k ≥ nrhs()`).
     pub fn solve(&self, k: usize) -> Result<NnlsSolution, NnlsError> {
+        self.solve_subset(k, &vec![true; self.ncols()])
+    }
+
+    /// Solves right-hand side `k` on the columns where `use_column` is true (the others are held
+    /// at 0). Exact on the compressed system: dropping columns of `[A | q]` drops the same
+    /// columns of its R factor, so no new QR is needed.
+    pub fn solve_subset(&self, k: usize, use_column: &[bool]) -> Result<NnlsSolution, NnlsError> {
         let m = &self.reduced;
         let n = self.ncols();
+        if use_column.len() != n {
+            return Err(NnlsError::SubsetLength {
+                columns: n,
+                got: use_column.len(),
+            });
+        }
         let r: Vec<f64> = (0..m.nrows()).map(|i| self.reduced_rhs[(i, k)]).collect();
-        let allowed: Vec<bool> = self.col_norms.iter().map(|&c| c > 0.0).collect();
+        let allowed: Vec<bool> = self
+            .col_norms
+            .iter()
+            .zip(use_column)
+            .map(|(&c, &u)| u && c > 0.0)
+            .collect();
         let tol = self.tol;
         let max_outer = (3 * n).max(30);
 
@@ -303,6 +321,37 @@ mod tests {
                 assert_kkt(&g, &q, &sol, 1e-10);
             }
         }
+    }
+
+    /// A column subset on the shared compressed system equals a fresh NNLS on G without those
+    /// columns (its own scaling and QR), solution and residual.
+    #[test]
+    fn column_subset_equals_nnls_on_the_reduced_matrix() {
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        let (rows, cols, rhs) = (150, 22, 3);
+        let g = random_matrix(&mut rng, rows, cols);
+        let q = random_matrix(&mut rng, rows, rhs);
+        let system = NnlsSystem::new(g.as_ref(), q.as_ref()).expect("system");
+        let keep: Vec<bool> = (0..cols).map(|c| c % 11 < 8).collect();
+        let kept: Vec<usize> = (0..cols).filter(|&c| keep[c]).collect();
+        let reduced = Mat::from_fn(rows, kept.len(), |i, j| g[(i, kept[j])]);
+        for k in 0..rhs {
+            let sub = system.solve_subset(k, &keep).expect("subset");
+            let qk: Vec<f64> = (0..rows).map(|i| q[(i, k)]).collect();
+            let direct = nnls(reduced.as_ref(), &qk).expect("direct");
+            for (j, &c) in kept.iter().enumerate() {
+                assert!((sub.x[c] - direct.x[j]).abs() < 1e-10, "rhs {k} column {c}");
+            }
+            assert!((0..cols).filter(|&c| !keep[c]).all(|c| sub.x[c] == 0.0));
+            assert!((sub.residual_norm - direct.residual_norm).abs() < 1e-10);
+        }
+        assert!(matches!(
+            system.solve_subset(0, &keep[..5]),
+            Err(NnlsError::SubsetLength {
+                columns: 22,
+                got: 5
+            })
+        ));
     }
 
     #[test]

@@ -148,6 +148,12 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
             *slot = b.recon_err;
         }
     }
+    if let Some(basis) = &session.stage1_basis {
+        out.stage1_widest_lobe_mu = basis.widest_lobe_mu;
+        out.stage1_basis_delta_chi2 = basis.delta_chi2;
+        out.stage1_basis_dof = basis.dof as u32;
+        out.stage1_lobes_kept = basis.lobes_kept as u32;
+    }
     if let Some(s2) = &session.stage2 {
         for (i, b) in s2.bands.iter().enumerate().take(out.separation.len()) {
             out.separation[i] = b.sigma;

@@ -5,7 +5,7 @@
 use nalgebra::Vector3;
 
 use crate::model::MotionModelConfig;
-use crate::stage1::{run_stage1, Stage1Band};
+use crate::stage1::{run_stage1_with, BasisChoice, Stage1Band, Stage1Config};
 use crate::stage2::{run_stage2, Stage2Result};
 use crate::stage3::{RateSolution, Stage3Config};
 use crate::{fit_rates, InversionError, Observation, ObservationSet};
@@ -25,7 +25,10 @@ pub struct Session {
     pub expected_motion: usize,
     pub model: MotionModelConfig,
     pub stage3_config: Stage3Config,
+    pub stage1_config: Stage1Config,
     pub stage1: Option<Vec<Stage1Band>>,
+    /// The lobes stage 1 kept.
+    pub stage1_basis: Option<BasisChoice>,
     pub stage2: Option<Stage2Result>,
     pub rate: Option<RateSolution>,
     pub joint_rate: Option<RateSolution>,
@@ -58,7 +61,9 @@ impl Session {
             expected_motion,
             model,
             stage3_config,
+            stage1_config: Stage1Config::default(),
             stage1: None,
+            stage1_basis: None,
             stage2: None,
             rate: None,
             joint_rate: None,
@@ -84,12 +89,15 @@ impl Session {
             }));
         }
         let body = Vector3::from(self.model.body_normal);
-        self.stage1 = Some(run_stage1(
+        let (bands, basis) = run_stage1_with(
             &self.set.stable,
             &self.set.wavelengths_nm,
             body,
             None,
-        )?);
+            &self.stage1_config,
+        )?;
+        self.stage1 = Some(bands);
+        self.stage1_basis = Some(basis);
         Ok(StageOutcome::Done)
     }
 

@@ -79,13 +79,78 @@ pub fn design_matrix(obs: &[Observation], body_normal: Vector3<f64>) -> Mat<f64>
     g
 }
 
-/// Runs stage 1 on every band. `band_scale_w[b] = E_sun Δλ A_ap` of band b, if known.
+pub mod basis;
+
+pub use basis::BasisChoice;
+
+/// Stage-1 settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Stage1Config {
+    /// Drop the broad lobes the stable window cannot tell from the diffuse term ([`basis`]);
+    /// `false` fits the paper's whole basis.
+    pub basis_selection: bool,
+    /// z of the nested test's threshold `k + z·sqrt(2k)` (allowed: > 0).
+    pub basis_test_sigmas: f64,
+}
+
+impl Default for Stage1Config {
+    fn default() -> Self {
+        Self {
+            basis_selection: true,
+            basis_test_sigmas: 3.0,
+        }
+    }
+}
+
+impl Stage1Config {
+    /// The paper's stage 1: every column of G.
+    pub fn paper() -> Self {
+        Self {
+            basis_selection: false,
+            ..Self::default()
+        }
+    }
+
+    /// Checks the ranges above.
+    pub fn validate(&self) -> Result<(), InversionError> {
+        if !(self.basis_test_sigmas.is_finite() && self.basis_test_sigmas > 0.0) {
+            return Err(InversionError::InvalidConfig {
+                field: "stage1.basis_test_sigmas",
+                reason: "must be a finite number > 0",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Runs the paper's stage 1 (whole basis) on every band. `band_scale_w[b] = E_sun Δλ A_ap` of
+/// band b, if known.
 pub fn run_stage1(
     stable: &[Observation],
     wavelengths_nm: &[f64],
     body_normal: Vector3<f64>,
     band_scale_w: Option<&[f64]>,
 ) -> Result<Vec<Stage1Band>, InversionError> {
+    run_stage1_with(
+        stable,
+        wavelengths_nm,
+        body_normal,
+        band_scale_w,
+        &Stage1Config::paper(),
+    )
+    .map(|(bands, _)| bands)
+}
+
+/// Runs stage 1 on every band with `config`; returns the bands and the basis used.
+pub fn run_stage1_with(
+    stable: &[Observation],
+    wavelengths_nm: &[f64],
+    body_normal: Vector3<f64>,
+    band_scale_w: Option<&[f64]>,
+    config: &Stage1Config,
+) -> Result<(Vec<Stage1Band>, BasisChoice), InversionError> {
+    config.validate()?;
     if stable.len() < DESIGN_COLUMNS {
         return Err(InversionError::TooFewSamples {
             stage: "stage 1",
@@ -111,6 +176,24 @@ pub fn run_stage1(
             source,
         })?;
 
+    let nnls_error = |b: usize| {
+        let wavelength_nm = wavelengths_nm[b];
+        move |source| InversionError::Nnls {
+            wavelength_nm,
+            source,
+        }
+    };
+    let mut solutions = Vec::with_capacity(wavelengths_nm.len());
+    for b in 0..wavelengths_nm.len() {
+        solutions.push(system.solve(b).map_err(nnls_error(b))?);
+    }
+    let (choice, solutions) = if config.basis_selection {
+        basis::select(&system, solutions, stable.len(), config.basis_test_sigmas)
+            .map_err(nnls_error(0))?
+    } else {
+        (BasisChoice::full(), solutions)
+    };
+
     let mut out = Vec::with_capacity(wavelengths_nm.len());
     for (b, &wavelength_nm) in wavelengths_nm.iter().enumerate() {
         let flux_norm = stable
@@ -124,10 +207,7 @@ pub fn run_stage1(
                 window: "stable",
             });
         }
-        let sol = system.solve(b).map_err(|source| InversionError::Nnls {
-            wavelength_nm,
-            source,
-        })?;
+        let sol = &solutions[b];
         let err_sq: f64 = stable
             .iter()
             .enumerate()
@@ -148,7 +228,7 @@ pub fn run_stage1(
             nnls_iterations: sol.iterations,
         });
     }
-    Ok(out)
+    Ok((out, choice))
 }
 
 /// `(G_Pᵀ W G_P)⁻¹` on the passive set P = {m : x_m > 0} of band `b`, embedded in 22 × 22;

@@ -247,6 +247,13 @@ pub struct SolveResponse {
     pub stage3_flags: u32,
     /// Stage 2: the lobes' share of the stage-1 coefficients per band.
     pub specular_share: [f64; MAX_BANDS],
+    /// Stage 1: width μ of the widest lobe kept by the basis test (NaN before stage 1).
+    pub stage1_widest_lobe_mu: f64,
+    /// Stage 1: Δχ² of the accepted basis reduction and its parameter count k.
+    pub stage1_basis_delta_chi2: f64,
+    pub stage1_basis_dof: u32,
+    /// Stage 1: lobes kept per facet, of 10.
+    pub stage1_lobes_kept: u32,
 }
 
 impl Default for SolveResponse {
@@ -281,6 +288,10 @@ impl Default for SolveResponse {
             separation_band: 0,
             stage3_flags: 0,
             specular_share: [f64::NAN; MAX_BANDS],
+            stage1_widest_lobe_mu: f64::NAN,
+            stage1_basis_delta_chi2: f64::NAN,
+            stage1_basis_dof: 0,
+            stage1_lobes_kept: 0,
         }
     }
 }
