@@ -92,6 +92,9 @@ pub struct Stage1Config {
     pub basis_selection: bool,
     /// z of the nested test's threshold `k + z·sqrt(2k)` (allowed: > 0).
     pub basis_test_sigmas: f64,
+    /// A lobe may leave the basis only when its variance inflation against the diffuse column
+    /// is at least this (allowed: ≥ 1; 10, the usual rule of thumb for collinearity).
+    pub basis_min_vif: f64,
 }
 
 impl Default for Stage1Config {
@@ -99,6 +102,7 @@ impl Default for Stage1Config {
         Self {
             basis_selection: true,
             basis_test_sigmas: 3.0,
+            basis_min_vif: 10.0,
         }
     }
 }
@@ -118,6 +122,12 @@ impl Stage1Config {
             return Err(InversionError::InvalidConfig {
                 field: "stage1.basis_test_sigmas",
                 reason: "must be a finite number > 0",
+            });
+        }
+        if !(self.basis_min_vif.is_finite() && self.basis_min_vif >= 1.0) {
+            return Err(InversionError::InvalidConfig {
+                field: "stage1.basis_min_vif",
+                reason: "must be a finite number ≥ 1",
             });
         }
         Ok(())
@@ -188,8 +198,16 @@ pub fn run_stage1_with(
         solutions.push(system.solve(b).map_err(nnls_error(b))?);
     }
     let (choice, solutions) = if config.basis_selection {
-        basis::select(&system, solutions, stable.len(), config.basis_test_sigmas)
-            .map_err(nnls_error(0))?
+        let candidates =
+            basis::candidate_count(&basis::diffuse_vif(g.as_ref()), config.basis_min_vif);
+        basis::select(
+            &system,
+            solutions,
+            stable.len(),
+            candidates,
+            config.basis_test_sigmas,
+        )
+        .map_err(nnls_error(0))?
     } else {
         (BasisChoice::full(), solutions)
     };

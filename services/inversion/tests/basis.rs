@@ -3,7 +3,8 @@
 mod common;
 
 use common::*;
-use glint_inversion::stage1::{run_stage1_with, Stage1Config};
+use glint_inversion::stage1::basis::{candidate_count, diffuse_vif};
+use glint_inversion::stage1::{design_matrix, run_stage1_with, Stage1Config};
 use glint_inversion::Observation;
 use glint_physics::two_facet::{panel_normal, TwoFacetCoefficients};
 use nalgebra::Vector3;
@@ -124,4 +125,37 @@ fn a_strong_lobe_the_data_resolve_stays() {
         let (_, kept) = solve(&obs, true);
         assert!(kept >= 8, "seed {seed}: kept {kept}");
     }
+}
+
+/// At SNR 3 the stable window supports hardly any lobe, but the μ = 0.2 lobe is resolvable
+/// (VIF 5.9 < 10) and stays; only the collinear μ = 0.3 and 0.5 lobes may go.
+#[test]
+fn low_snr_keeps_every_resolvable_lobe() {
+    for seed in 0..5 {
+        let obs = noisy_window(200 + seed, Some(3.0), 0.06);
+        let (_, kept) = solve(&obs, true);
+        assert!(kept >= 8, "seed {seed}: kept {kept}");
+    }
+}
+
+/// The collinearity gate on this window: VIF against the diffuse column grows with the lobe
+/// width, and only the lobes at or above 10 are candidates.
+#[test]
+fn collinearity_gate_on_the_hover_window() {
+    let obs = noisy_window(0, None, 0.06);
+    let g = design_matrix(&obs, Vector3::x());
+    let vif = diffuse_vif(g.as_ref());
+    assert_eq!(vif[0], 1.0);
+    for f in 0..2 {
+        for m in 2..11 {
+            let k = f * 11 + m;
+            assert!(
+                vif[k] > vif[k - 1],
+                "facet {f} lobe {m}: {:?}",
+                &vif[f * 11..f * 11 + 11]
+            );
+        }
+    }
+    assert_eq!(candidate_count(&vif, 10.0), 2, "{vif:?}");
+    assert_eq!(candidate_count(&vif, f64::INFINITY), 0);
 }
