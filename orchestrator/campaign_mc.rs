@@ -6,25 +6,31 @@
 //!
 //! ```text
 //! d_k = p̂_k − p₀                      p₀: the noise-free solution (offline, same solver)
-//! CRB = (JᵀWJ)⁻¹ at p₀                  J over the frames p₀ was fitted on, W = 1/σ²,
-//!                                      σ = mean Φ / SNR per band over the motion window
+//! CRB = (JᵀWJ − L)⁻¹ at p₀              J over the frames p₀ was fitted on, W = 1/σ²,
+//!                                      σ = mean Φ / SNR per band and window
+//! L = Σ_b F_pb (S_b + B_bᵀB_b)⁻¹ F_bp   the stage-1 coefficients are unknown too: S_b is the
+//!                                      stable window's information about them (stage 1 with
+//!                                      that σ, on the coefficients NNLS left free), B_b the
+//!                                      motion window's (RateProblem::coefficient_information_loss)
 //! observable: CRB eigen-directions v_i with 1σ = sqrt(λ_i) ≤ 0.25 deg/frame
 //! efficiency = sqrt(mean_k Σ_obs (d_k·v_i)²) / sqrt(Σ_obs λ_i)     (1 = efficient)
 //! NEES_k = Σ_obs' (d_k·u_j)²/μ_j        u_j, μ_j: eigen-pairs of the run's reported covariance
 //! ```
 //!
-//! The CRB treats the stage-1 coefficients as known, so noise in the stable window adds scatter
-//! the bound does not contain: efficiency above 1 measures that too.
+//! This is the bound of the scenario as run, with both windows noisy. The summary also shows
+//! (JᵀWJ)⁻¹, the bound if the coefficients were known exactly.
 
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
 use glint_inversion::lm::normal_equations;
 use glint_inversion::observability::symmetric_eigen;
+use glint_inversion::stage1::run_stage1_with;
 use glint_inversion::{
     rate_error_metric, solve_three_stage, InversionConfig, MotionModelConfig, Observation,
     RateBand, RateProblem,
 };
+use nalgebra::Vector3;
 use serde_json::{json, Value};
 use shared_types::Scenario;
 
@@ -138,10 +144,11 @@ fn median(mut v: Vec<f64>) -> Option<f64> {
 struct Bound {
     /// p₀ (None when the reference fit was not determined).
     p0: Option<[f64; 3]>,
-    /// CRB variances along the Fisher eigen-directions \[(deg/frame)²\] and those directions
-    /// (rows).
+    /// CRB variances along its eigen-directions \[(deg/frame)²\] and those directions (rows).
     variances: [f64; 3],
     directions: [[f64; 3]; 3],
+    /// The bound with the coefficients known, (JᵀWJ)⁻¹: its variances along `directions`.
+    known_variances: [f64; 3],
 }
 
 impl Bound {
@@ -185,9 +192,30 @@ impl Reference {
             epoch_frame: motion.first().map(|o| o.frame_index),
             ..config.model.clone()
         };
+        // The stable window's information about the coefficients at the same σ rule.
+        let mut stable = file.set.stable.clone();
+        let stable_sigma: Vec<f64> = (0..n_bands)
+            .map(|b| stable.iter().map(|o| o.flux_w[b]).sum::<f64>() / stable.len() as f64 / snr)
+            .collect();
+        for o in &mut stable {
+            o.sigma_w = stable_sigma.clone();
+        }
+        let (with_covariance, _) = run_stage1_with(
+            &stable,
+            &file.set.wavelengths_nm,
+            Vector3::from(config.model.body_normal),
+            None,
+            &config.stage1,
+        )
+        .map_err(|e| anyhow!("{}: {e}", observations.display()))?;
         let bound = |p0: Option<[f64; 3]>, frames: usize, bands: Vec<RateBand>| -> Result<Bound> {
             let frames: Vec<Observation> = motion.iter().take(frames).cloned().collect();
-            let problem = RateProblem::new(&frames, &bands, &model)?;
+            let covariance = bands
+                .iter()
+                .map(|b| with_covariance[b.band_index].coeff_covariance.clone())
+                .collect();
+            let problem =
+                RateProblem::new(&frames, &bands, &model)?.with_coefficient_covariance(covariance);
             crb(&problem, p0)
         };
         let chosen = result.stage2.chosen_index;
@@ -215,17 +243,42 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
             p0: None,
             variances: [f64::NAN; 3],
             directions: [[f64::NAN; 3]; 3],
+            known_variances: [f64::NAN; 3],
         });
     };
     let n = problem.residual_count();
     let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
     problem.residuals_and_jacobian(p, &mut r, &mut jac);
     let (fisher, _) = normal_equations(&jac, &r);
-    let (info, vecs) = symmetric_eigen(&fisher)?;
+    let loss = problem
+        .coefficient_information_loss(p, &jac)
+        .unwrap_or([[0.0; 3]; 3]);
+    let reduced: [[f64; 3]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|j| fisher[i][j] - loss[i][j]));
+    let (info, vecs) = symmetric_eigen(&reduced)?;
+    let (known_info, known_vecs) = symmetric_eigen(&fisher)?;
+    // (JᵀWJ)⁻¹ along each direction v of the scenario's bound: Σ_k (v·u_k)²/λ_k.
+    let known_variances = vecs.map(|v| {
+        known_info
+            .iter()
+            .zip(&known_vecs)
+            .map(|(l, u)| {
+                let c: f64 = (0..3).map(|i| v[i] * u[i]).sum();
+                if *l > 0.0 {
+                    c * c / l
+                } else if c != 0.0 {
+                    f64::INFINITY
+                } else {
+                    0.0
+                }
+            })
+            .sum()
+    });
     Ok(Bound {
         p0,
         variances: info.map(|l| if l > 0.0 { 1.0 / l } else { f64::INFINITY }),
         directions: vecs,
+        known_variances,
     })
 }
 
@@ -287,6 +340,10 @@ impl Estimator {
             .filter(|&i| observable[i])
             .map(|i| self.bound.variances[i])
             .sum();
+        let known_obs: f64 = (0..3)
+            .filter(|&i| observable[i])
+            .map(|i| self.bound.known_variances[i])
+            .sum();
         let rms_obs = (n > 0).then(|| (self.dev2_observable.iter().sum::<f64>() / n as f64).sqrt());
         let per_direction: Vec<Value> = (0..3)
             .map(|i| {
@@ -310,6 +367,7 @@ impl Estimator {
             "undetermined": self.undetermined,
             "observable_directions": observable.iter().filter(|o| **o).count(),
             "crb_observable_deg_per_frame": finite(crb_obs.sqrt()),
+            "crb_known_coefficients_observable_deg_per_frame": finite(known_obs.sqrt()),
             "rms_observable_deg_per_frame": rms_obs,
             "efficiency": rms_obs.map(|r| r / crb_obs.sqrt()).filter(|e| e.is_finite()),
             "directions": per_direction,
@@ -368,20 +426,21 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
     }
     s.push_str(
         "\n## Efficiency and honesty (scatter about the noise-free solution)\n\n\
-         RMS = sqrt(mean ‖(p̂ − p₀) projected on the observable CRB directions‖²); efficiency = RMS / CRB (1 is efficient; the CRB takes the stage-1 coefficients as known). NEES uses each run's reported covariance over its observable directions; its 95 % interval is for the mean over the runs.\n\n\
-         | value | fit | runs determined | observable dirs | CRB 1σ [deg/frame] | RMS [deg/frame] | efficiency | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|\n",
+         RMS = sqrt(mean ‖(p̂ − p₀) projected on the observable CRB directions‖²); efficiency = RMS / CRB (1 is efficient). The CRB is the scenario's: both windows noisy, the stage-1 coefficients unknown and informed by both; the column beside it is the bound if they were known. NEES uses each run's reported covariance over its observable directions; its 95 % interval is for the mean over the runs.\n\n\
+         | value | fit | runs determined | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | RMS [deg/frame] | efficiency | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         for (label, key) in [("λ*", "single"), ("joint", "joint")] {
             let e = &r["monte_carlo"][key];
             let _ = writeln!(
                 s,
-                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} ({}) | {}–{} |",
+                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} ({}) | {}–{} |",
                 r["value"].as_str().unwrap_or("?"),
                 e["determined"],
                 r["monte_carlo"]["runs"],
                 e["observable_directions"],
                 fmt_e(&e["crb_observable_deg_per_frame"]),
+                fmt_e(&e["crb_known_coefficients_observable_deg_per_frame"]),
                 fmt_e(&e["rms_observable_deg_per_frame"]),
                 fmt(&e["efficiency"], 2),
                 fmt(&e["nees_mean"], 2),

@@ -174,8 +174,7 @@ fn rate_band(stage1: &[Stage1Band], b: usize) -> RateBand {
 }
 
 /// Stage 3 at band `b` over its fit horizon. With a `joint` solution, when p̂ and its mirror
-/// fit this band equally well and the joint fit is not ambiguous, the sense of rotation is the
-/// joint fit's (`stage3::sense_from`). Returns the solution, the frames fitted and whether the
+/// fit this band equally well, the sense of rotation is the joint fit's (`stage3::sense_from`). Returns the solution, the frames fitted and whether the
 /// joint fit decided the sense.
 pub fn fit_band(
     motion: &[Observation],
@@ -194,20 +193,25 @@ pub fn fit_band(
         model,
         config,
     )?;
-    if let Some(p) = joint.and_then(|j| stage3::sense_from(&rate, j)) {
-        if let (Ok(RateSolution::Determined(mut flipped)), Some(first)) =
-            (stage3::fit_from_starts(&problem, &[p], config), rate.fit())
-        {
+    let frames = problem.frame_count();
+    let (Some(joint_fit), Some(first)) = (joint.and_then(RateSolution::fit), rate.fit()) else {
+        return Ok((rate, frames, false));
+    };
+    let Some(start) = joint.and_then(|j| stage3::sense_from(&rate, j)) else {
+        return Ok((rate, frames, false));
+    };
+    let to_joint = |p: [f64; 3]| stage3::distance(p, joint_fit.rate_deg_per_frame);
+    if let Ok(RateSolution::Determined(mut flipped)) =
+        stage3::fit_from_starts(&problem, &[start], config)
+    {
+        // Taken only if it did end on the joint fit's side.
+        if to_joint(flipped.rate_deg_per_frame) < to_joint(first.rate_deg_per_frame) {
             // The record covers the whole search: the first multi-start and the re-polish.
             flipped.total_iterations += first.total_iterations;
             flipped.starts_polished += first.starts_polished;
             flipped.grid_points = first.grid_points;
             flipped.starts_screened = first.starts_screened;
-            return Ok((
-                RateSolution::Determined(flipped),
-                problem.frame_count(),
-                true,
-            ));
+            return Ok((RateSolution::Determined(flipped), frames, true));
         }
     }
     Ok((rate, problem.frame_count(), false))

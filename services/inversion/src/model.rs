@@ -31,6 +31,7 @@ use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_1_PI;
 
+mod coefficients;
 mod diagnostics;
 
 /// Panel normal during the motion window (§1.6 \[ASSUMP\]).
@@ -253,72 +254,6 @@ impl RateProblem {
             refit_diffuse: config.refit_diffuse,
             coeff_cov: vec![None; bands.len()],
         })
-    }
-
-    /// Attaches the stage-1 coefficient covariance of each band (x̃ units, 22 × 22 row-major;
-    /// `None` where unknown) so that [`Self::coefficient_term`] can propagate it.
-    pub fn with_coefficient_covariance(mut self, per_band: Vec<Option<Vec<f64>>>) -> Self {
-        let n = TERMS * 2;
-        self.coeff_cov = per_band
-            .into_iter()
-            .zip(&self.bands)
-            .map(|(c, band)| {
-                let k = band.mean_flux_w.powi(-2);
-                c.filter(|c| c.len() == n * n)
-                    .map(|c| c.iter().map(|v| v * k).collect())
-            })
-            .collect();
-        self.coeff_cov.resize(self.bands.len(), None);
-        self
-    }
-
-    /// `C = Σ_b (JᵀB_b) Cov(x_b) (JᵀB_b)ᵀ` (3 × 3), with B_b = w ∂m/∂x_b the whitened
-    /// sensitivity of band b's residuals to its coefficients and J = `jac` at p. The rates'
-    /// covariance including the coefficients' uncertainty is F⁻¹ + F⁻¹ C F⁻¹. `None` when no
-    /// band carries a coefficient covariance (or the diffuse re-fit replaces them).
-    pub fn coefficient_term(&self, p: [f64; 3], jac: &[[f64; 3]]) -> Option<[[f64; 3]; 3]> {
-        if self.refit_diffuse || self.coeff_cov.iter().all(Option::is_none) {
-            return None;
-        }
-        let nb = self.bands.len();
-        let n = TERMS * 2;
-        let mut jb = vec![vec![[0.0; 3]; n]; nb]; // per band: (JᵀB)ᵀ rows m
-        let mut g = [[0.0; TERMS]; 2];
-        let mut trig = TrigStepper::new(p);
-        for (t, frame) in self.frames.iter().enumerate() {
-            let rot = self.attitude.matrix_from_trig(&trig.at(frame.t_frames));
-            self.basis(frame, &rot, &mut g);
-            for (b, band) in self.bands.iter().enumerate() {
-                if self.coeff_cov[b].is_none() {
-                    continue;
-                }
-                let scale = band.w[t] * frame.inv_range2;
-                let row = jac[t * nb + b];
-                for (m, gm) in g.iter().flatten().enumerate() {
-                    for i in 0..3 {
-                        jb[b][m][i] += row[i] * scale * gm;
-                    }
-                }
-            }
-        }
-        let mut c = [[0.0; 3]; 3];
-        for (b, cov) in self.coeff_cov.iter().enumerate() {
-            let Some(cov) = cov else { continue };
-            for m in 0..n {
-                for k in 0..n {
-                    let v = cov[m * n + k];
-                    if v == 0.0 {
-                        continue;
-                    }
-                    for i in 0..3 {
-                        for j in 0..3 {
-                            c[i][j] += jb[b][m][i] * v * jb[b][k][j];
-                        }
-                    }
-                }
-            }
-        }
-        Some(c)
     }
 
     /// The same problem on every `stride`-th frame (normalisation and weights unchanged), used

@@ -34,7 +34,7 @@ use crate::observability::{
 use serde::{Deserialize, Serialize};
 
 mod weak;
-pub(crate) use weak::{keep_sense, sense_from};
+pub(crate) use weak::{distance, keep_sense, sense_from};
 pub use weak::{mirror, WeakPrior};
 
 /// Multi-start settings.

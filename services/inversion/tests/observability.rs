@@ -523,3 +523,91 @@ fn with_sigma_given_a_rejected_model_scales_the_covariance_up() {
         variance_scale.sqrt()
     );
 }
+
+/// The information about p lost to unknown coefficients, `L = Σ F_pb (S_b + BᵀB)⁻¹ F_bp`,
+/// against a second method: the full Fisher matrix of (p, x) built from a Jacobian in x taken
+/// by perturbing the coefficients (the model is linear in them), inverted whole; its p-block
+/// is the Cramér–Rao bound `(JᵀJ − L)⁻¹`.
+#[test]
+fn coefficient_information_loss_is_the_schur_complement_of_the_full_fisher() {
+    use nalgebra::DMatrix;
+    let p = [0.0, 0.25, 0.0];
+    let obs = with_noise(y_window(120), 50.0, None);
+    let b = band();
+    let x = glint_inversion::stage1::coefficients_to_array(&b.coeffs);
+    let n = x.len();
+    let free: Vec<usize> = (0..n).filter(|&m| x[m] > 0.0).collect();
+    let mut cov = vec![0.0; n * n];
+    for &m in &free {
+        cov[m * n + m] = (REL * x[m]).powi(2);
+    }
+    let config = MotionModelConfig::default();
+    let problem = RateProblem::new(&obs, &[b], &config)
+        .expect("problem")
+        .with_coefficient_covariance(vec![Some(cov.clone())]);
+    let rows = problem.residual_count();
+    let (mut r0, mut jac) = (vec![0.0; rows], vec![[0.0; 3]; rows]);
+    problem.residuals_and_jacobian(p, &mut r0, &mut jac);
+    let loss = problem.coefficient_information_loss(p, &jac).expect("loss");
+    let fisher: [[f64; 3]; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| jac.iter().map(|row| row[i] * row[j]).sum::<f64>())
+    });
+    let reduced = DMatrix::from_fn(3, 3, |i, j| fisher[i][j] - loss[i][j]);
+    let crb = reduced.try_inverse().expect("invertible");
+
+    // Second method: B by perturbation, K = [[JᵀJ, JᵀB], [BᵀJ, BᵀB + S]].
+    let k = free.len();
+    let mut big_b = DMatrix::zeros(rows, k);
+    for (c, &m) in free.iter().enumerate() {
+        let delta = 1e-3 * x[m];
+        let mut moved = b;
+        if m < 11 {
+            moved.coeffs.panel[m] += delta;
+        } else {
+            moved.coeffs.body[m - 11] += delta;
+        }
+        let mut r = vec![0.0; rows];
+        RateProblem::new(&obs, &[moved], &config)
+            .expect("problem")
+            .residuals(p, &mut r);
+        for t in 0..rows {
+            big_b[(t, c)] = -(r[t] - r0[t]) / delta;
+        }
+    }
+    let big_j = DMatrix::from_fn(rows, 3, |t, i| jac[t][i]);
+    let mut full = DMatrix::zeros(3 + k, 3 + k);
+    full.view_mut((0, 0), (3, 3))
+        .copy_from(&(big_j.transpose() * &big_j));
+    let jb = big_j.transpose() * &big_b;
+    full.view_mut((0, 3), (3, k)).copy_from(&jb);
+    full.view_mut((3, 0), (k, 3)).copy_from(&jb.transpose());
+    let mut bb = big_b.transpose() * &big_b;
+    for (c, &m) in free.iter().enumerate() {
+        bb[(c, c)] += 1.0 / cov[m * n + m];
+    }
+    full.view_mut((3, 3), (k, k)).copy_from(&bb);
+    let inverse = full.try_inverse().expect("full Fisher invertible");
+    for i in 0..3 {
+        for j in 0..3 {
+            let scale = (crb[(i, i)] * crb[(j, j)]).sqrt();
+            assert!(
+                (inverse[(i, j)] - crb[(i, j)]).abs() < 1e-6 * scale,
+                "({i},{j}): full {:e} vs Schur {:e}",
+                inverse[(i, j)],
+                crb[(i, j)]
+            );
+        }
+    }
+    // Unknown coefficients cost information: the bound exceeds F⁻¹ along every direction.
+    let known = DMatrix::from_fn(3, 3, |i, j| fisher[i][j])
+        .try_inverse()
+        .expect("F");
+    for i in 0..3 {
+        assert!(
+            crb[(i, i)] > known[(i, i)],
+            "{i}: {} vs {}",
+            crb[(i, i)],
+            known[(i, i)]
+        );
+    }
+}

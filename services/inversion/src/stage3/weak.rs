@@ -230,17 +230,22 @@ pub(crate) fn keep_sense(
 const SAME_SENSE_DEG_PER_FRAME: f64 = 1e-2;
 
 /// When the λ* data fit p̂ and its mirror equally well (the sense of rotation about X and Z is
-/// not observable in that band) but the joint fit over all bands is not ambiguous, the mirror
-/// to start from if it is the one nearer the joint solution: the other bands' evidence decides
-/// the sense. `None` to keep p̂.
+/// not observable in that band), the start for the other sense if the joint fit prefers it:
+/// the joint cost holds λ*'s own data and every other band's, so its sense is the likelier one
+/// even where it cannot exclude its own mirror at Δχ² ≤ 4 either (at SNR 50 about Z, 18 of 50
+/// λ* fits took the wrong sense while the joint fit, ambiguous by that test, had it right).
+/// Compared through the exact mirror (−w_x, w_y, −w_z) of p̂: the polished mirror can drift
+/// along the weak direction. `None` to keep p̂.
 pub(crate) fn sense_from(rate: &RateSolution, joint: &RateSolution) -> Option<[f64; 3]> {
     let (fit, joint) = (rate.fit()?, joint.fit()?);
-    let mirror = fit.mirror_deg_per_frame?;
-    if joint.mirror_deg_per_frame.is_some() {
+    fit.mirror_deg_per_frame?;
+    let p = fit.rate_deg_per_frame;
+    let m = mirror(p);
+    if distance(m, p) <= SAME_SENSE_DEG_PER_FRAME {
         return None;
     }
     let to_joint = |a: [f64; 3]| distance(a, joint.rate_deg_per_frame);
-    (to_joint(mirror) < to_joint(fit.rate_deg_per_frame)).then_some(mirror)
+    (to_joint(m) < to_joint(p)).then_some(m)
 }
 
 #[cfg(test)]
@@ -278,7 +283,7 @@ mod tests {
     }
 
     #[test]
-    fn the_joint_fit_decides_the_sense_only_when_lambda_star_cannot() {
+    fn the_joint_fit_decides_the_sense_when_lambda_star_cannot() {
         let p = [0.0, -0.006, -0.25];
         let m = [0.0, -0.006, 0.25];
         let joint = fit([0.0, -0.001, 0.249], None);
@@ -288,8 +293,16 @@ mod tests {
         assert_eq!(sense_from(&fit(m, Some(p)), &joint), None);
         // λ* not ambiguous: its own answer stands.
         assert_eq!(sense_from(&fit(p, None), &joint), None);
-        // The joint fit ambiguous too: no evidence either way.
+        // The joint fit ambiguous too: its preferred sense still carries all bands' evidence.
         let joint_ambiguous = fit([0.0, -0.001, 0.249], Some([0.0, -0.001, -0.249]));
-        assert_eq!(sense_from(&fit(p, Some(m)), &joint_ambiguous), None);
+        assert_eq!(sense_from(&fit(p, Some(m)), &joint_ambiguous), Some(m));
+        // The start is the exact mirror of p̂, not a polished mirror that drifted along X.
+        assert_eq!(
+            sense_from(&fit(p, Some([0.56, 0.0, 0.18])), &joint),
+            Some(m)
+        );
+        // No sense to flip: p̂ is its own mirror.
+        let flat = [0.0, 0.25, 0.001];
+        assert_eq!(sense_from(&fit(flat, Some(flat)), &joint), None);
     }
 }

@@ -1,0 +1,168 @@
+//! What stage 3 owes to the stage-1 coefficients' uncertainty.
+//!
+//! With B_b = w ∂m/∂x_b the whitened sensitivity of band b's residuals to its coefficients,
+//! J the whitened Jacobian in p, F = JᵀJ, F_pb = Jᵀ B_b and S_b = Cov(x̃_b)⁻¹ (stage 1, on the
+//! coefficients NNLS left free):
+//!
+//! ```text
+//! two-stage estimator (x̃ plugged in):  Cov(p̂) ≈ F⁻¹ + F⁻¹ C F⁻¹,   C = Σ_b F_pb Cov(x̃_b) F_bp
+//! Cramér–Rao bound with x unknown and both windows informing it (the scenario's bound):
+//!     CRB_p = (F − L)⁻¹,   L = Σ_b F_pb (S_b + B_bᵀB_b)⁻¹ F_bp
+//! ```
+
+use super::RateProblem;
+use crate::facet::TERMS;
+use crate::rotation::TrigStepper;
+use nalgebra::DMatrix;
+
+/// Per band: `F_bp` as n rows of 3, and `B_bᵀB_b` (n × n, row-major) when asked.
+type Sensitivity = Option<(Vec<[f64; 3]>, Option<Vec<f64>>)>;
+
+impl RateProblem {
+    /// Attaches the stage-1 coefficient covariance of each band (x̃ units, 22 × 22 row-major;
+    /// `None` where unknown) so that [`Self::coefficient_term`] can propagate it.
+    pub fn with_coefficient_covariance(mut self, per_band: Vec<Option<Vec<f64>>>) -> Self {
+        let n = TERMS * 2;
+        self.coeff_cov = per_band
+            .into_iter()
+            .zip(&self.bands)
+            .map(|(c, band)| {
+                let k = band.mean_flux_w.powi(-2);
+                c.filter(|c| c.len() == n * n)
+                    .map(|c| c.iter().map(|v| v * k).collect())
+            })
+            .collect();
+        self.coeff_cov.resize(self.bands.len(), None);
+        self
+    }
+
+    /// `C = Σ_b F_pb Cov(x_b) F_bp` (3 × 3) at p, with `jac` the whitened Jacobian at p. The
+    /// rates' covariance including the coefficients' uncertainty is F⁻¹ + F⁻¹ C F⁻¹. `None`
+    /// when no band carries a coefficient covariance (or the diffuse re-fit replaces them).
+    pub fn coefficient_term(&self, p: [f64; 3], jac: &[[f64; 3]]) -> Option<[[f64; 3]; 3]> {
+        if self.refit_diffuse || self.coeff_cov.iter().all(Option::is_none) {
+            return None;
+        }
+        let n = TERMS * 2;
+        let mut c = [[0.0; 3]; 3];
+        for (sens, cov) in self
+            .coefficient_sensitivity(p, jac, false)
+            .iter()
+            .zip(&self.coeff_cov)
+        {
+            let (Some((jb, _)), Some(cov)) = (sens, cov) else {
+                continue;
+            };
+            for m in 0..n {
+                for k in 0..n {
+                    let v = cov[m * n + k];
+                    if v == 0.0 {
+                        continue;
+                    }
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            c[i][j] += jb[m][i] * v * jb[k][j];
+                        }
+                    }
+                }
+            }
+        }
+        Some(c)
+    }
+
+    /// `L = Σ_b F_pb (S_b + B_bᵀB_b)⁻¹ F_bp` (3 × 3): the information about p lost to not
+    /// knowing the coefficients, when the stable window (S_b) and the motion window (B_bᵀB_b)
+    /// both inform them. The Cramér–Rao bound of p is then `(JᵀJ − L)⁻¹`. Only coefficients
+    /// with a positive stable-window variance are free; `None` as for
+    /// [`Self::coefficient_term`].
+    pub fn coefficient_information_loss(
+        &self,
+        p: [f64; 3],
+        jac: &[[f64; 3]],
+    ) -> Option<[[f64; 3]; 3]> {
+        if self.refit_diffuse || self.coeff_cov.iter().all(Option::is_none) {
+            return None;
+        }
+        let n = TERMS * 2;
+        let mut loss = [[0.0; 3]; 3];
+        for (sens, cov) in self
+            .coefficient_sensitivity(p, jac, true)
+            .iter()
+            .zip(&self.coeff_cov)
+        {
+            let (Some((jb, Some(btb))), Some(cov)) = (sens, cov) else {
+                continue;
+            };
+            let free: Vec<usize> = (0..n).filter(|&m| cov[m * n + m] > 0.0).collect();
+            if free.is_empty() {
+                continue;
+            }
+            let k = free.len();
+            let cov_free = DMatrix::from_fn(k, k, |i, j| cov[free[i] * n + free[j]]);
+            let stable_info = cov_free.cholesky()?.inverse();
+            let total = stable_info + DMatrix::from_fn(k, k, |i, j| btb[free[i] * n + free[j]]);
+            let f_bp = DMatrix::from_fn(k, 3, |i, j| jb[free[i]][j]);
+            let solved = total.cholesky()?.solve(&f_bp);
+            let term = f_bp.transpose() * solved;
+            for i in 0..3 {
+                for j in 0..3 {
+                    loss[i][j] += term[(i, j)];
+                }
+            }
+        }
+        Some(loss)
+    }
+
+    /// Per band with a coefficient covariance: `F_bp` (n rows of 3) and, with `with_btb`,
+    /// `B_bᵀB_b`.
+    fn coefficient_sensitivity(
+        &self,
+        p: [f64; 3],
+        jac: &[[f64; 3]],
+        with_btb: bool,
+    ) -> Vec<Sensitivity> {
+        let nb = self.bands.len();
+        let n = TERMS * 2;
+        let mut out: Vec<Sensitivity> = self
+            .coeff_cov
+            .iter()
+            .map(|c| {
+                c.as_ref()
+                    .map(|_| (vec![[0.0; 3]; n], with_btb.then(|| vec![0.0; n * n])))
+            })
+            .collect();
+        let mut g = [[0.0; TERMS]; 2];
+        let mut trig = TrigStepper::new(p);
+        for (t, frame) in self.frames.iter().enumerate() {
+            let rot = self.attitude.matrix_from_trig(&trig.at(frame.t_frames));
+            self.basis(frame, &rot, &mut g);
+            for (b, band) in self.bands.iter().enumerate() {
+                let Some((jb, btb)) = &mut out[b] else {
+                    continue;
+                };
+                let scale = band.w[t] * frame.inv_range2;
+                let row = jac[t * nb + b];
+                let mut flat = [0.0; 2 * TERMS];
+                for (dst, gm) in flat.iter_mut().zip(g.iter().flatten()) {
+                    *dst = scale * gm;
+                }
+                for (m, bm) in flat.iter().enumerate() {
+                    for i in 0..3 {
+                        jb[m][i] += row[i] * bm;
+                    }
+                }
+                if let Some(btb) = btb {
+                    for (m, bm) in flat.iter().enumerate() {
+                        if *bm == 0.0 {
+                            continue;
+                        }
+                        for (k, bk) in flat.iter().enumerate() {
+                            btb[m * n + k] += bm * bk;
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+}
