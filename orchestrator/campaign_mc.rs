@@ -13,6 +13,8 @@
 //!                                      that σ, on the coefficients NNLS left free), B_b the
 //!                                      motion window's (RateProblem::coefficient_information_loss)
 //! observable: CRB eigen-directions v_i with 1σ = sqrt(λ_i) ≤ 0.25 deg/frame
+//! other sense: runs nearer mirror(p₀) = (−w_x, w_y, −w_z) than p₀, counted apart (a global
+//!              ambiguity the local bound does not describe) and left out of RMS and NEES
 //! efficiency = sqrt(mean_k Σ_obs (d_k·v_i)²) / sqrt(Σ_obs λ_i)     (1 = efficient)
 //! NEES_k = Σ_obs' (d_k·u_j)²/μ_j        u_j, μ_j: eigen-pairs of the run's reported covariance
 //! ```
@@ -26,6 +28,7 @@ use anyhow::{anyhow, Context, Result};
 use glint_inversion::lm::normal_equations;
 use glint_inversion::observability::symmetric_eigen;
 use glint_inversion::stage1::run_stage1_with;
+use glint_inversion::stage3::mirror;
 use glint_inversion::{
     rate_error_metric, solve_three_stage, InversionConfig, MotionModelConfig, Observation,
     RateBand, RateProblem,
@@ -293,6 +296,9 @@ struct Estimator {
     nees: Vec<(f64, usize)>,
     /// Runs without a determined rate.
     undetermined: usize,
+    /// Runs nearer the mirror of p₀ than p₀ (the other sense of rotation): a global ambiguity,
+    /// outside what a local bound describes, counted and kept out of RMS and NEES.
+    other_sense: usize,
 }
 
 impl Estimator {
@@ -303,6 +309,7 @@ impl Estimator {
             dev2_along: vec![],
             nees: vec![],
             undetermined: 0,
+            other_sense: 0,
             bound,
         };
         let Some(p0) = out.bound.p0 else {
@@ -316,6 +323,13 @@ impl Estimator {
                 continue;
             };
             let d = [p[0] - p0[0], p[1] - p0[1], p[2] - p0[2]];
+            let m0 = mirror(p0);
+            let dist =
+                |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
+            if dist(m0, p0) > 0.0 && dist(p, m0) < dist(p, p0) {
+                out.other_sense += 1;
+                continue;
+            }
             let along = out
                 .bound
                 .directions
@@ -363,8 +377,9 @@ impl Estimator {
         let [lo, hi] = chi2_mean_bounds(total_dof, self.nees.len());
         json!({
             "p0_deg_per_frame": self.bound.p0,
-            "determined": n,
+            "determined": n + self.other_sense,
             "undetermined": self.undetermined,
+            "other_sense": self.other_sense,
             "observable_directions": observable.iter().filter(|o| **o).count(),
             "crb_observable_deg_per_frame": finite(crb_obs.sqrt()),
             "crb_known_coefficients_observable_deg_per_frame": finite(known_obs.sqrt()),
@@ -426,18 +441,19 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
     }
     s.push_str(
         "\n## Efficiency and honesty (scatter about the noise-free solution)\n\n\
-         RMS = sqrt(mean ‖(p̂ − p₀) projected on the observable CRB directions‖²); efficiency = RMS / CRB (1 is efficient). The CRB is the scenario's: both windows noisy, the stage-1 coefficients unknown and informed by both; the column beside it is the bound if they were known. NEES uses each run's reported covariance over its observable directions; its 95 % interval is for the mean over the runs.\n\n\
-         | value | fit | runs determined | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | RMS [deg/frame] | efficiency | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|---|\n",
+         RMS = sqrt(mean ‖(p̂ − p₀) projected on the observable CRB directions‖²) over the runs with p₀'s sense of rotation (those nearer the mirror of p₀ are counted apart: a global ambiguity, not scatter a local bound describes); efficiency = RMS / CRB (1 is efficient). The CRB is the scenario's: both windows noisy, the stage-1 coefficients unknown and informed by both; the column beside it is the bound if they were known. NEES uses each run's reported covariance over its observable directions; its 95 % interval is for the mean over the runs.\n\n\
+         | value | fit | runs determined | other sense | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | RMS [deg/frame] | efficiency | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         for (label, key) in [("λ*", "single"), ("joint", "joint")] {
             let e = &r["monte_carlo"][key];
             let _ = writeln!(
                 s,
-                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} ({}) | {}–{} |",
+                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} | {} ({}) | {}–{} |",
                 r["value"].as_str().unwrap_or("?"),
                 e["determined"],
                 r["monte_carlo"]["runs"],
+                e["other_sense"],
                 e["observable_directions"],
                 fmt_e(&e["crb_observable_deg_per_frame"]),
                 fmt_e(&e["crb_known_coefficients_observable_deg_per_frame"]),
