@@ -109,6 +109,15 @@ pub enum UnobservableReason {
         /// ‖J_lobes‖/‖J‖ at the fitted rate.
         lobe_sensitivity_share: f64,
     },
+    /// Every start ended far outside the search box (a rate beyond twice its half-width on
+    /// some axis): at low SNR LM can chase noise to 5 deg/frame and more, where the body turns
+    /// past the fit horizon between two frames and the model no longer describes the data.
+    /// The box is the range of rates the search considers; widen it
+    /// (`stage3.start.half_width_deg_per_frame`) if faster rates are expected.
+    OutsideSearchBox {
+        /// Where the best start ended \[deg/frame\].
+        rate_deg_per_frame: [f64; 3],
+    },
 }
 
 impl UnobservableReason {
@@ -119,6 +128,7 @@ impl UnobservableReason {
             Self::RankDeficient { .. } => 2,
             Self::AllDirectionsAboveThreshold => 3,
             Self::NoGlint { .. } => 4,
+            Self::OutsideSearchBox { .. } => 5,
         }
     }
 }

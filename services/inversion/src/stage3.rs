@@ -303,6 +303,12 @@ pub fn fit_from_starts(
     polish(problem, starts, (0, 0), config)
 }
 
+/// Whether every |p_i| is within twice the start box's half-width: a credible answer.
+fn near_box(p: &[f64; 3], start: &StartConfig) -> bool {
+    p.iter()
+        .all(|v| v.abs() <= 2.0 * start.half_width_deg_per_frame)
+}
+
 /// Whether every |p_i| is within the start box (`half_width_deg_per_frame`).
 fn in_box(p: &[f64; 3], start: &StartConfig) -> bool {
     p.iter().all(|v| v.abs() <= start.half_width_deg_per_frame)
@@ -354,6 +360,11 @@ fn polish(
         let iterations;
         (best, analysis, iterations) = weak::hold_weak_direction(problem, best, analysis, config)?;
         total_iterations += iterations;
+    }
+    if analysis.unobservable.is_none() && !near_box(&best.p_deg_per_frame, &config.start) {
+        analysis.unobservable = Some(UnobservableReason::OutsideSearchBox {
+            rate_deg_per_frame: best.p_deg_per_frame,
+        });
     }
     if analysis.unobservable.is_none() {
         let share = problem.lobe_sensitivity_share(best.p_deg_per_frame);

@@ -417,6 +417,39 @@ fn z_problem_at(alpha_deg: f64) -> RateProblem {
     RateProblem::new(&obs, &[band], &MotionModelConfig::default()).expect("problem")
 }
 
+/// A truth far outside the search box (0.25 deg/frame with a box of ±0.05): LM leaves the box
+/// to reach it, and the answer says so instead of reporting a rate the search never considered;
+/// with the default box the same data give the truth.
+#[test]
+fn a_rate_far_outside_the_search_box_is_not_reported() {
+    let problem = z_problem_at(10.0);
+    let mut small = Stage3Config {
+        max_rotation_deg: None,
+        ..Stage3Config::default()
+    };
+    small.start.half_width_deg_per_frame = 0.05;
+    match fit_multistart(&problem, &small).expect("fit") {
+        RateSolution::Unobservable {
+            reason: UnobservableReason::OutsideSearchBox { rate_deg_per_frame },
+            ..
+        } => assert!(
+            rate_deg_per_frame.iter().any(|v| v.abs() > 0.1),
+            "{rate_deg_per_frame:?}"
+        ),
+        other => panic!("expected outside the search box, got {other:?}"),
+    }
+    let default = Stage3Config {
+        max_rotation_deg: None,
+        ..Stage3Config::default()
+    };
+    let fit = fit_multistart(&problem, &default).expect("fit");
+    let p = fit
+        .fit()
+        .expect("determined with the default box")
+        .rate_deg_per_frame;
+    assert!(rate_error_metric(p, [0.0, 0.0, 0.25]) < 0.1, "{p:?}");
+}
+
 #[test]
 fn without_a_glint_the_answer_is_unobservable_no_glint() {
     // Phase ≈ 60°: the narrow lobes stay dark for the whole window, only the diffuse terms

@@ -301,12 +301,13 @@ impl SolveResponse {
     pub const SENSE_FROM_JOINT: u32 = 1;
 
     /// Names of the `unobservable_reason` codes (index = code).
-    pub const REASON_NAMES: [&'static str; 5] = [
+    pub const REASON_NAMES: [&'static str; 6] = [
         "none",
         "flat light curve",
         "rank deficient",
         "every direction above the threshold",
         "no glint: only the diffuse terms move the light curve",
+        "no solution within twice the search box",
     ];
 
     /// The name of a reason code ("unknown" outside the table).
