@@ -42,6 +42,9 @@ use crate::report_inversion::finite;
 use crate::run::{self, RunOptions};
 use crate::score_debris::chi2_mean_bounds;
 
+/// A noise-free solution closer than this to its mirror has no sense of rotation \[deg/frame\].
+const SAME_SENSE_DEG_PER_FRAME: f64 = 1e-2;
+
 /// A direction with a larger 1σ bound is unobservable \[deg/frame\]: stage 3's threshold.
 fn observable_bound() -> f64 {
     glint_inversion::observability::ObservabilityConfig::default().unobservable_bound_deg_per_frame
@@ -326,7 +329,8 @@ impl Estimator {
             let m0 = mirror(p0);
             let dist =
                 |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
-            if dist(m0, p0) > 0.0 && dist(p, m0) < dist(p, p0) {
+            // A rate within 0.01 deg/frame of its own mirror (a Y rotation) has no sense to lose.
+            if dist(m0, p0) > SAME_SENSE_DEG_PER_FRAME.powi(2) && dist(p, m0) < dist(p, p0) {
                 out.other_sense += 1;
                 continue;
             }
