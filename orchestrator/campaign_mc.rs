@@ -7,7 +7,7 @@
 //! ```text
 //! d_k = p̂_k − p₀                      p₀: the noise-free solution (offline, same solver)
 //! CRB = (JᵀWJ − L)⁻¹ at p₀              J over the frames p₀ was fitted on, W = 1/σ²,
-//!                                      σ = mean Φ / SNR per band and window
+//!                                      σ = mean Φ / SNR per band and noisy window
 //! L = Σ_b F_pb (S_b + B_bᵀB_b)⁻¹ F_bp   the stage-1 coefficients are unknown too: S_b is the
 //!                                      stable window's information about them (stage 1 with
 //!                                      that σ, on the coefficients NNLS left free), B_b the
@@ -35,6 +35,7 @@ use glint_inversion::{
 };
 use nalgebra::Vector3;
 use serde_json::{json, Value};
+use shared_types::scenario::NoiseWindows;
 use shared_types::Scenario;
 
 use crate::campaign::fmt;
@@ -92,7 +93,8 @@ pub fn run_value(
         all_ok &= ok;
         runs.push(report["inversion"]["stage3"].clone());
     }
-    let reference = Reference::solve(&ref_dir.join("observations.csv"), snr)?;
+    let stable_noisy = sp.noise_windows == NoiseWindows::Both;
+    let reference = Reference::solve(&ref_dir.join("observations.csv"), snr, stable_noisy)?;
     let single = Estimator::from_runs(&runs, &|s3| s3, reference.single.clone());
     let joint = Estimator::from_runs(&runs, &|s3| &s3["joint"], reference.joint.clone());
     let median = |key: &dyn Fn(&Value) -> Option<[f64; 3]>| {
@@ -172,7 +174,7 @@ struct Reference {
 impl Reference {
     /// The offline solve of the noise-free run's observations (the service gives the same
     /// answer to the bit) and the CRB of each fit on the frames it used, at σ = mean/SNR.
-    fn solve(observations: &Path, snr: f64) -> Result<Reference> {
+    fn solve(observations: &Path, snr: f64, stable_noisy: bool) -> Result<Reference> {
         let file = crate::observations::read(observations)?;
         let config = InversionConfig {
             joint_fit: true,
@@ -216,9 +218,15 @@ impl Reference {
         .map_err(|e| anyhow!("{}: {e}", observations.display()))?;
         let bound = |p0: Option<[f64; 3]>, frames: usize, bands: Vec<RateBand>| -> Result<Bound> {
             let frames: Vec<Observation> = motion.iter().take(frames).cloned().collect();
+            // A noise-free stable window (`noise_windows = "motion"`) leaves no doubt about
+            // the coefficients.
             let covariance = bands
                 .iter()
-                .map(|b| with_covariance[b.band_index].coeff_covariance.clone())
+                .map(|b| {
+                    stable_noisy
+                        .then(|| with_covariance[b.band_index].coeff_covariance.clone())
+                        .flatten()
+                })
                 .collect();
             let problem =
                 RateProblem::new(&frames, &bands, &model)?.with_coefficient_covariance(covariance);
