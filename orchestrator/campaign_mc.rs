@@ -13,8 +13,9 @@
 //!                                      that σ, on the coefficients NNLS left free), B_b the
 //!                                      motion window's (RateProblem::coefficient_information_loss)
 //! observable: CRB eigen-directions v_i with 1σ = sqrt(λ_i) ≤ 0.25 deg/frame
-//! other sense: runs nearer mirror(p₀) = (−w_x, w_y, −w_z) than p₀, counted apart (a global
-//!              ambiguity the local bound does not describe) and left out of RMS and NEES
+//! other sense: runs nearer mirror(p₀) = (−w_x, w_y, −w_z) than p₀, when that mirror is at least
+//!              |p₀| away, counted apart (a global ambiguity the local bound does not describe)
+//!              and left out of RMS and NEES
 //! efficiency = sqrt(mean_k Σ_obs (d_k·v_i)²) / sqrt(Σ_obs λ_i)     (1 = efficient)
 //! NEES_k = Σ_obs' (d_k·u_j)²/μ_j        u_j, μ_j: eigen-pairs of the run's reported covariance
 //! ```
@@ -42,9 +43,6 @@ use crate::campaign::fmt;
 use crate::report_inversion::finite;
 use crate::run::{self, RunOptions};
 use crate::score_debris::chi2_mean_bounds;
-
-/// A noise-free solution closer than this to its mirror has no sense of rotation \[deg/frame\].
-const SAME_SENSE_DEG_PER_FRAME: f64 = 1e-2;
 
 /// A direction with a larger 1σ bound is unobservable \[deg/frame\]: stage 3's threshold.
 fn observable_bound() -> f64 {
@@ -337,8 +335,9 @@ impl Estimator {
             let m0 = mirror(p0);
             let dist =
                 |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
-            // A rate within 0.01 deg/frame of its own mirror (a Y rotation) has no sense to lose.
-            if dist(m0, p0) > SAME_SENSE_DEG_PER_FRAME.powi(2) && dist(p, m0) < dist(p, p0) {
+            // A rate mostly about Y is nearly its own mirror and has no sense to lose: only
+            // when the mirror is at least |p₀| away (w_x, w_z carry ≥ half the rate) is it one.
+            if dist(m0, p0) >= dist(p0, [0.0; 3]) && dist(p, m0) < dist(p, p0) {
                 out.other_sense += 1;
                 continue;
             }
