@@ -6,7 +6,7 @@ use common::*;
 use glint_inversion::stage1::basis::{candidate_count, diffuse_vif};
 use glint_inversion::stage1::{design_matrix, run_stage1_with, Stage1Config};
 use glint_inversion::Observation;
-use glint_physics::two_facet::{panel_normal, TwoFacetCoefficients};
+use glint_physics::two_facet::TwoFacetCoefficients;
 use nalgebra::Vector3;
 
 /// Panel: diffuse 0.25 + the μ = 0.07 and μ = 0.2 lobes; body: diffuse + μ = 0.05 (a physical
@@ -25,26 +25,7 @@ fn truth(wavelength_nm: f64, broad_lobe: f64) -> TwoFacetCoefficients {
 
 /// 720 samples of the hover stable window with white noise of σ = mean flux / snr per band.
 fn noisy_window(seed: u64, snr: Option<f64>, broad_lobe: f64) -> Vec<Observation> {
-    let mut obs: Vec<Observation> = (0..720)
-        .map(|j| {
-            let alpha = -40.0 + 65.0 * j as f64 / 719.0;
-            let (s, o) = (sun_at(alpha), observer());
-            let range = range_m(j as f64);
-            let n_p = panel_normal(s, Vector3::x());
-            Observation {
-                frame_index: j as u64,
-                t_s: 30.0 * j as f64,
-                sun_body: s,
-                observer_body: o,
-                range_m: range,
-                flux_w: BANDS_NM
-                    .iter()
-                    .map(|&l| flux_w(&truth(l, broad_lobe), band_scale_w(l), n_p, s, o, range))
-                    .collect(),
-                sigma_w: vec![],
-            }
-        })
-        .collect();
+    let mut obs = stable_window_of(720, -40.0, 25.0, &BANDS_NM, &|l| truth(l, broad_lobe));
     if let Some(snr) = snr {
         let mut g = Gauss::new(seed);
         for b in 0..BANDS_NM.len() {

@@ -87,6 +87,17 @@ pub fn stable_window(
     alpha_to_deg: f64,
     bands_nm: &[f64],
 ) -> Vec<Observation> {
+    stable_window_of(n, alpha_from_deg, alpha_to_deg, bands_nm, &band_coeffs)
+}
+
+/// [`stable_window`] of a body with coefficients `coeffs(λ)` \[m²\].
+pub fn stable_window_of(
+    n: usize,
+    alpha_from_deg: f64,
+    alpha_to_deg: f64,
+    bands_nm: &[f64],
+    coeffs: &dyn Fn(f64) -> TwoFacetCoefficients,
+) -> Vec<Observation> {
     (0..n)
         .map(|j| {
             let alpha =
@@ -102,7 +113,7 @@ pub fn stable_window(
                 range_m: range,
                 flux_w: bands_nm
                     .iter()
-                    .map(|&l| flux_w(&band_coeffs(l), band_scale_w(l), n_p, s, o, range))
+                    .map(|&l| flux_w(&coeffs(l), band_scale_w(l), n_p, s, o, range))
                     .collect(),
                 sigma_w: vec![],
             }
