@@ -253,6 +253,10 @@ fn read_inversion_config(path: &Path) -> Result<glint_inversion::InversionConfig
     let config: glint_inversion::InversionConfig =
         toml::from_str(&text).map_err(|e| toml_error(path, &text, &e))?;
     config
+        .stage1
+        .validate()
+        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    config
         .stage3
         .validate()
         .map_err(|e| anyhow!("{}: [stage3] {e}", path.display()))?;

@@ -128,6 +128,11 @@ fn invert_config_errors_name_the_file_and_the_field() {
             "stage2.min_relative_separation",
         ),
         ("[stage3]\nweak_prior = \"nearest\"\n", "weak_prior"),
+        ("[stage1]\nbasis_min_vif = 0.5\n", "stage1.basis_min_vif"),
+        (
+            "[stage1]\nbasis_test_sigmas = 0.0\n",
+            "stage1.basis_test_sigmas",
+        ),
         (
             "[stage3.observability]\nmin_lobe_share = -1.0\n",
             "min_lobe_share",
