@@ -149,8 +149,22 @@ pub(super) fn hold_weak_direction(
         .map(|i| analysis.observability.eigenvectors[i])
         .collect();
     if !weak.is_empty() {
-        let (held, mut held_analysis, iterations) =
+        let (mut held, mut held_analysis, mut iterations) =
             hold_at_prior(problem, &best, &weak, &analysis, config)?;
+        // Judged where the prior puts the fit: when LM drifted far along the weak directions,
+        // their shape there can point at another body axis than at the held solution (about Y
+        // at λ*: Z at w_x = −0.11, X at w_x = 0). Then the held solution's own weakest
+        // directions are held instead, once.
+        let at_held: Vec<[f64; 3]> =
+            held_analysis.observability.eigenvectors[..weak.len()].to_vec();
+        if config.weak_prior == WeakPrior::BodyAxis
+            && config.weak_prior.directions(&at_held) != config.weak_prior.directions(&weak)
+        {
+            let again;
+            (held, held_analysis, again) =
+                hold_at_prior(problem, &best, &at_held, &held_analysis, config)?;
+            iterations += again;
+        }
         // The classification stays the one at the unconstrained optimum.
         held_analysis.observability.unobservable = analysis.observability.unobservable;
         held_analysis.unobservable = None;
