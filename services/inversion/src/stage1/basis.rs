@@ -24,12 +24,12 @@
 //! ```
 //!
 //! The widest lobes go first and the first rejection stops the search, so a lobe the data need
-//! and every narrower one stay. Lobes that were
-//! not in use cost nothing to drop (k = 0, Δχ² = 0: the optimum is unchanged). On noise-free
-//! data s_b² is the model mismatch, so a lobe that explains more than the mismatch's own scatter
-//! stays; exact data keep every lobe they use. The narrowest lobe is never dropped. Dropping columns is exact on the
-//! compressed system ([`NnlsSystem::solve_subset`]), so the search costs a few NNLS solves of
-//! 22 unknowns per band.
+//! and every narrower one stay. Lobes that were not in use cost nothing to drop (k = 0,
+//! Δχ² = 0: the optimum is unchanged). On noise-free data s_b² is the model mismatch, so a lobe
+//! that explains more than the mismatch's own scatter stays; exact data keep every lobe they
+//! use. The narrowest lobe is never dropped. Dropping columns is exact on the compressed system
+//! ([`NnlsSystem::solve_subset`]), so the search costs a few NNLS solves of 22 unknowns per
+//! band.
 
 use crate::error::NnlsError;
 use crate::nnls::{NnlsSolution, NnlsSystem};
