@@ -44,20 +44,11 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
     assert!(err <= 0.5, "error {err} (100·|Δp|): {s3}");
 
     // The exported observations through the offline solver: the same answer, to the bit.
-    let out = glint()
-        .arg("invert")
-        .arg(dir.join("observations.csv"))
-        .arg("--out")
-        .arg(dir.join("offline"))
-        .arg("--band-sweep")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let off = invert_ok(
+        &dir.join("observations.csv"),
+        &dir.join("offline"),
+        &["--band-sweep"],
     );
-    let off = read_json(&dir.join("offline/inversion.json"));
     assert_eq!(off["chosen_wavelength_nm"], inv["stage2"]["chosen_nm"]);
     // The band sweep fits stage 3 at every band; at λ* it is the solve's own fit.
     let sweep = off["band_sweep"].as_array().unwrap();
@@ -283,18 +274,7 @@ fn the_held_axis_is_judged_where_the_prior_puts_the_fit() {
     let dir = temp_dir("held-axis");
     let fixture =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/y-snr50-seed7-400nm.csv");
-    let out = glint()
-        .args(["invert", "--no-joint", "--out"])
-        .arg(&dir)
-        .arg(&fixture)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let result = read_json(&dir.join("inversion.json"));
+    let result = invert_ok(&fixture, &dir, &["--no-joint"]);
     let p: Vec<f64> = result["rate"]["rate_deg_per_frame"]
         .as_array()
         .unwrap()

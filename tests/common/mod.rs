@@ -67,6 +67,24 @@ pub fn run_ok(scenario: Option<&Path>, dir: &Path, extra: &[&str]) -> RunResult 
 }
 
 /// The JSON file at `path` (panics with the path if missing or malformed).
+/// `glint invert OBS --out DIR [extra…]`, which must succeed; the parsed `DIR/inversion.json`.
+pub fn invert_ok(observations: &Path, out_dir: &Path, extra: &[&str]) -> Value {
+    let out = glint()
+        .arg("invert")
+        .arg(observations)
+        .arg("--out")
+        .arg(out_dir)
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    read_json(&out_dir.join("inversion.json"))
+}
+
 pub fn read_json(path: &Path) -> Value {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))

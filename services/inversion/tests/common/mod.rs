@@ -2,7 +2,7 @@
 //! independent forward model: `q_two_facet` + `AttitudeConvention::matrix`).
 #![allow(dead_code)]
 
-use glint_inversion::{Observation, ObservationSet, PanelNormalMode};
+use glint_inversion::{Observation, ObservationSet, PanelNormalMode, RateBand};
 use glint_physics::two_facet::{
     panel_normal, q_two_facet, AttitudeConvention, TwoFacetCoefficients,
 };
@@ -186,3 +186,40 @@ pub fn scenario(stable_n: usize, motion_n: usize, p_true: [f64; 3]) -> Observati
 /// Deterministic Gaussian noise (Box–Muller on a SplitMix64 stream).
 #[allow(unused_imports)] // not every test binary draws noise
 pub use glint_runtime::rng::SplitMix64 as Gauss;
+
+/// The 650-nm band of [`band_coeffs`] in x̃ units.
+pub fn band() -> RateBand {
+    RateBand {
+        band_index: 0,
+        wavelength_nm: 650.0,
+        coeffs: scaled(&band_coeffs(650.0), band_scale_w(650.0)),
+    }
+}
+
+/// The paper's Y case at 650 nm: `frames` frames at 0.25 deg/frame from phase 15°.
+pub fn y_window(frames: usize) -> Vec<Observation> {
+    motion_window(
+        frames,
+        alpha_phase15_deg(),
+        0.004_167,
+        [0.0, 0.25, 0.0],
+        AttitudeConvention::Verbatim,
+        PanelNormalMode::Literal,
+        &[650.0],
+        &band_coeffs,
+    )
+}
+
+/// σ = mean flux / SNR on every frame; noise added when `seed` is given.
+pub fn with_noise(mut obs: Vec<Observation>, snr: f64, seed: Option<u64>) -> Vec<Observation> {
+    let mean = obs.iter().map(|o| o.flux_w[0]).sum::<f64>() / obs.len() as f64;
+    let sigma = mean / snr;
+    let mut g = Gauss::new(seed.unwrap_or(0));
+    for o in &mut obs {
+        o.sigma_w = vec![sigma];
+        if seed.is_some() {
+            o.flux_w[0] += sigma * g.gaussian();
+        }
+    }
+    obs
+}
