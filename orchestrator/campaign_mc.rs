@@ -29,7 +29,7 @@ use anyhow::{anyhow, Context, Result};
 use glint_inversion::lm::normal_equations;
 use glint_inversion::observability::symmetric_eigen;
 use glint_inversion::stage1::run_stage1_with;
-use glint_inversion::stage3::mirror;
+use glint_inversion::stage3::{distance, mirror};
 use glint_inversion::{
     rate_error_metric, solve_three_stage, InversionConfig, MotionModelConfig, Observation,
     RateBand, RateProblem,
@@ -333,11 +333,9 @@ impl Estimator {
             };
             let d = [p[0] - p0[0], p[1] - p0[1], p[2] - p0[2]];
             let m0 = mirror(p0);
-            let dist =
-                |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>();
             // A rate mostly about Y is nearly its own mirror and has no sense to lose: only
             // when the mirror is at least |p₀| away (w_x, w_z carry ≥ half the rate) is it one.
-            if dist(m0, p0) >= dist(p0, [0.0; 3]) && dist(p, m0) < dist(p, p0) {
+            if distance(m0, p0) >= distance(p0, [0.0; 3]) && distance(p, m0) < distance(p, p0) {
                 out.other_sense += 1;
                 continue;
             }

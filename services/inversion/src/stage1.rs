@@ -207,7 +207,7 @@ pub fn run_stage1_with(
             candidates,
             config.basis_test_sigmas,
         )
-        .map_err(nnls_error(0))?
+        .map_err(|(b, source)| nnls_error(b)(source))?
     } else {
         (BasisChoice::full(), solutions)
     };

@@ -34,8 +34,8 @@ use crate::observability::{
 use serde::{Deserialize, Serialize};
 
 mod weak;
-pub(crate) use weak::{distance, keep_sense, sense_from};
-pub use weak::{mirror, WeakPrior};
+pub use weak::{distance, mirror, WeakPrior};
+pub(crate) use weak::{keep_sense, sense_from};
 
 /// Multi-start settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

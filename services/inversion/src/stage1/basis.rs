@@ -114,14 +114,14 @@ pub fn candidate_count(vif: &[f64], min_vif: f64) -> usize {
 
 /// Runs the nested test from the full-basis solutions `full` (one per right-hand side of
 /// `system`, `rows` samples each) over the `candidates` widest lobes. Returns the choice and
-/// the solutions in the chosen basis.
+/// the solutions in the chosen basis; an NNLS failure comes with its right-hand side.
 pub fn select(
     system: &NnlsSystem,
     full: Vec<NnlsSolution>,
     rows: usize,
     candidates: usize,
     test_sigmas: f64,
-) -> Result<(BasisChoice, Vec<NnlsSolution>), NnlsError> {
+) -> Result<(BasisChoice, Vec<NnlsSolution>), (usize, NnlsError)> {
     let facets = system.ncols() / TERMS_PER_FACET;
     let variance: Vec<f64> = full
         .iter()
@@ -131,7 +131,7 @@ pub fn select(
         })
         .collect();
     let mut choice = BasisChoice::full();
-    let mut chosen = full.clone();
+    let mut chosen = None;
     for dropped in 1..=candidates.min(LOBES - 1) {
         let mask = column_mask(dropped, facets);
         let mut delta_chi2 = 0.0;
@@ -147,7 +147,7 @@ pub fn select(
                 solutions.push(base.clone());
                 continue;
             }
-            let sol = system.solve_subset(b, &mask)?;
+            let sol = system.solve_subset(b, &mask).map_err(|e| (b, e))?;
             let increase = (sol.residual_norm.powi(2) - base.residual_norm.powi(2)).max(0.0);
             delta_chi2 += if variance[b] > 0.0 {
                 increase / variance[b]
@@ -168,9 +168,9 @@ pub fn select(
         choice.widest_lobe_mu = LOBE_WIDTHS_TABLE4[LOBES - dropped - 1];
         choice.delta_chi2 = delta_chi2;
         choice.dof = dof;
-        chosen = solutions;
+        chosen = Some(solutions);
     }
-    Ok((choice, chosen))
+    Ok((choice, chosen.unwrap_or(full)))
 }
 
 #[cfg(test)]

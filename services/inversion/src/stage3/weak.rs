@@ -21,7 +21,7 @@ pub fn mirror(p: [f64; 3]) -> [f64; 3] {
 }
 
 /// ‖a − b‖ \[deg/frame\].
-pub(crate) fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+pub fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
 }
 
