@@ -17,6 +17,7 @@ pub fn run(
     file: &str,
     out_dir: Option<PathBuf>,
     progress: bool,
+    rescore: bool,
 ) -> Result<(PathBuf, bool)> {
     let camp = scenario.campaign.clone().context("no [campaign] section")?;
     let dir = out_dir.unwrap_or_else(|| {
@@ -41,7 +42,7 @@ pub fn run(
                 camp.seeds
             );
             let (mc, ok) =
-                crate::campaign_mc::run_value(&variant, file, &sub, camp.seeds, progress)?;
+                crate::campaign_mc::run_value(&variant, file, &sub, camp.seeds, progress, rescore)?;
             all_ok &= ok;
             rows.push(json!({
                 "value": value.to_string().trim_matches('"'),

@@ -16,6 +16,12 @@
 //! other sense: runs nearer mirror(p₀) = (−w_x, w_y, −w_z) than p₀, when that mirror is at least
 //!              |p₀| away, counted apart (a global ambiguity the local bound does not describe)
 //!              and left out of RMS and NEES
+//! HCR_i = sup_h (v_i·h)²/(exp Δ(h) − 1)  Hammersley–Chapman–Robbins, Δ(h) = ‖r(p₀+h) − r(p₀)‖²
+//!                                      profiled over the other observable directions
+//!                                      (glint_inversion::chapman_robbins), coefficients known
+//! copy: a test point ≥ 2 CRB from p₀ with Δ < min(1, ¼(c/CRB)²): the data cannot tell it
+//!       from p₀ (a Y rotation's mirror, moved off p₀ by the out-of-plane geometry); runs
+//!       nearer it than p₀ take d_k = p̂_k − copy
 //! efficiency = sqrt(mean_k Σ_obs (d_k·v_i)²) / sqrt(Σ_obs λ_i)     (1 = efficient)
 //! NEES_k = Σ_obs' (d_k·u_j)²/μ_j        u_j, μ_j: eigen-pairs of the run's reported covariance
 //! ```
@@ -26,6 +32,7 @@
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
+use glint_inversion::chapman_robbins::{chapman_robbins, Copy};
 use glint_inversion::lm::normal_equations;
 use glint_inversion::observability::symmetric_eigen;
 use glint_inversion::stage1::run_stage1_with;
@@ -57,6 +64,7 @@ pub fn run_value(
     dir: &Path,
     seeds: u32,
     progress: bool,
+    rescore: bool,
 ) -> Result<(Value, bool)> {
     let sp = variant
         .spectra
@@ -71,6 +79,18 @@ pub fn run_value(
         x.snr = None;
     }
     let deploy = |scenario: Scenario, sub: &Path| -> Result<(Value, bool)> {
+        if rescore {
+            let path = sub.join("report.json");
+            let text = std::fs::read_to_string(&path).with_context(|| {
+                format!(
+                    "{}: no report to re-score (run the campaign first)",
+                    path.display()
+                )
+            })?;
+            let report: Value = serde_json::from_str(&text)?;
+            let ok = report["success"].as_bool().unwrap_or(false);
+            return Ok((report, ok));
+        }
         let (run_dir, ok) = run::run(RunOptions {
             scenario,
             scenario_file: file.to_string(),
@@ -155,13 +175,25 @@ struct Bound {
     directions: [[f64; 3]; 3],
     /// The bound with the coefficients known, (JᵀWJ)⁻¹: its variances along `directions`.
     known_variances: [f64; 3],
+    /// The two-stage estimator's covariance F⁻¹ + F⁻¹ C F⁻¹ (stage-1 coefficients from the
+    /// stable window alone, plugged in; C their term) along `directions`.
+    plug_in_variances: [f64; 3],
+    /// The Hammersley–Chapman–Robbins bound along each observable direction (coefficients
+    /// known; NaN elsewhere) \[(deg/frame)²\].
+    hcr_variances: [f64; 3],
+    /// A copy of p₀: a rate beyond p₀'s local scatter whose noise-free light curve is within
+    /// one noise variance of p₀'s (Δ < 1), and that Δ.
+    copy: Option<Copy>,
 }
 
 impl Bound {
     fn observable(&self) -> [bool; 3] {
-        self.variances
-            .map(|v| v.is_finite() && v.sqrt() <= observable_bound())
+        observable(&self.variances)
     }
+}
+
+fn observable(variances: &[f64; 3]) -> [bool; 3] {
+    variances.map(|v| v.is_finite() && v.sqrt() <= observable_bound())
 }
 
 struct Reference {
@@ -256,6 +288,9 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
             variances: [f64::NAN; 3],
             directions: [[f64::NAN; 3]; 3],
             known_variances: [f64::NAN; 3],
+            plug_in_variances: [f64::NAN; 3],
+            hcr_variances: [f64::NAN; 3],
+            copy: None,
         });
     };
     let n = problem.residual_count();
@@ -269,29 +304,96 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
         std::array::from_fn(|i| std::array::from_fn(|j| fisher[i][j] - loss[i][j]));
     let (info, vecs) = symmetric_eigen(&reduced)?;
     let (known_info, known_vecs) = symmetric_eigen(&fisher)?;
-    // (JᵀWJ)⁻¹ along each direction v of the scenario's bound: Σ_k (v·u_k)²/λ_k.
+    // (JᵀWJ)⁺ along each direction v of the scenario's bound: Σ_k (v·u_k)²/λ_k over the
+    // determined eigen-pairs of JᵀWJ. The estimator holds the undetermined one under its prior,
+    // so its variance does not leak into the others (the full inverse would add (v·u₁)²/λ₁
+    // with λ₁ ≈ 0).
+    let determined = |l: f64| l > 0.0 && l.sqrt().recip() <= observable_bound();
     let known_variances = vecs.map(|v| {
         known_info
             .iter()
             .zip(&known_vecs)
-            .map(|(l, u)| {
-                let c: f64 = (0..3).map(|i| v[i] * u[i]).sum();
-                if *l > 0.0 {
-                    c * c / l
-                } else if c != 0.0 {
-                    f64::INFINITY
-                } else {
-                    0.0
-                }
-            })
+            .filter(|(l, _)| determined(**l))
+            .map(|(l, u)| (0..3).map(|i| v[i] * u[i]).sum::<f64>().powi(2) / l)
             .sum()
     });
+    // The two-stage estimator's own covariance, F⁺ + F⁺ C F⁺ with C the stage-1
+    // coefficients' term: along v, v·F⁺v + wᵀCw with w = F⁺v.
+    let plug_in_variances = match problem.coefficient_term(p, &jac) {
+        Some(c) => std::array::from_fn(|k| {
+            let v = vecs[k];
+            let w: [f64; 3] = std::array::from_fn(|i| {
+                (0..3)
+                    .filter(|&m| determined(known_info[m]))
+                    .map(|m| {
+                        let u = known_vecs[m];
+                        let along: f64 = (0..3).map(|j| u[j] * v[j]).sum();
+                        u[i] * along / known_info[m]
+                    })
+                    .sum()
+            });
+            let wcw: f64 = (0..3)
+                .flat_map(|i| (0..3).map(move |j| (i, j)))
+                .map(|(i, j)| w[i] * c[i][j] * w[j])
+                .sum();
+            known_variances[k] + wcw
+        }),
+        None => known_variances,
+    };
+    let variances = info.map(|l| if l > 0.0 { 1.0 / l } else { f64::INFINITY });
+    let (hcr_variances, copy) = chapman_robbins_variances(problem, p, &variances, &vecs)?;
     Ok(Bound {
         p0,
-        variances: info.map(|l| if l > 0.0 { 1.0 / l } else { f64::INFINITY }),
+        variances,
         directions: vecs,
         known_variances,
+        plug_in_variances,
+        hcr_variances,
+        copy,
     })
+}
+
+/// The HCR bound along each observable direction, profiled over the other observable ones,
+/// searching offsets from a tenth of the CRB out to the observability threshold (and, when
+/// the mirror of p₀ is another sense of rotation, to half-way there: runs beyond it are
+/// counted apart, not as scatter); and the copy of p₀ with the smallest Δ among the test
+/// points that attain it, if any.
+fn chapman_robbins_variances(
+    problem: &RateProblem,
+    p0: [f64; 3],
+    variances: &[f64; 3],
+    directions: &[[f64; 3]; 3],
+) -> Result<([f64; 3], Option<Copy>)> {
+    let observable = observable(variances);
+    let m0 = mirror(p0);
+    let mut reach = observable_bound();
+    if distance(m0, p0) >= distance(p0, [0.0; 3]) {
+        reach = reach.min(0.5 * distance(m0, p0));
+    }
+    let mut out = [f64::NAN; 3];
+    let mut copy: Option<Copy> = None;
+    for i in (0..3).filter(|&i| observable[i]) {
+        let free: Vec<[f64; 3]> = (0..3)
+            .filter(|&k| k != i && observable[k])
+            .map(|k| directions[k])
+            .collect();
+        let cr = chapman_robbins(
+            problem,
+            p0,
+            directions[i],
+            &free,
+            variances[i].sqrt(),
+            reach,
+        )?;
+        out[i] = cr.variance;
+        if let Some(c) = cr
+            .copy
+            .filter(|c| copy.is_none_or(|b| c.divergence < b.divergence))
+        {
+            copy = Some(c);
+        }
+    }
+    Ok((out, copy))
 }
 
 /// Scatter and consistency of one estimator over the noisy runs.
@@ -308,6 +410,8 @@ struct Estimator {
     /// Runs nearer the mirror of p₀ than p₀ (the other sense of rotation): a global ambiguity,
     /// outside what a local bound describes, counted and kept out of RMS and NEES.
     other_sense: usize,
+    /// Runs nearer p₀'s copy than p₀: their deviation is taken from the copy.
+    on_copy: usize,
 }
 
 impl Estimator {
@@ -319,6 +423,7 @@ impl Estimator {
             nees: vec![],
             undetermined: 0,
             other_sense: 0,
+            on_copy: 0,
             bound,
         };
         let Some(p0) = out.bound.p0 else {
@@ -331,7 +436,6 @@ impl Estimator {
                 out.undetermined += 1;
                 continue;
             };
-            let d = [p[0] - p0[0], p[1] - p0[1], p[2] - p0[2]];
             let m0 = mirror(p0);
             // A rate mostly about Y is nearly its own mirror and has no sense to lose: only
             // when the mirror is at least |p₀| away (w_x, w_z carry ≥ half the rate) is it one.
@@ -339,6 +443,15 @@ impl Estimator {
                 out.other_sense += 1;
                 continue;
             }
+            // The data cannot tell p₀ from its copy: scatter is measured from the nearer.
+            let centre = match out.bound.copy.map(|c| c.point_deg_per_frame) {
+                Some(c) if distance(p, c) < distance(p, p0) => {
+                    out.on_copy += 1;
+                    c
+                }
+                _ => p0,
+            };
+            let d = [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
             let along = out
                 .bound
                 .directions
@@ -367,6 +480,14 @@ impl Estimator {
             .filter(|&i| observable[i])
             .map(|i| self.bound.known_variances[i])
             .sum();
+        let plug_in_obs: f64 = (0..3)
+            .filter(|&i| observable[i])
+            .map(|i| self.bound.plug_in_variances[i])
+            .sum();
+        let hcr_obs: f64 = (0..3)
+            .filter(|&i| observable[i])
+            .map(|i| self.bound.hcr_variances[i])
+            .sum();
         let rms_obs = (n > 0).then(|| (self.dev2_observable.iter().sum::<f64>() / n as f64).sqrt());
         let per_direction: Vec<Value> = (0..3)
             .map(|i| {
@@ -375,6 +496,7 @@ impl Estimator {
                 json!({
                     "direction": self.bound.directions[i],
                     "crb_1sigma_deg_per_frame": finite(self.bound.variances[i].sqrt()),
+                    "hcr_1sigma_deg_per_frame": finite(self.bound.hcr_variances[i].sqrt()),
                     "rms_deg_per_frame": rms,
                     "observable": observable[i],
                 })
@@ -389,11 +511,17 @@ impl Estimator {
             "determined": n + self.other_sense,
             "undetermined": self.undetermined,
             "other_sense": self.other_sense,
+            "copy_deg_per_frame": self.bound.copy.map(|c| c.point_deg_per_frame),
+            "copy_divergence": self.bound.copy.map(|c| c.divergence),
+            "on_copy": self.on_copy,
             "observable_directions": observable.iter().filter(|o| **o).count(),
             "crb_observable_deg_per_frame": finite(crb_obs.sqrt()),
             "crb_known_coefficients_observable_deg_per_frame": finite(known_obs.sqrt()),
             "rms_observable_deg_per_frame": rms_obs,
             "efficiency": rms_obs.map(|r| r / crb_obs.sqrt()).filter(|e| e.is_finite()),
+            "hcr_observable_deg_per_frame": finite(hcr_obs.sqrt()),
+            "two_stage_observable_deg_per_frame": finite(plug_in_obs.sqrt()),
+            "rms_over_two_stage": rms_obs.map(|r| r / plug_in_obs.sqrt()).filter(|e| e.is_finite()),
             "directions": per_direction,
             "nees_mean": mean_nees,
             "nees_dof_mean": (!self.nees.is_empty()).then(|| total_dof as f64 / self.nees.len() as f64),
@@ -418,6 +546,20 @@ fn nees(cov: &[[f64; 3]; 3], d: &[f64; 3]) -> Option<(f64, usize)> {
     (dof > 0).then_some((sum, dof))
 }
 
+/// "k at [w_x, w_y, w_z] (Δ = …)" for the copy column, "—" without a copy.
+fn copy_cell(e: &Value) -> String {
+    match (
+        vec3(&e["copy_deg_per_frame"]),
+        e["copy_divergence"].as_f64(),
+    ) {
+        (Some(c), Some(d)) => format!(
+            "{} at [{:.4}, {:.4}, {:.4}] (Δ = {d:.1e})",
+            e["on_copy"], c[0], c[1], c[2]
+        ),
+        _ => "—".into(),
+    }
+}
+
 fn fmt_e(v: &Value) -> String {
     v.as_f64().map_or("—".into(), |x| format!("{x:.2e}"))
 }
@@ -427,7 +569,14 @@ fn fmt_e(v: &Value) -> String {
 pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value]) -> String {
     use std::fmt::Write as _;
     let mut s = crate::campaign::summary_head(scenario, parameter, Some(seeds));
-    s.push_str("Noise σ = mean Φ / SNR per band and window, both windows noisy.\n\n");
+    let windows = match scenario.spectra.as_ref().map(|sp| sp.noise_windows) {
+        Some(NoiseWindows::Motion) => "the motion window noisy, the stable window exact",
+        _ => "both windows noisy",
+    };
+    let _ = writeln!(
+        s,
+        "Noise σ = mean Φ / SNR per band and window, {windows}.\n"
+    );
     s.push_str("## Error against the truth (median over seeds; paper metric 100·‖p − p*‖)\n\n");
     let _ = writeln!(
         s,
@@ -450,24 +599,29 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
     }
     s.push_str(
         "\n## Efficiency and honesty (scatter about the noise-free solution)\n\n\
-         RMS = sqrt(mean ‖(p̂ − p₀) projected on the observable CRB directions‖²) over the runs with p₀'s sense of rotation (those nearer the mirror of p₀ are counted apart: a global ambiguity, not scatter a local bound describes); efficiency = RMS / CRB (1 is efficient). The CRB is the scenario's: both windows noisy, the stage-1 coefficients unknown and informed by both; the column beside it is the bound if they were known. NEES uses each run's reported covariance over its observable directions; its 95 % interval is for the mean over the runs.\n\n\
-         | value | fit | runs determined | other sense | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | RMS [deg/frame] | efficiency | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+         The CRB is the scenario's: the stage-1 coefficients are unknown and informed by both windows when both are noisy; the next column is the bound if they were known. Stage 1 fixes the coefficients from the stable window alone and stage 3 plugs them in: that two-stage design cannot use what the motion window says about them, and its own covariance is F⁻¹ + F⁻¹ C F⁻¹ (C the stage-1 coefficients' term, as stage 3 reports it); RMS / two-stage near 1 means the estimator is as good as its design allows. The CRB sees only the light curve's slope at p₀. The Hammersley–Chapman–Robbins bound sup_h (v·h)²/(exp Δ(h) − 1) (Δ = the noise-free χ² between p₀ + h and p₀, coefficients known) sees the whole light curve: where it is far above the CRB, a rate h away fits nearly as well and no unbiased estimator reaches the CRB. When that rate fits within one noise variance (Δ < 1) it is a *copy* of p₀: a Y rotation is nearly its own mirror (−w_x, w_y, −w_z), and the Sun and observer's small offsets from the body XZ plane move the mirror a few 10⁻³ deg/frame off p₀. The data cannot tell p₀ from its copy at any SNR a campaign runs; runs nearer the copy are counted in its column and their deviation is taken from the copy.\n\n\
+         RMS = sqrt(mean ‖(p̂ − p₀ or its copy) projected on the observable CRB directions‖²) over the runs with p₀'s sense of rotation (those nearer the mirror of a rate that has a sense, |mirror(p₀) − p₀| ≥ |p₀|, are counted apart); efficiency = RMS / CRB (1 is efficient). NEES uses each run's reported covariance over its observable directions, about the same centre; its 95 % interval is for the mean over the runs.\n\n\
+         | value | fit | runs determined | other sense | on p₀'s copy (Δ) | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | two-stage 1σ | HCR 1σ | RMS [deg/frame] | efficiency (RMS / CRB) | RMS / two-stage | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         for (label, key) in [("λ*", "single"), ("joint", "joint")] {
             let e = &r["monte_carlo"][key];
             let _ = writeln!(
                 s,
-                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} | {} ({}) | {}–{} |",
+                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {}–{} |",
                 r["value"].as_str().unwrap_or("?"),
                 e["determined"],
                 r["monte_carlo"]["runs"],
                 e["other_sense"],
+                copy_cell(e),
                 e["observable_directions"],
                 fmt_e(&e["crb_observable_deg_per_frame"]),
                 fmt_e(&e["crb_known_coefficients_observable_deg_per_frame"]),
+                fmt_e(&e["two_stage_observable_deg_per_frame"]),
+                fmt_e(&e["hcr_observable_deg_per_frame"]),
                 fmt_e(&e["rms_observable_deg_per_frame"]),
                 fmt(&e["efficiency"], 2),
+                fmt(&e["rms_over_two_stage"], 2),
                 fmt(&e["nees_mean"], 2),
                 fmt(&e["nees_dof_mean"], 1),
                 fmt(&e["nees_bounds_95"][0], 2),

@@ -56,6 +56,10 @@ enum Cmd {
         /// Override the scenario's seed.
         #[arg(long)]
         seed: Option<u64>,
+        /// Re-score a Monte-Carlo campaign already in `--out` from its deployments' reports,
+        /// without deploying again (after a change to the scoring).
+        #[arg(long, requires = "out")]
+        rescore: bool,
     },
     /// Check a scenario file; report every problem with its field and allowed range.
     Validate { scenario: PathBuf },
@@ -148,6 +152,7 @@ fn main() -> ExitCode {
             scenario,
             out,
             seed,
+            rescore,
         } => {
             glint_runtime::init_tracing("orchestrator");
             let (mut sc, file) = match load(scenario.as_ref()) {
@@ -161,8 +166,13 @@ fn main() -> ExitCode {
                 sc.seed = seed;
             }
             let progress = std::io::stderr().is_terminal();
+            let monte_carlo = sc.campaign.as_ref().is_some_and(|c| c.seeds > 1);
+            if rescore && !monte_carlo {
+                eprintln!("error: {file}: --rescore needs a [campaign] with seeds > 1");
+                return ExitCode::from(2);
+            }
             let result = if sc.campaign.is_some() {
-                campaign::run(&sc, &file, out, progress)
+                campaign::run(&sc, &file, out, progress, rescore)
             } else {
                 run::run(run::RunOptions {
                     scenario: sc,

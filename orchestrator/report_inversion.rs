@@ -182,7 +182,7 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
         if m.iter().all(|v| v.is_finite()) {
             let _ = writeln!(
                 s,
-                "\n**The mirror solution [{:.5}, {:.5}, {:.5}] fits the data equally well** (error {:.3}): its cost is within Δχ² ≤ 4 of the fit's. With the Sun within a fraction of a degree of the orbit plane, the geometry is (nearly) symmetric about the body XZ plane, so the sense of rotation about X and Z is not observable here.",
+                "\n**The mirror solution [{:.5}, {:.5}, {:.5}] fits the data equally well** (error {:.3}): its cost is within Δχ² ≤ 4 of the fit's. With the Sun within a fraction of a degree of the orbit plane, the geometry is (nearly) symmetric about the body XZ plane: the light curves of a rate and of its mirror image (−w_x, w_y, −w_z) differ only through that fraction of a degree, so the data cannot choose between them (for a rate with components about X or Z, the sense of rotation).",
                 m[0], m[1], m[2], rate_error_metric(m, truth)
             );
         }

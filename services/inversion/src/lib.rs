@@ -20,6 +20,7 @@
 //! (see [`stage1`]); stage 3 normalises each band by its mean observed flux. The error metric
 //! of the paper is [`rate_error_metric`] = 100·‖p̂ − p*‖ (deg/frame, printed as "%").
 
+pub mod chapman_robbins;
 pub mod error;
 pub mod facet;
 pub mod lm;

@@ -385,6 +385,13 @@ fn polish(
             wavelengths_nm,
         });
     }
+    let mirror_deg_per_frame = weak::mirror_if_ambiguous(
+        problem,
+        best.p_deg_per_frame,
+        best.cost,
+        &analysis.observability,
+        config,
+    )?;
     Ok(RateSolution::Determined(RateFit {
         wavelengths_nm,
         rate_deg_per_frame: best.p_deg_per_frame,
@@ -399,12 +406,7 @@ fn polish(
         starts_polished: starts.len(),
         start_deg_per_frame: start,
         observability: analysis.observability,
-        mirror_deg_per_frame: weak::mirror_if_ambiguous(
-            problem,
-            best.p_deg_per_frame,
-            best.cost,
-            config,
-        )?,
+        mirror_deg_per_frame,
     }))
 }
 

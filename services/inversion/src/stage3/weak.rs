@@ -11,7 +11,9 @@ use super::{fit_from_starts, RateSolution, Stage3Config};
 use crate::error::InversionError;
 use crate::lm::{levenberg_marquardt, levenberg_marquardt_prior, LmOutcome, Prior};
 use crate::model::RateProblem;
-use crate::observability::{analyse, given_sigma_scale, residual_variance, Analysis};
+use crate::observability::{
+    analyse, given_sigma_scale, residual_variance, Analysis, Observability,
+};
 use serde::{Deserialize, Serialize};
 
 /// The mirror (−w_x, w_y, −w_z) of a rate: the same light curve when every geometry vector
@@ -189,25 +191,44 @@ pub(super) fn hold_weak_direction(
     }
 }
 
-/// Mirror solutions closer than this to p̂ are not reported \[deg/frame\].
+/// A mirror this far from p̂ is distinct whatever p̂'s bounds \[deg/frame\].
 const MIRROR_MIN_DISTANCE_DEG_PER_FRAME: f64 = 1e-2;
+/// A nearer mirror is distinct when it lies this many 1σ bounds from p̂ along the determined
+/// directions (closer, it is inside p̂'s own error bars).
+const MIRROR_MIN_SEPARATION_SIGMA: f64 = 2.0;
 /// The mirror is reported when its cost exceeds p̂'s by at most this many noise variances
 /// (Δχ² ≤ 4: the data cannot tell them apart at 2σ).
 const MIRROR_MAX_DELTA_CHI2: f64 = 4.0;
 
 /// The mirror solution of p̂ when the data cannot tell them apart: LM polished from
 /// (−w_x, w_y, −w_z) (an exact minimum when every geometry vector lies in the body XZ plane, a
-/// nearby one otherwise), reported if its cost is within Δχ² ≤ 4 of p̂'s, in units of the noise
-/// variance ([`noise_variance`]).
+/// nearby one otherwise), reported if it is distinct from p̂ and its cost is within Δχ² ≤ 4 of
+/// p̂'s, in units of the noise variance ([`noise_variance`]).
+///
+/// Distinct: at least 1e-2 deg/frame away, or at least 2σ along the directions `observability`
+/// determines. A rate about Y is nearly its own mirror: the Sun and observer's fraction of a
+/// degree off the body XZ plane moves the mirror of [0, 0.25, 0] to w_z ≈ −0.004, several σ
+/// away at SNR 10 over all bands, and the data cannot choose between the two.
 pub(super) fn mirror_if_ambiguous(
     problem: &RateProblem,
     p: [f64; 3],
     cost: f64,
+    observability: &Observability,
     config: &Stage3Config,
 ) -> Result<Option<[f64; 3]>, InversionError> {
     let out = levenberg_marquardt(problem, mirror(p), &config.lm)?;
     let m = out.p_deg_per_frame;
-    if distance(m, p) < MIRROR_MIN_DISTANCE_DEG_PER_FRAME || !out.cost.is_finite() {
+    let separation2: f64 = (0..3)
+        .filter(|&k| !observability.unobservable[k])
+        .map(|k| {
+            let v = observability.eigenvectors[k];
+            let along: f64 = (0..3).map(|i| v[i] * (m[i] - p[i])).sum();
+            (along / observability.bounds_1sigma_deg_per_frame[k]).powi(2)
+        })
+        .sum();
+    let distinct = distance(m, p) >= MIRROR_MIN_DISTANCE_DEG_PER_FRAME
+        || separation2 >= MIRROR_MIN_SEPARATION_SIGMA.powi(2);
+    if !distinct || !out.cost.is_finite() {
         return Ok(None);
     }
     let dof = problem.residual_count().saturating_sub(3).max(1) as f64;

@@ -1,0 +1,310 @@
+//! The Hammersley–Chapman–Robbins bound: the variance floor of an unbiased rate estimator when
+//! the light curve is not locally linear in p over the scatter the noise allows.
+//!
+//! The Cramér–Rao bound sees only the slope of the light curve at p₀. In the co-orbital geometry
+//! the light curve of (w_x, w_y, w_z) and of its mirror (−w_x, w_y, −w_z) differ only through
+//! the small out-of-plane components of the Sun and observer vectors (math.md §1.6), so near a
+//! rate that is nearly its own mirror (a Y rotation) the light curve is almost even in w_z: the
+//! slope is small, the curvature is not, and p₀ + h for h of a few CRBs fits the noise-free data
+//! within one noise variance. No estimator reaches the CRB there. For a test offset h and
+//! Gaussian noise (whitened residuals r), the χ² divergence between the data distributions at
+//! p₀ + h and p₀ is `exp(Δ(h)) − 1`, `Δ(h) = ‖r(p₀ + h) − r(p₀)‖²`, and every unbiased
+//! estimator of `v·p` obeys (Hammersley 1950; Chapman & Robbins 1951)
+//!
+//! ```text
+//! Var(v·p̂) ≥ sup_h (v·h)² / (exp(Δ(h)) − 1)
+//! ```
+//!
+//! As h → 0 the ratio tends to the CRB along v (with the other free directions profiled out),
+//! so the bound is never below it. [`chapman_robbins`] evaluates the supremum on the profile:
+//! for offsets `c` along v on a geometric grid, Δ is minimised over the `free` directions by
+//! Gauss–Newton (continued from the previous offset), and the largest `c²/expm1(Δ)` is kept.
+
+use crate::error::InversionError;
+use crate::model::RateProblem;
+
+/// The bound along one direction and where the supremum was found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChapmanRobbins {
+    /// Largest `c²/(exp(Δ) − 1)` over the offsets searched \[(deg/frame)²\] (∞ when some
+    /// offset fits exactly as well as p₀).
+    pub variance: f64,
+    /// The offset c along v that attains it \[deg/frame\].
+    pub offset_deg_per_frame: f64,
+    /// Δ there (noise variances).
+    pub divergence: f64,
+    /// The test point p₀ + c v + Σ a_k u_k there \[deg/frame\].
+    pub point_deg_per_frame: [f64; 3],
+    /// A copy of p₀ along v, if the search met one: see [`Copy`].
+    pub copy: Option<Copy>,
+}
+
+/// A rate the data cannot tell from p₀: beyond p₀'s local scatter (|c| ≥ 2 CRB along v), yet
+/// fitting p₀'s noise-free light curve within one noise variance, and far better than the
+/// light curve's slope at p₀ predicts: Δ < min(1, ¼ (c/CRB)²). The smallest Δ found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Copy {
+    /// The rate \[deg/frame\].
+    pub point_deg_per_frame: [f64; 3],
+    /// Its offset along v \[deg/frame\].
+    pub offset_deg_per_frame: f64,
+    /// Δ there (noise variances).
+    pub divergence: f64,
+}
+
+/// Offsets are searched on `start·GROWTH^k` on each side.
+const GROWTH: f64 = 1.15;
+/// Gauss–Newton iterations of the profile at each offset, at most.
+const PROFILE_ITERATIONS: usize = 8;
+/// A copy lies at least this many CRB standard deviations from p₀ along v.
+const COPY_MIN_CRB: f64 = 2.0;
+/// A copy fits p₀'s light curve within this many noise variances.
+const COPY_MAX_DIVERGENCE: f64 = 1.0;
+/// Golden-section steps refining the supremum between two grid offsets.
+const REFINE_STEPS: usize = 24;
+/// 1/φ.
+const GOLDEN: f64 = 0.618_033_988_749_894_8;
+
+/// One profiled offset.
+#[derive(Debug, Clone, Copy)]
+struct Sample {
+    /// |c| \[deg/frame\].
+    c: f64,
+    /// The free coordinates minimising Δ there.
+    a: [f64; 2],
+    delta: f64,
+    ratio: f64,
+}
+
+/// The Hammersley–Chapman–Robbins bound on `Var(v·p̂)` at `p0` (`v` a unit vector), profiled
+/// over the unit directions `free` (orthogonal to v; at most two), searching offsets
+/// `|c| ∈ [crb_sd/10, max_offset]` \[deg/frame\], with `crb_sd` the CRB's 1σ along v. The
+/// problem must carry σ (whitened residuals).
+pub fn chapman_robbins(
+    problem: &RateProblem,
+    p0: [f64; 3],
+    v: [f64; 3],
+    free: &[[f64; 3]],
+    crb_sd: f64,
+    max_offset: f64,
+) -> Result<ChapmanRobbins, InversionError> {
+    let start = 0.1 * crb_sd;
+    if !problem.sigma_given() {
+        return Err(InversionError::MissingSigma {
+            what: "the Chapman–Robbins bound",
+        });
+    }
+    let n = problem.residual_count();
+    let mut r0 = vec![0.0; n];
+    problem.residuals(p0, &mut r0);
+    let mut best = ChapmanRobbins {
+        variance: 0.0,
+        offset_deg_per_frame: 0.0,
+        divergence: f64::NAN,
+        point_deg_per_frame: p0,
+        copy: None,
+    };
+    if !(start > 0.0 && start <= max_offset) {
+        return Ok(best);
+    }
+    let mut profile = Profile::new(problem, p0, &r0, free);
+    for side in [1.0, -1.0] {
+        let mut sample = |c: f64, a: [f64; 2]| {
+            let mut a = a;
+            let delta = profile.minimise(side * c, v, &mut a);
+            let ratio = if delta > 0.0 {
+                c * c / delta.exp_m1()
+            } else {
+                f64::INFINITY
+            };
+            Sample { c, a, delta, ratio }
+        };
+        let mut grid: Vec<Sample> = Vec::new();
+        let mut c = start;
+        while c <= max_offset {
+            // Continued from the previous offset's free coordinates.
+            let a = grid.last().map_or([0.0; 2], |g| g.a);
+            grid.push(sample(c, a));
+            c *= GROWTH;
+        }
+        let Some(k) = (0..grid.len()).max_by(|&i, &j| grid[i].ratio.total_cmp(&grid[j].ratio))
+        else {
+            continue;
+        };
+        // Golden-section refinement between the neighbours of the best grid offset: a
+        // near-copy of the light curve (the mirror) is a narrow peak of the ratio.
+        let mut top = grid[k];
+        let (mut x0, mut x1) = (
+            if k == 0 {
+                0.5 * grid[0].c
+            } else {
+                grid[k - 1].c
+            },
+            grid.get(k + 1).map_or(grid[k].c, |g| g.c),
+        );
+        for _ in 0..REFINE_STEPS {
+            let s1 = sample(x1 - GOLDEN * (x1 - x0), grid[k].a);
+            let s2 = sample(x0 + GOLDEN * (x1 - x0), grid[k].a);
+            for s in [s1, s2] {
+                if s.ratio > top.ratio {
+                    top = s;
+                }
+            }
+            if s1.ratio >= s2.ratio {
+                x1 = s2.c;
+            } else {
+                x0 = s1.c;
+            }
+        }
+        // The copy: the smallest Δ among offsets the slope at p₀ says should be clearly
+        // rejected, refined between its grid neighbours.
+        let is_copy = |s: &Sample| {
+            s.c >= COPY_MIN_CRB * crb_sd
+                && s.delta < COPY_MAX_DIVERGENCE.min(0.25 * (s.c / crb_sd).powi(2))
+        };
+        let copy_k = (0..grid.len())
+            .filter(|&i| is_copy(&grid[i]))
+            .min_by(|&i, &j| grid[i].delta.total_cmp(&grid[j].delta));
+        let mut found = copy_k.map(|j| grid[j]);
+        if let Some(j) = copy_k {
+            let (mut x0, mut x1) = (
+                grid[j.saturating_sub(1)].c,
+                grid.get(j + 1).map_or(grid[j].c, |g| g.c),
+            );
+            for _ in 0..REFINE_STEPS {
+                let s1 = sample(x1 - GOLDEN * (x1 - x0), grid[j].a);
+                let s2 = sample(x0 + GOLDEN * (x1 - x0), grid[j].a);
+                for s in [s1, s2] {
+                    if is_copy(&s) && found.is_none_or(|f| s.delta < f.delta) {
+                        found = Some(s);
+                    }
+                }
+                if s1.delta <= s2.delta {
+                    x1 = s2.c;
+                } else {
+                    x0 = s1.c;
+                }
+            }
+        }
+        if top.ratio > best.variance {
+            best.variance = top.ratio;
+            best.offset_deg_per_frame = side * top.c;
+            best.divergence = top.delta;
+            best.point_deg_per_frame = profile.point(side * top.c, v, &top.a);
+        }
+        if let Some(f) = found.filter(|f| best.copy.is_none_or(|b| f.delta < b.divergence)) {
+            best.copy = Some(Copy {
+                point_deg_per_frame: profile.point(side * f.c, v, &f.a),
+                offset_deg_per_frame: side * f.c,
+                divergence: f.delta,
+            });
+        }
+    }
+    Ok(best)
+}
+
+/// Δ(c v + Σ a_k u_k) minimised over a, with scratch buffers.
+struct Profile<'a> {
+    problem: &'a RateProblem,
+    p0: [f64; 3],
+    r0: &'a [f64],
+    free: &'a [[f64; 3]],
+    r: Vec<f64>,
+    jac: Vec<[f64; 3]>,
+}
+
+impl<'a> Profile<'a> {
+    fn new(problem: &'a RateProblem, p0: [f64; 3], r0: &'a [f64], free: &'a [[f64; 3]]) -> Self {
+        let n = r0.len();
+        Profile {
+            problem,
+            p0,
+            r0,
+            free: &free[..free.len().min(2)],
+            r: vec![0.0; n],
+            jac: vec![[0.0; 3]; n],
+        }
+    }
+
+    fn point(&self, c: f64, v: [f64; 3], a: &[f64; 2]) -> [f64; 3] {
+        std::array::from_fn(|i| {
+            self.p0[i]
+                + c * v[i]
+                + self
+                    .free
+                    .iter()
+                    .zip(a)
+                    .map(|(u, ak)| u[i] * ak)
+                    .sum::<f64>()
+        })
+    }
+
+    /// Δ at offset c, with a (the free coordinates, updated in place) minimising it.
+    fn minimise(&mut self, c: f64, v: [f64; 3], a: &mut [f64; 2]) -> f64 {
+        let divergence =
+            |r: &[f64], r0: &[f64]| -> f64 { r.iter().zip(r0).map(|(x, y)| (x - y).powi(2)).sum() };
+        let k = self.free.len();
+        let p = self.point(c, v, a);
+        self.problem
+            .residuals_and_jacobian(p, &mut self.r, &mut self.jac);
+        let mut delta = divergence(&self.r, self.r0);
+        if k == 0 {
+            return delta;
+        }
+        for _ in 0..PROFILE_ITERATIONS {
+            // d = r − r₀, ∂d/∂a_k = −J u_k: the step solves (UᵀJᵀJU) δa = UᵀJᵀ d.
+            let mut m = [[0.0; 2]; 2];
+            let mut g = [0.0; 2];
+            for (row, (ri, r0i)) in self.jac.iter().zip(self.r.iter().zip(self.r0)) {
+                let b: [f64; 2] = std::array::from_fn(|q| {
+                    self.free
+                        .get(q)
+                        .map_or(0.0, |u| (0..3).map(|i| row[i] * u[i]).sum())
+                });
+                for q in 0..k {
+                    g[q] += b[q] * (ri - r0i);
+                    for s in 0..k {
+                        m[q][s] += b[q] * b[s];
+                    }
+                }
+            }
+            let step = solve2(&m, &g, k);
+            let Some(step) = step else { break };
+            let trial = [a[0] + step[0], a[1] + step[1]];
+            let p = self.point(c, v, &trial);
+            let mut r_try = vec![0.0; self.r.len()];
+            let mut jac_try = vec![[0.0; 3]; self.r.len()];
+            self.problem
+                .residuals_and_jacobian(p, &mut r_try, &mut jac_try);
+            let d_try = divergence(&r_try, self.r0);
+            if d_try.is_nan() || d_try >= delta {
+                break;
+            }
+            let gain = delta - d_try;
+            *a = trial;
+            self.r = r_try;
+            self.jac = jac_try;
+            delta = d_try;
+            if gain <= 1e-9 * (1.0 + delta) {
+                break;
+            }
+        }
+        delta
+    }
+}
+
+/// Solves the k × k (k ≤ 2) symmetric system; `None` when singular.
+fn solve2(m: &[[f64; 2]; 2], g: &[f64; 2], k: usize) -> Option<[f64; 2]> {
+    match k {
+        1 => (m[0][0] > 0.0).then(|| [g[0] / m[0][0], 0.0]),
+        _ => {
+            let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+            (det > 0.0 && det.is_finite()).then(|| {
+                [
+                    (g[0] * m[1][1] - g[1] * m[0][1]) / det,
+                    (g[1] * m[0][0] - g[0] * m[1][0]) / det,
+                ]
+            })
+        }
+    }
+}

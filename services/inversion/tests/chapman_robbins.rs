@@ -1,0 +1,116 @@
+//! The Hammersley–Chapman–Robbins bound against its two closed forms: where the light curve is
+//! linear in p over the offsets that matter it equals the Cramér–Rao bound, and where two rates
+//! give the same light curve (a rate and its mirror, every geometry vector in the body XZ plane)
+//! no unbiased estimator exists and it is unbounded.
+
+mod common;
+
+use common::*;
+use glint_inversion::chapman_robbins::chapman_robbins;
+use glint_inversion::lm::normal_equations;
+use glint_inversion::observability::symmetric_eigen;
+use glint_inversion::stage3::mirror;
+use glint_inversion::{MotionModelConfig, Observation, RateProblem};
+use glint_physics::two_facet::{panel_normal, AttitudeConvention};
+use nalgebra::Vector3;
+
+/// Fisher eigenvalues and eigen-directions at p.
+fn fisher_eigen(problem: &RateProblem, p: [f64; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
+    let n = problem.residual_count();
+    let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
+    problem.residuals_and_jacobian(p, &mut r, &mut jac);
+    let (fisher, _) = normal_equations(&jac, &r);
+    symmetric_eigen(&fisher).expect("eigen")
+}
+
+#[test]
+fn equals_the_cramer_rao_bound_where_the_light_curve_is_linear() {
+    // SNR 10⁴: the offsets that matter are far below the scale of the light curve's curvature.
+    let obs = with_noise(y_window(100), 1e4, None);
+    let p = [0.0, 0.25, 0.0];
+    let problem = RateProblem::new(&obs, &[band()], &MotionModelConfig::default()).expect("p");
+    let (info, dirs) = fisher_eigen(&problem, p);
+    // The two determined directions (the weakest, ≈ body X, is the bisector).
+    for i in 1..3 {
+        let crb = info[i].recip();
+        let free: Vec<[f64; 3]> = (1..3).filter(|&k| k != i).map(|k| dirs[k]).collect();
+        let hcr = chapman_robbins(&problem, p, dirs[i], &free, crb.sqrt(), 0.25).expect("b");
+        let ratio = hcr.variance / crb;
+        assert!(hcr.copy.is_none(), "{hcr:?}");
+        assert!(
+            (0.99..=1.01).contains(&ratio),
+            "direction {:?}: HCR/CRB = {ratio} ({hcr:?})",
+            dirs[i]
+        );
+    }
+}
+
+/// A Y-dominated rotation with the Sun and the observer exactly in the body XZ plane.
+fn in_plane_window(p_true: [f64; 3], frames: usize) -> Vec<Observation> {
+    let o = Vector3::new(1.0, 0.0, -0.045).normalize();
+    let alpha0 = alpha_phase15_deg();
+    (0..frames)
+        .map(|t| {
+            let tf = t as f64;
+            let a = (alpha0 + 0.004_167 * tf).to_radians();
+            let s = Vector3::new(a.cos(), 0.0, a.sin());
+            let r = AttitudeConvention::Verbatim.matrix(p_true, tf);
+            let range = range_m(tf);
+            let flux = flux_w(
+                &band_coeffs(650.0),
+                band_scale_w(650.0),
+                panel_normal(s, Vector3::x()),
+                r * s,
+                r * o,
+                range,
+            );
+            Observation {
+                frame_index: 10_000 + t as u64,
+                t_s: tf,
+                sun_body: s,
+                observer_body: o,
+                range_m: range,
+                flux_w: vec![flux],
+                sigma_w: vec![],
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn is_unbounded_when_the_mirror_rate_gives_the_same_light_curve() {
+    let p = [0.0, 0.25, 0.01];
+    let obs = with_noise(in_plane_window(p, 100), 20.0, None);
+    let problem = RateProblem::new(&obs, &[band()], &MotionModelConfig::default()).expect("p");
+    // The mirror fits exactly as well: the premise of the closed form.
+    let mut r0 = vec![0.0; problem.residual_count()];
+    let mut r1 = r0.clone();
+    problem.residuals(p, &mut r0);
+    problem.residuals(mirror(p), &mut r1);
+    let gap: f64 = r0.iter().zip(&r1).map(|(a, b)| (a - b).powi(2)).sum();
+    assert!(gap < 1e-12, "Δ(mirror) = {gap}");
+    let (info, dirs) = fisher_eigen(&problem, p);
+    // Along the determined direction nearest Z (dirs[1]; dirs[0] is the bisector, ≈ body X),
+    // profiled over the other determined one, as the campaigns do.
+    assert!(dirs[1][2].abs() > 0.9 && dirs[0][0].abs() > 0.9, "{dirs:?}");
+    let i = 1;
+    let crb = info[i].recip();
+    let free = [dirs[2]];
+    let hcr = chapman_robbins(&problem, p, dirs[i], &free, crb.sqrt(), 0.05).expect("b");
+    assert!(
+        hcr.variance > 1e4 * crb,
+        "HCR {:.3e} vs CRB {crb:.3e} ({hcr:?})",
+        hcr.variance
+    );
+    // The mirror is found as a copy of p, at its offset along the direction.
+    let copy = hcr.copy.expect("the mirror is a copy");
+    assert!(copy.divergence < 1e-3, "{copy:?}");
+    // The supremum sits at the mirror's offset along the direction.
+    let to_mirror: f64 = (0..3).map(|k| dirs[i][k] * (mirror(p)[k] - p[k])).sum();
+    for offset in [hcr.offset_deg_per_frame, copy.offset_deg_per_frame] {
+        assert!(
+            (offset - to_mirror).abs() < 0.2 * to_mirror.abs(),
+            "offset {offset} vs mirror at {to_mirror}"
+        );
+    }
+}
