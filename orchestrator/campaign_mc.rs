@@ -175,9 +175,6 @@ struct Bound {
     directions: [[f64; 3]; 3],
     /// The bound with the coefficients known, (JᵀWJ)⁻¹: its variances along `directions`.
     known_variances: [f64; 3],
-    /// The two-stage estimator's covariance F⁻¹ + F⁻¹ C F⁻¹ (stage-1 coefficients from the
-    /// stable window alone, plugged in; C their term) along `directions`.
-    plug_in_variances: [f64; 3],
     /// The Hammersley–Chapman–Robbins bound along each observable direction (coefficients
     /// known; NaN elsewhere) \[(deg/frame)²\].
     hcr_variances: [f64; 3],
@@ -288,7 +285,6 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
             variances: [f64::NAN; 3],
             directions: [[f64::NAN; 3]; 3],
             known_variances: [f64::NAN; 3],
-            plug_in_variances: [f64::NAN; 3],
             hcr_variances: [f64::NAN; 3],
             copy: None,
         });
@@ -317,29 +313,6 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
             .map(|(l, u)| (0..3).map(|i| v[i] * u[i]).sum::<f64>().powi(2) / l)
             .sum()
     });
-    // The two-stage estimator's own covariance, F⁺ + F⁺ C F⁺ with C the stage-1
-    // coefficients' term: along v, v·F⁺v + wᵀCw with w = F⁺v.
-    let plug_in_variances = match problem.coefficient_term(p, &jac) {
-        Some(c) => std::array::from_fn(|k| {
-            let v = vecs[k];
-            let w: [f64; 3] = std::array::from_fn(|i| {
-                (0..3)
-                    .filter(|&m| determined(known_info[m]))
-                    .map(|m| {
-                        let u = known_vecs[m];
-                        let along: f64 = (0..3).map(|j| u[j] * v[j]).sum();
-                        u[i] * along / known_info[m]
-                    })
-                    .sum()
-            });
-            let wcw: f64 = (0..3)
-                .flat_map(|i| (0..3).map(move |j| (i, j)))
-                .map(|(i, j)| w[i] * c[i][j] * w[j])
-                .sum();
-            known_variances[k] + wcw
-        }),
-        None => known_variances,
-    };
     let variances = info.map(|l| if l > 0.0 { 1.0 / l } else { f64::INFINITY });
     let (hcr_variances, copy) = chapman_robbins_variances(problem, p, &variances, &vecs)?;
     Ok(Bound {
@@ -347,7 +320,6 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
         variances,
         directions: vecs,
         known_variances,
-        plug_in_variances,
         hcr_variances,
         copy,
     })
@@ -480,10 +452,6 @@ impl Estimator {
             .filter(|&i| observable[i])
             .map(|i| self.bound.known_variances[i])
             .sum();
-        let plug_in_obs: f64 = (0..3)
-            .filter(|&i| observable[i])
-            .map(|i| self.bound.plug_in_variances[i])
-            .sum();
         let hcr_obs: f64 = (0..3)
             .filter(|&i| observable[i])
             .map(|i| self.bound.hcr_variances[i])
@@ -520,8 +488,6 @@ impl Estimator {
             "rms_observable_deg_per_frame": rms_obs,
             "efficiency": rms_obs.map(|r| r / crb_obs.sqrt()).filter(|e| e.is_finite()),
             "hcr_observable_deg_per_frame": finite(hcr_obs.sqrt()),
-            "two_stage_observable_deg_per_frame": finite(plug_in_obs.sqrt()),
-            "rms_over_two_stage": rms_obs.map(|r| r / plug_in_obs.sqrt()).filter(|e| e.is_finite()),
             "directions": per_direction,
             "nees_mean": mean_nees,
             "nees_dof_mean": (!self.nees.is_empty()).then(|| total_dof as f64 / self.nees.len() as f64),
@@ -599,16 +565,16 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
     }
     s.push_str(
         "\n## Efficiency and honesty (scatter about the noise-free solution)\n\n\
-         The CRB is the scenario's: the stage-1 coefficients are unknown and informed by both windows when both are noisy; the next column is the bound if they were known. Stage 1 fixes the coefficients from the stable window alone and stage 3 plugs them in: that two-stage design cannot use what the motion window says about them, and its own covariance is F⁻¹ + F⁻¹ C F⁻¹ (C the stage-1 coefficients' term, as stage 3 reports it); RMS / two-stage near 1 means the estimator is as good as its design allows. The CRB sees only the light curve's slope at p₀. The Hammersley–Chapman–Robbins bound sup_h (v·h)²/(exp Δ(h) − 1) (Δ = the noise-free χ² between p₀ + h and p₀, coefficients known) sees the whole light curve: where it is far above the CRB, a rate h away fits nearly as well and no unbiased estimator reaches the CRB. When that rate fits within one noise variance (Δ < 1) it is a *copy* of p₀: a Y rotation is nearly its own mirror (−w_x, w_y, −w_z), and the Sun and observer's small offsets from the body XZ plane move the mirror a few 10⁻³ deg/frame off p₀. The data cannot tell p₀ from its copy at any SNR a campaign runs; runs nearer the copy are counted in its column and their deviation is taken from the copy.\n\n\
+         The CRB is the scenario's: the stage-1 coefficients are unknown and informed by both windows when both are noisy; the next column is the bound if they were known. The CRB sees only the light curve's slope at p₀. The Hammersley–Chapman–Robbins bound sup_h (v·h)²/(exp Δ(h) − 1) (Δ = the noise-free χ² between p₀ + h and p₀, coefficients known) sees the whole light curve: where it is far above the CRB, a rate h away fits nearly as well and no unbiased estimator reaches the CRB. When that rate fits within one noise variance (Δ < 1) it is a *copy* of p₀: a Y rotation is nearly its own mirror (−w_x, w_y, −w_z), and the Sun's fraction of a degree off the body XZ plane moves the mirror a few 10⁻³ deg/frame off p₀. The data cannot tell p₀ from its copy at any SNR a campaign runs; runs nearer the copy are counted in its column and their deviation is taken from the copy.\n\n\
          RMS = sqrt(mean ‖(p̂ − p₀ or its copy) projected on the observable CRB directions‖²) over the runs with p₀'s sense of rotation (those nearer the mirror of a rate that has a sense, |mirror(p₀) − p₀| ≥ |p₀|, are counted apart); efficiency = RMS / CRB (1 is efficient). NEES uses each run's reported covariance over its observable directions, about the same centre; its 95 % interval is for the mean over the runs.\n\n\
-         | value | fit | runs determined | other sense | on p₀'s copy (Δ) | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | two-stage 1σ | HCR 1σ | RMS [deg/frame] | efficiency (RMS / CRB) | RMS / two-stage | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         | value | fit | runs determined | other sense | on p₀'s copy (Δ) | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | HCR 1σ | RMS [deg/frame] | efficiency (RMS / CRB) | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         for (label, key) in [("λ*", "single"), ("joint", "joint")] {
             let e = &r["monte_carlo"][key];
             let _ = writeln!(
                 s,
-                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {}–{} |",
+                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {}–{} |",
                 r["value"].as_str().unwrap_or("?"),
                 e["determined"],
                 r["monte_carlo"]["runs"],
@@ -617,11 +583,9 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
                 e["observable_directions"],
                 fmt_e(&e["crb_observable_deg_per_frame"]),
                 fmt_e(&e["crb_known_coefficients_observable_deg_per_frame"]),
-                fmt_e(&e["two_stage_observable_deg_per_frame"]),
                 fmt_e(&e["hcr_observable_deg_per_frame"]),
                 fmt_e(&e["rms_observable_deg_per_frame"]),
                 fmt(&e["efficiency"], 2),
-                fmt(&e["rms_over_two_stage"], 2),
                 fmt(&e["nees_mean"], 2),
                 fmt(&e["nees_dof_mean"], 1),
                 fmt(&e["nees_bounds_95"][0], 2),

@@ -206,8 +206,8 @@ const MIRROR_MAX_DELTA_CHI2: f64 = 4.0;
 /// p̂'s, in units of the noise variance ([`noise_variance`]).
 ///
 /// Distinct: at least 1e-2 deg/frame away, or at least 2σ along the directions `observability`
-/// determines. A rate about Y is nearly its own mirror: the Sun and observer's fraction of a
-/// degree off the body XZ plane moves the mirror of [0, 0.25, 0] to w_z ≈ −0.004, several σ
+/// determines. A rate about Y is nearly its own mirror: the Sun's fraction of a degree off the
+/// body XZ plane moves the mirror of [0, 0.25, 0] to w_z ≈ −0.004, several σ
 /// away at SNR 10 over all bands, and the data cannot choose between the two.
 pub(super) fn mirror_if_ambiguous(
     problem: &RateProblem,
