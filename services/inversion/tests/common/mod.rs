@@ -223,3 +223,35 @@ pub fn with_noise(mut obs: Vec<Observation>, snr: f64, seed: Option<u64>) -> Vec
     }
     obs
 }
+
+/// A Y-dominated rotation with the Sun and the observer exactly in the body XZ plane.
+pub fn in_plane_window(p_true: [f64; 3], frames: usize) -> Vec<Observation> {
+    let o = Vector3::new(1.0, 0.0, -0.045).normalize();
+    let alpha0 = alpha_phase15_deg();
+    (0..frames)
+        .map(|t| {
+            let tf = t as f64;
+            let a = (alpha0 + 0.004_167 * tf).to_radians();
+            let s = Vector3::new(a.cos(), 0.0, a.sin());
+            let r = AttitudeConvention::Verbatim.matrix(p_true, tf);
+            let range = range_m(tf);
+            let flux = flux_w(
+                &band_coeffs(650.0),
+                band_scale_w(650.0),
+                panel_normal(s, Vector3::x()),
+                r * s,
+                r * o,
+                range,
+            );
+            Observation {
+                frame_index: 10_000 + t as u64,
+                t_s: tf,
+                sun_body: s,
+                observer_body: o,
+                range_m: range,
+                flux_w: vec![flux],
+                sigma_w: vec![],
+            }
+        })
+        .collect()
+}
