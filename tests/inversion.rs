@@ -308,6 +308,23 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
         !out.status.success() && err.contains("no report to re-score"),
         "{err}"
     );
+    // Only a Monte-Carlo campaign can be re-scored: anything else is bad input.
+    let out = glint()
+        .args([
+            "run",
+            scenario("campaign-shape.toml").to_str().unwrap(),
+            "--rescore",
+            "--out",
+        ])
+        .arg(dir.join("shape"))
+        .output()
+        .expect("spawning glint");
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let md = std::fs::read_to_string(root.join("summary.md")).unwrap();
     assert!(
         md.contains("efficiency") && md.contains("NEES") && md.contains("HCR"),
