@@ -104,7 +104,7 @@ pub fn run(
         serde_json::to_string_pretty(&out)? + "\n",
     )?;
     let text = if camp.seeds > 1 {
-        crate::campaign_mc::summary(scenario, &camp.parameter, camp.seeds, &rows)
+        crate::campaign_mc_summary::summary(scenario, &camp.parameter, camp.seeds, &rows)
     } else {
         summary(scenario, &camp.parameter, &rows)
     };

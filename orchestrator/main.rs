@@ -7,6 +7,7 @@
 
 mod campaign;
 mod campaign_mc;
+mod campaign_mc_summary;
 mod consume;
 mod deploy;
 mod observations;

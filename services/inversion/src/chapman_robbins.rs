@@ -15,8 +15,9 @@
 //! Var(v·p̂) ≥ sup_h (v·h)² / (exp(Δ(h)) − 1)
 //! ```
 //!
-//! As h → 0 the ratio tends to the CRB along v (with the other free directions profiled out),
-//! so the bound is never below it. [`chapman_robbins`] evaluates the supremum on the profile:
+//! As h → 0 the ratio tends to the CRB along v of the sub-problem the searched directions span
+//! (v and the `free` ones, the rest held), so a bound well above the CRB means the light curve
+//! is not linear over the offsets that matter. [`chapman_robbins`] evaluates the supremum on the profile:
 //! for offsets `c` along v on a geometric grid, Δ is minimised over the `free` directions by
 //! Gauss–Newton (continued from the previous offset), and the largest `c²/expm1(Δ)` is kept.
 
@@ -35,15 +36,15 @@ pub struct ChapmanRobbins {
     pub divergence: f64,
     /// The test point p₀ + c v + Σ a_k u_k there \[deg/frame\].
     pub point_deg_per_frame: [f64; 3],
-    /// A copy of p₀ along v, if the search met one: see [`Copy`].
-    pub copy: Option<Copy>,
+    /// A copy of p₀ along v, if the search met one: see [`RateCopy`].
+    pub copy: Option<RateCopy>,
 }
 
 /// A rate the data cannot tell from p₀: beyond p₀'s local scatter (|c| ≥ 2 CRB along v), yet
 /// fitting p₀'s noise-free light curve within one noise variance, and far better than the
 /// light curve's slope at p₀ predicts: Δ < min(1, ¼ (c/CRB)²). The smallest Δ found.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Copy {
+pub struct RateCopy {
     /// The rate \[deg/frame\].
     pub point_deg_per_frame: [f64; 3],
     /// Its offset along v \[deg/frame\].
@@ -193,7 +194,7 @@ pub fn chapman_robbins(
             best.point_deg_per_frame = profile.point(side * top.c, v, &top.a);
         }
         if let Some(f) = found.filter(|f| best.copy.is_none_or(|b| f.delta < b.divergence)) {
-            best.copy = Some(Copy {
+            best.copy = Some(RateCopy {
                 point_deg_per_frame: profile.point(side * f.c, v, &f.a),
                 offset_deg_per_frame: side * f.c,
                 divergence: f.delta,
