@@ -285,46 +285,21 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
     assert!(joint["copy_divergence"].as_f64().unwrap() < 1.0, "{joint}");
     // Re-scoring reads the deployments' reports instead of deploying again: the same rows.
     std::fs::remove_file(root.join("campaign.json")).unwrap();
-    let out = glint()
-        .args(["run", file.to_str().unwrap(), "--rescore", "--out"])
-        .arg(&root)
-        .output()
-        .expect("spawning glint");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = rescore(&file, &root);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
     assert_eq!(read_json(&root.join("campaign.json")), c);
     // Without deployments to read, it says so.
-    let empty = dir.join("empty");
-    let out = glint()
-        .args(["run", file.to_str().unwrap(), "--rescore", "--out"])
-        .arg(&empty)
-        .output()
-        .expect("spawning glint");
+    let out = rescore(&file, &dir.join("empty"));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("no report to re-score"),
         "{err}"
     );
     // Only a Monte-Carlo campaign can be re-scored: anything else is bad input.
-    let out = glint()
-        .args([
-            "run",
-            scenario("campaign-shape.toml").to_str().unwrap(),
-            "--rescore",
-            "--out",
-        ])
-        .arg(dir.join("shape"))
-        .output()
-        .expect("spawning glint");
-    assert_eq!(
-        out.status.code(),
-        Some(2),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = rescore(&scenario("campaign-shape.toml"), &dir.join("shape"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
     let md = std::fs::read_to_string(root.join("summary.md")).unwrap();
     assert!(
         md.contains("efficiency") && md.contains("NEES") && md.contains("HCR"),

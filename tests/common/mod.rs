@@ -107,6 +107,18 @@ pub fn run_campaign_ok(scenario: &Path, dir: &Path) -> Value {
     read_json(&dir.join("campaign.json"))
 }
 
+/// `glint run SCENARIO --rescore --out DIR`: re-scores a Monte-Carlo campaign in `dir`.
+pub fn rescore(scenario: &Path, dir: &Path) -> std::process::Output {
+    glint()
+        .arg("run")
+        .arg(scenario)
+        .arg("--rescore")
+        .arg("--out")
+        .arg(dir)
+        .output()
+        .expect("spawning glint")
+}
+
 /// A shipped scenario with text replacements applied, written into `dir`.
 pub fn scenario_variant(name: &str, replacements: &[(&str, &str)], dir: &Path) -> PathBuf {
     let mut text = std::fs::read_to_string(scenario(name)).unwrap();
