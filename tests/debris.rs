@@ -66,21 +66,13 @@ fn offline_detect_finds_the_rendered_debris_and_rejects_bad_files() {
         .arg(&frame)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let out = glint()
         .args(["tool", "detect"])
         .arg(&frame)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     // Frame 0 of debris-geo: 4 debris streaks and 2 false targets.
     let dets = j["detections"].as_array().unwrap();

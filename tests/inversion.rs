@@ -285,9 +285,7 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
     assert!(joint["copy_divergence"].as_f64().unwrap() < 1.0, "{joint}");
     // Re-scoring reads the deployments' reports instead of deploying again: the same rows.
     std::fs::remove_file(root.join("campaign.json")).unwrap();
-    let out = rescore(&file, &root);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    assert_success(&rescore(&file, &root));
     assert_eq!(read_json(&root.join("campaign.json")), c);
     // Without deployments to read, it says so.
     let out = rescore(&file, &dir.join("empty"));

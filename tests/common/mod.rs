@@ -77,12 +77,17 @@ pub fn invert_ok(observations: &Path, out_dir: &Path, extra: &[&str]) -> Value {
         .args(extra)
         .output()
         .unwrap();
+    assert_success(&out);
+    read_json(&out_dir.join("inversion.json"))
+}
+
+/// Asserts that a `glint` command exited 0, showing its stderr when it did not.
+pub fn assert_success(out: &std::process::Output) {
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    read_json(&out_dir.join("inversion.json"))
 }
 
 pub fn read_json(path: &Path) -> Value {
@@ -99,11 +104,7 @@ pub fn run_campaign_ok(scenario: &Path, dir: &Path) -> Value {
         .arg(dir)
         .output()
         .expect("spawning glint");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     read_json(&dir.join("campaign.json"))
 }
 

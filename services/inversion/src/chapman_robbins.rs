@@ -212,6 +212,9 @@ struct Profile<'a> {
     free: &'a [[f64; 3]],
     r: Vec<f64>,
     jac: Vec<[f64; 3]>,
+    /// Scratch for Gauss–Newton trials, swapped with `r`/`jac` on acceptance.
+    r_try: Vec<f64>,
+    jac_try: Vec<[f64; 3]>,
 }
 
 impl<'a> Profile<'a> {
@@ -224,6 +227,8 @@ impl<'a> Profile<'a> {
             free: &free[..free.len().min(2)],
             r: vec![0.0; n],
             jac: vec![[0.0; 3]; n],
+            r_try: vec![0.0; n],
+            jac_try: vec![[0.0; 3]; n],
         }
     }
 
@@ -273,18 +278,16 @@ impl<'a> Profile<'a> {
             let Some(step) = step else { break };
             let trial = [a[0] + step[0], a[1] + step[1]];
             let p = self.point(c, v, &trial);
-            let mut r_try = vec![0.0; self.r.len()];
-            let mut jac_try = vec![[0.0; 3]; self.r.len()];
             self.problem
-                .residuals_and_jacobian(p, &mut r_try, &mut jac_try);
-            let d_try = divergence(&r_try, self.r0);
+                .residuals_and_jacobian(p, &mut self.r_try, &mut self.jac_try);
+            let d_try = divergence(&self.r_try, self.r0);
             if d_try.is_nan() || d_try >= delta {
                 break;
             }
             let gain = delta - d_try;
             *a = trial;
-            self.r = r_try;
-            self.jac = jac_try;
+            std::mem::swap(&mut self.r, &mut self.r_try);
+            std::mem::swap(&mut self.jac, &mut self.jac_try);
             delta = d_try;
             if gain <= 1e-9 * (1.0 + delta) {
                 break;

@@ -36,11 +36,17 @@ impl RateProblem {
         self
     }
 
+    /// Whether some band carries a stage-1 coefficient covariance to propagate (not when the
+    /// diffuse re-fit replaces the coefficients).
+    fn propagates_coefficients(&self) -> bool {
+        !self.refit_diffuse && self.coeff_cov.iter().any(Option::is_some)
+    }
+
     /// `C = Σ_b F_pb Cov(x_b) F_bp` (3 × 3) at p, with `jac` the whitened Jacobian at p. The
     /// rates' covariance including the coefficients' uncertainty is F⁻¹ + F⁻¹ C F⁻¹. `None`
     /// when no band carries a coefficient covariance (or the diffuse re-fit replaces them).
     pub fn coefficient_term(&self, p: [f64; 3], jac: &[[f64; 3]]) -> Option<[[f64; 3]; 3]> {
-        if self.refit_diffuse || self.coeff_cov.iter().all(Option::is_none) {
+        if !self.propagates_coefficients() {
             return None;
         }
         let n = TERMS * 2;
@@ -80,7 +86,7 @@ impl RateProblem {
         p: [f64; 3],
         jac: &[[f64; 3]],
     ) -> Option<[[f64; 3]; 3]> {
-        if self.refit_diffuse || self.coeff_cov.iter().all(Option::is_none) {
+        if !self.propagates_coefficients() {
             return None;
         }
         let n = TERMS * 2;
