@@ -127,6 +127,7 @@ pub fn run_value(
         "median_err_paper_metric": median(&|s3| vec3(&s3["p_deg_per_frame"])),
         "median_joint_err_paper_metric": median(&|s3| vec3(&s3["joint"]["p_deg_per_frame"])),
         "reference_err_paper_metric": reference.single.p0.map(|p| rate_error_metric(p, truth)),
+        "lambda_rejected_by_joint": runs.iter().filter(|s3| s3["lambda_rejected_by_joint"] == true).count(),
         "single": single.json(),
         "joint": joint.json(),
     });

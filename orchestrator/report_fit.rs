@@ -64,6 +64,9 @@ pub fn plots(dir: &Path) -> Result<bool> {
     let Some(fit) = result.rate.fit() else {
         return Ok(false);
     };
+    // The band stage 3 fitted: λ*, unless the joint fit rejected its solution.
+    let chosen = result.rate_band_index;
+    let nm = result.stage1[chosen].wavelength_nm;
     let mut motion = file.set.motion.clone();
     motion.sort_by_key(|o| o.frame_index);
     motion.truncate(result.fitted_frames);

@@ -84,9 +84,11 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
         json!({
             "status": status(r),
             "unobservable_reason": reason(r.unobservable_reason),
-            "band_nm": r.wavelength_nm[r.chosen_band as usize],
+            "band_nm": r.wavelength_nm[r.stage3_band as usize],
             "fitted_frames": r.fitted_frames,
             "sense_from_joint": r.stage3_flags & SolveResponse::SENSE_FROM_JOINT != 0,
+            "lambda_rejected_by_joint": r.stage3_flags & SolveResponse::LAMBDA_REJECTED != 0,
+            "bands_set_aside": r.stage3_set_aside,
             "fit_horizon_deg": glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG,
             "p_deg_per_frame": if determined { json!(p) } else { Value::Null },
             "truth_deg_per_frame": truth,
@@ -154,15 +156,18 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             let _ = writeln!(
                 s,
                 "Stage 3 at {} nm: p = [{:.5}, {:.5}, {:.5}] deg/frame (truth [{}, {}, {}]), **error {:.3}** (paper metric 100·‖Δp‖); fitted on the first {} of {} motion frames (fit horizon: {}° of rotation at the fitted rate); {} LM iterations over {} polished starts.",
-                r.wavelength_nm[r.chosen_band as usize], p[0], p[1], p[2], truth[0], truth[1], truth[2],
+                r.wavelength_nm[r.stage3_band as usize], p[0], p[1], p[2], truth[0], truth[1], truth[2],
                 rate_error_metric(p, truth), r.fitted_frames, r.motion_samples,
                 glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG, r.iterations, r.starts
             );
+            if r.stage3_flags & SolveResponse::LAMBDA_REJECTED != 0 {
+                let _ = writeln!(s, "\n{}", set_aside_phrase(r));
+            }
             if r.stage3_flags & SolveResponse::SENSE_FROM_JOINT != 0 {
                 let _ = writeln!(
                     s,
                     "\nAt {} nm alone this rate and its mirror fit equally well; the sense of rotation is the joint fit's (all bands).",
-                    r.wavelength_nm[r.chosen_band as usize]
+                    r.wavelength_nm[r.stage3_band as usize]
                 );
             }
             let _ = writeln!(
@@ -173,7 +178,7 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             let _ = writeln!(
                 s,
                 "Stage 3 at {} nm: **{}** ({}) — no rate is reported.",
-                r.wavelength_nm[r.chosen_band as usize],
+                r.wavelength_nm[r.stage3_band as usize],
                 status(r),
                 SolveResponse::reason_name(r.unobservable_reason)
             );
@@ -295,4 +300,22 @@ fn basis_phrase(r: &SolveResponse) -> String {
         "basis: diffuse + the {} narrowest lobes (μ ≤ {}); the broader ones, which the stable window cannot tell from diffuse light, add nothing the data support (Δχ² = {:.1} for k = {} parameters)",
         r.stage1_lobes_kept, r.stage1_widest_lobe_mu, r.stage1_basis_delta_chi2, r.stage1_basis_dof
     )
+}
+
+/// What the joint-fit check did to λ* (`SolveResponse::LAMBDA_REJECTED`).
+fn set_aside_phrase(r: &SolveResponse) -> String {
+    let lambda = r.wavelength_nm[r.chosen_band as usize];
+    let why = format!(
+        "its solution and the joint fit's are more than {}σ apart and the band's cost has a separate minimum at the joint solution: the noise in that band's stage-1 coefficients made another minimum the lowest",
+        glint_inversion::stage3::DEFAULT_JOINT_GATE_SIGMA
+    );
+    if r.stage3_band == r.chosen_band {
+        format!("**The joint fit rejects the solution at λ* = {lambda} nm and at every other candidate band** ({why}); λ*'s is reported, and the joint fit is the one to use.")
+    } else {
+        format!(
+            "**The joint fit rejected the solution at λ* = {lambda} nm** ({why}); stage 3 is reported at {} nm, the next candidate of stage 2's ranking the joint fit accepts ({} band(s) set aside).",
+            r.wavelength_nm[r.stage3_band as usize],
+            r.stage3_set_aside
+        )
+    }
 }

@@ -108,6 +108,26 @@ pub fn invert(
         result.chosen_wavelength_nm,
         result.stage2.bands[result.stage2.separation_index].wavelength_nm,
     );
+    if !result.set_aside.is_empty() {
+        let nm = |i: &usize| result.stage1[*i].wavelength_nm;
+        let aside: Vec<String> = result
+            .set_aside
+            .iter()
+            .map(|i| format!("{} nm", nm(i)))
+            .collect();
+        text += &if result.rate_band_index == result.stage2.chosen_index {
+            format!(
+                "stage 3: the joint fit rejects the solution at every candidate band ({}); λ*'s is reported\n",
+                aside.join(", ")
+            )
+        } else {
+            format!(
+                "stage 3: the joint fit rejects the solution at {}; fitted at {} nm instead\n",
+                aside.join(", "),
+                nm(&result.rate_band_index)
+            )
+        };
+    }
     text += &format!(
         "stage 3: fitted {} of {} motion frames (horizon: {})\n",
         result.fitted_frames,
@@ -172,7 +192,11 @@ fn sweep_bands(
     for (b, band) in result.stage1.iter().enumerate() {
         // Each band as λ* would be fitted: with the joint fit (when run) deciding the sense of
         // rotation where the band alone cannot.
-        let (rate, fitted_frames, _) = glint_inversion::fit_band(
+        let glint_inversion::BandFit {
+            rate,
+            fitted_frames,
+            ..
+        } = glint_inversion::fit_band(
             &file.set.motion,
             &result.stage1,
             b,

@@ -328,3 +328,61 @@ fn the_held_axis_is_judged_where_the_prior_puts_the_fit() {
     assert!(err < 0.5, "error {err}, p {p:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_lambda_star_solution_in_another_minimum_is_set_aside_by_the_joint_fit() {
+    // Y rotation at SNR 10, seed 7: the noise gives 560 nm's stage-1 coefficients a narrow body
+    // lobe, stage 2 ranks the band first, and its own cost is lowest at the reversed rotation
+    // [0, −0.195, −0.076] (error ≈ 45). The joint fit (all bands) is 0.7 from the truth and
+    // rejects that solution as another minimum; stage 3 falls back to the next candidate.
+    let dir = temp_dir("lambda-rejected");
+    let file = scenario_variant(
+        "geo-hover-yspin.toml",
+        &[
+            ("seed = 2020", "seed = 7"),
+            (
+                "materials = \"physical\"",
+                "materials = \"physical\"\nsnr = 10.0",
+            ),
+        ],
+        &dir,
+    );
+    let r = run_ok(Some(&file), &dir.join("out"), &[]);
+    let inv = &r.report["inversion"];
+    let s3 = &inv["stage3"];
+    assert_eq!(inv["stage2"]["chosen_nm"], 560.0, "{}", inv["stage2"]);
+    assert_eq!(s3["lambda_rejected_by_joint"], true, "{s3}");
+    assert_ne!(s3["band_nm"], 560.0, "{s3}");
+    // Against the truth: the fallback band's rate is near it, and so is the joint fit's.
+    let err = s3["err_paper_metric"].as_f64().unwrap();
+    assert!(err < 2.0, "error {err}: {s3}");
+    assert!(
+        s3["joint"]["err_paper_metric"].as_f64().unwrap() < 2.0,
+        "{s3}"
+    );
+    let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
+    assert!(summary.contains("The joint fit rejected the solution at λ* = 560 nm"));
+
+    // Offline, the same file: the same answer; and with the check switched off, λ* at 560 nm
+    // lands in the reversed rotation that was set aside.
+    let obs = r.dir.join("observations.csv");
+    let offline = invert_ok(&obs, &dir.join("offline"), &[]);
+    let fitted = offline["rate_band_index"].as_u64().unwrap() as usize;
+    assert_eq!(offline["stage1"][fitted]["wavelength_nm"], s3["band_nm"]);
+    assert_eq!(offline["rate"]["rate_deg_per_frame"], s3["p_deg_per_frame"]);
+    let config = dir.join("no-gate.toml");
+    std::fs::write(&config, "[stage3]\njoint_gate_sigma = inf\n").unwrap();
+    let config_arg = config.to_str().unwrap();
+    let ungated = invert_ok(&obs, &dir.join("ungated"), &["--config", config_arg]);
+    assert_eq!(
+        ungated["rate_band_index"].as_u64(),
+        ungated["stage2"]["chosen_index"].as_u64()
+    );
+    let p = &ungated["rate"]["rate_deg_per_frame"];
+    assert!(p[1].as_f64().unwrap() < 0.0, "{p}");
+    assert!(
+        ungated["stage3_err_paper_metric"].as_f64().unwrap() > 40.0,
+        "{p}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

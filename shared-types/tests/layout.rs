@@ -219,7 +219,7 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, flags), 44);
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (2512, 8)
+        (2520, 8)
     );
     assert_eq!(offset_of!(SolveResponse, status), 44);
     assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
@@ -241,4 +241,6 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveResponse, specular_share), 1976);
     assert_eq!(offset_of!(SolveResponse, stage1_widest_lobe_mu), 2488);
     assert_eq!(offset_of!(SolveResponse, stage1_lobes_kept), 2508);
+    assert_eq!(offset_of!(SolveResponse, stage3_band), 2512);
+    assert_eq!(offset_of!(SolveResponse, stage3_set_aside), 2516);
 }

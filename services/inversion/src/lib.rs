@@ -78,8 +78,14 @@ pub struct InversionResult {
     pub stage2: Stage2Result,
     /// λ* \[nm\].
     pub chosen_wavelength_nm: f64,
-    /// Stage 3 at λ*.
+    /// Stage 3 at λ* (or at `rate_band_index` when the joint fit rejected λ*'s solution).
     pub rate: RateSolution,
+    /// The band `rate` was fitted at.
+    #[serde(default)]
+    pub rate_band_index: usize,
+    /// Bands whose solution the joint fit rejected ([`RateFits::set_aside`]).
+    #[serde(default)]
+    pub set_aside: Vec<usize>,
     /// Joint fit over all bands, when enabled.
     pub joint_rate: Option<RateSolution>,
     /// Motion frames stage 3 fitted (the fit horizon, see [`Stage3Config::max_rotation_deg`]).
@@ -117,7 +123,7 @@ pub fn solve_three_stage(
     let fits = fit_rates(
         &set.motion,
         &stage1,
-        stage2.chosen_index,
+        &stage2.ranking,
         &config.model,
         &config.stage3,
         config.joint_fit,
@@ -128,6 +134,8 @@ pub fn solve_three_stage(
         stage1_basis,
         stage2,
         rate: fits.rate,
+        rate_band_index: fits.band_index,
+        set_aside: fits.set_aside,
         joint_rate: fits.joint_rate,
         fitted_frames: fits.fitted_frames,
         joint_fitted_frames: fits.joint_fitted_frames,
@@ -139,7 +147,7 @@ pub fn solve_three_stage(
 pub fn fit_rates(
     motion: &[Observation],
     stage1: &[Stage1Band],
-    chosen: usize,
+    ranking: &[usize],
     model: &MotionModelConfig,
     config: &Stage3Config,
     joint: bool,
@@ -149,20 +157,38 @@ pub fn fit_rates(
     } else {
         None
     };
-    let (rate, fitted_frames, sense_from_joint) = fit_band(
-        motion,
-        stage1,
-        chosen,
-        model,
-        config,
-        joint_rate.as_ref().map(|j| &j.0),
-    )?;
+    let joint_fit = joint_rate.as_ref().map(|j| &j.0);
+    let Some((&chosen, others)) = ranking.split_first() else {
+        return Err(InversionError::NoSeparableBand);
+    };
+    let first = fit_band(motion, stage1, chosen, model, config, joint_fit)?;
+    let mut band_index = chosen;
+    let mut set_aside = Vec::new();
+    let mut fit = first.clone();
+    if first.rejected_by_joint {
+        set_aside.push(chosen);
+        for &b in others {
+            let next = fit_band(motion, stage1, b, model, config, joint_fit)?;
+            if !next.rejected_by_joint {
+                fit = next;
+                band_index = b;
+                break;
+            }
+            set_aside.push(b);
+        }
+        // Every candidate rejected: λ*'s own answer stands, flagged.
+        if band_index == chosen {
+            set_aside = vec![chosen];
+        }
+    }
     Ok(RateFits {
-        rate,
-        fitted_frames,
+        rate: fit.rate,
+        band_index,
+        set_aside,
+        fitted_frames: fit.fitted_frames,
         joint_fitted_frames: joint_rate.as_ref().map(|j| j.1),
         joint_rate: joint_rate.map(|j| j.0),
-        sense_from_joint,
+        sense_from_joint: fit.sense_from_joint,
     })
 }
 
@@ -174,9 +200,26 @@ fn rate_band(stage1: &[Stage1Band], b: usize) -> RateBand {
     }
 }
 
-/// Stage 3 at band `b` over its fit horizon. With a `joint` solution, when p̂ and its mirror
-/// fit this band equally well, the sense of rotation is the joint fit's (`stage3::sense_from`). Returns the solution, the frames fitted and whether the
-/// joint fit decided the sense.
+/// Stage 3 at one band ([`fit_band`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BandFit {
+    /// The solution.
+    pub rate: RateSolution,
+    /// Motion frames fitted (the band's fit horizon).
+    pub fitted_frames: usize,
+    /// p̂ and its mirror fit the band equally well and the joint fit decided the sense.
+    pub sense_from_joint: bool,
+    /// The joint fit rejects p̂ as another minimum ([`Stage3Config::joint_gate_sigma`]).
+    pub rejected_by_joint: bool,
+}
+
+/// Stage 3 at band `b` over its fit horizon. With a `joint` solution:
+/// - when p̂ and its mirror fit this band equally well, the sense of rotation is the joint
+///   fit's (`stage3::sense_from`);
+/// - p̂ is checked against it ([`Stage3Config::joint_gate_sigma`]): rejected when the two are
+///   more than the gate's standard deviations apart *and* the band's own cost has a separate
+///   minimum on the joint solution's side (re-polished from the joint solution, LM does not
+///   slide back to p̂). A bias of the band — one minimum, shifted — is not rejected.
 pub fn fit_band(
     motion: &[Observation],
     stage1: &[Stage1Band],
@@ -184,7 +227,7 @@ pub fn fit_band(
     model: &MotionModelConfig,
     config: &Stage3Config,
     joint: Option<&RateSolution>,
-) -> Result<(RateSolution, usize, bool), InversionError> {
+) -> Result<BandFit, InversionError> {
     let covariance = vec![stage1[b].coeff_covariance.clone()];
     let (rate, problem) = horizon_fit(
         motion,
@@ -194,28 +237,130 @@ pub fn fit_band(
         model,
         config,
     )?;
-    let frames = problem.frame_count();
-    let (Some(joint_fit), Some(first)) = (joint.and_then(RateSolution::fit), rate.fit()) else {
-        return Ok((rate, frames, false));
+    let mut out = BandFit {
+        rate,
+        fitted_frames: problem.frame_count(),
+        sense_from_joint: false,
+        rejected_by_joint: false,
     };
-    let Some(start) = joint.and_then(|j| stage3::sense_from(&rate, j)) else {
-        return Ok((rate, frames, false));
+    let (Some(joint), Some(joint_fit)) = (joint, joint.and_then(RateSolution::fit)) else {
+        return Ok(out);
     };
-    let to_joint = |p: [f64; 3]| stage3::distance(p, joint_fit.rate_deg_per_frame);
-    if let Ok(RateSolution::Determined(mut flipped)) =
-        stage3::fit_from_starts(&problem, &[start], config)
-    {
-        // Taken only if it did end on the joint fit's side.
-        if to_joint(flipped.rate_deg_per_frame) < to_joint(first.rate_deg_per_frame) {
-            // The record covers the whole search: the first multi-start and the re-polish.
-            flipped.total_iterations += first.total_iterations;
-            flipped.starts_polished += first.starts_polished;
-            flipped.grid_points = first.grid_points;
-            flipped.starts_screened = first.starts_screened;
-            return Ok((RateSolution::Determined(flipped), frames, true));
-        }
+    if let Some(flipped) = flip_to_joint(&problem, &out.rate, joint, joint_fit, config) {
+        out.rate = RateSolution::Determined(flipped);
+        out.sense_from_joint = true;
     }
-    Ok((rate, problem.frame_count(), false))
+    out.rejected_by_joint = match (config.joint_gate_sigma, out.rate.fit()) {
+        (Some(gate), Some(fit))
+            if stage3::disagreement_sigma(fit, joint_fit, &config.observability) > gate =>
+        {
+            // Compared on the frames both rates model: the faster one's horizon.
+            let speed = |p: [f64; 3]| p.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let faster = speed(fit.rate_deg_per_frame).max(speed(joint_fit.rate_deg_per_frame));
+            let common = problem_within(
+                motion,
+                &[rate_band(stage1, b)],
+                &covariance,
+                model,
+                config,
+                faster,
+            )?;
+            separate_minimum(&common, fit, joint_fit, config)
+        }
+        _ => false,
+    };
+    Ok(out)
+}
+
+/// The problem over the motion frames within the fit horizon of a rate of `speed_deg_per_frame`.
+fn problem_within(
+    motion: &[Observation],
+    bands: &[RateBand],
+    coefficient_covariance: &[Option<Vec<f64>>],
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+    speed_deg_per_frame: f64,
+) -> Result<RateProblem, InversionError> {
+    let motion_model = with_epoch(motion, model);
+    let horizon_frames = config
+        .max_rotation_deg
+        .filter(|d| d.is_finite())
+        .map_or(f64::INFINITY, |d| {
+            (d / speed_deg_per_frame.max(1e-12)).max(MIN_FIT_FRAMES)
+        });
+    let frames = frames_within(motion, &motion_model, horizon_frames);
+    Ok(RateProblem::new(&frames, bands, &motion_model)?
+        .with_coefficient_covariance(coefficient_covariance.to_vec()))
+}
+
+/// `model` with its epoch fixed: the given one, or the first motion frame.
+fn with_epoch(motion: &[Observation], model: &MotionModelConfig) -> MotionModelConfig {
+    let epoch = model
+        .epoch_frame
+        .unwrap_or_else(|| motion.iter().map(|o| o.frame_index).min().unwrap_or(0));
+    MotionModelConfig {
+        epoch_frame: Some(epoch),
+        ..model.clone()
+    }
+}
+
+/// The motion frames at most `horizon_frames` after the epoch of `model` (see [`with_epoch`]).
+fn frames_within(
+    motion: &[Observation],
+    model: &MotionModelConfig,
+    horizon_frames: f64,
+) -> Vec<Observation> {
+    let epoch = model.epoch_frame.unwrap_or(0);
+    motion
+        .iter()
+        .filter(|o| (o.frame_index.saturating_sub(epoch) as f64) <= horizon_frames)
+        .cloned()
+        .collect()
+}
+
+/// When p̂ and its mirror fit equally well, the fit re-polished from the mirror on the joint
+/// fit's side (if it does end there).
+fn flip_to_joint(
+    problem: &RateProblem,
+    rate: &RateSolution,
+    joint: &RateSolution,
+    joint_fit: &RateFit,
+    config: &Stage3Config,
+) -> Option<RateFit> {
+    let first = rate.fit()?;
+    let start = stage3::sense_from(rate, joint)?;
+    let to_joint = |p: [f64; 3]| stage3::distance(p, joint_fit.rate_deg_per_frame);
+    let RateSolution::Determined(mut flipped) =
+        stage3::fit_from_starts(problem, &[start], config).ok()?
+    else {
+        return None;
+    };
+    if to_joint(flipped.rate_deg_per_frame) >= to_joint(first.rate_deg_per_frame) {
+        return None;
+    }
+    // The record covers the whole search: the first multi-start and the re-polish.
+    flipped.total_iterations += first.total_iterations;
+    flipped.starts_polished += first.starts_polished;
+    flipped.grid_points = first.grid_points;
+    flipped.starts_screened = first.starts_screened;
+    Some(flipped)
+}
+
+/// Whether the band's cost (over `problem`'s frames) has a minimum apart from p̂ near the joint
+/// solution: LM from the joint solution ends nearer it than half-way back to p̂.
+fn separate_minimum(
+    problem: &RateProblem,
+    fit: &RateFit,
+    joint_fit: &RateFit,
+    config: &Stage3Config,
+) -> bool {
+    let (p, pj) = (fit.rate_deg_per_frame, joint_fit.rate_deg_per_frame);
+    match stage3::fit_from_starts(problem, &[pj], config) {
+        Ok(RateSolution::Determined(local)) => {
+            stage3::distance(local.rate_deg_per_frame, p) > 0.5 * stage3::distance(pj, p)
+        }
+        _ => false,
+    }
 }
 
 /// One p for all bands over its fit horizon; returns the solution and the frames fitted.
@@ -280,13 +425,7 @@ fn horizon_fit(
     model: &MotionModelConfig,
     config: &Stage3Config,
 ) -> Result<(RateSolution, RateProblem), InversionError> {
-    let epoch = model
-        .epoch_frame
-        .unwrap_or_else(|| motion.iter().map(|o| o.frame_index).min().unwrap_or(0));
-    let model = MotionModelConfig {
-        epoch_frame: Some(epoch),
-        ..model.clone()
-    };
+    let model = with_epoch(motion, model);
     let build = |frames: &[Observation]| -> Result<RateProblem, InversionError> {
         let problem = RateProblem::new(frames, bands, &model)?
             .with_coefficient_covariance(coefficient_covariance.to_vec());
@@ -295,13 +434,7 @@ fn horizon_fit(
             None => problem,
         })
     };
-    let within = |horizon_frames: f64| -> Vec<Observation> {
-        motion
-            .iter()
-            .filter(|o| (o.frame_index.saturating_sub(epoch) as f64) <= horizon_frames)
-            .cloned()
-            .collect()
-    };
+    let within = |horizon_frames: f64| frames_within(motion, &model, horizon_frames);
     let Some(max_deg) = config.max_rotation_deg.filter(|d| d.is_finite()) else {
         let problem = build(motion)?;
         return Ok((stage3::fit_multistart(&problem, config)?, problem));
@@ -337,8 +470,14 @@ const HORIZON_ROUNDS: usize = 4;
 /// Stage-3 results and the window they were fitted on.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RateFits {
-    /// At λ*.
+    /// At λ* (or the band that replaced it, `band_index`).
     pub rate: RateSolution,
+    /// The band `rate` was fitted at: λ*, unless the joint fit rejected λ*'s solution.
+    pub band_index: usize,
+    /// Bands whose solution the joint fit rejected, in the order tried
+    /// ([`Stage3Config::joint_gate_sigma`]); when it holds every candidate, `rate` is λ*'s
+    /// and this is `[λ*]`.
+    pub set_aside: Vec<usize>,
     /// All bands jointly, when asked.
     pub joint_rate: Option<RateSolution>,
     /// Motion frames fitted at λ* (those within its horizon).

@@ -169,6 +169,11 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
             if session.sense_from_joint {
                 out.stage3_flags |= SolveResponse::SENSE_FROM_JOINT;
             }
+            out.stage3_band = session.rate_band as u32;
+            out.stage3_set_aside = session.set_aside.len() as u32;
+            if !session.set_aside.is_empty() {
+                out.stage3_flags |= SolveResponse::LAMBDA_REJECTED;
+            }
         }
     }
     out

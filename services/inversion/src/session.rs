@@ -36,6 +36,10 @@ pub struct Session {
     pub fitted_frames: usize,
     /// The joint fit decided the sense of rotation at λ* (see `fit_rates`).
     pub sense_from_joint: bool,
+    /// The band stage 3 fitted and the bands set aside before it (see `fit_rates`).
+    pub rate_band: usize,
+    /// Bands whose solution the joint fit rejected.
+    pub set_aside: Vec<usize>,
 }
 
 pub enum StageOutcome {
@@ -69,6 +73,8 @@ impl Session {
             joint_rate: None,
             fitted_frames: 0,
             sense_from_joint: false,
+            rate_band: 0,
+            set_aside: Vec::new(),
         }
     }
 
@@ -125,7 +131,7 @@ impl Session {
         let fits = fit_rates(
             &self.set.motion,
             s1,
-            s2.chosen_index,
+            &s2.ranking,
             &self.model,
             &self.stage3_config,
             joint,
@@ -134,6 +140,8 @@ impl Session {
         self.joint_rate = fits.joint_rate;
         self.fitted_frames = fits.fitted_frames;
         self.sense_from_joint = fits.sense_from_joint;
+        self.rate_band = fits.band_index;
+        self.set_aside = fits.set_aside;
         Ok(StageOutcome::Done)
     }
 }

@@ -151,6 +151,10 @@ pub struct Stage2Result {
     pub separation_index: usize,
     /// λ* \[nm\].
     pub chosen_wavelength_nm: f64,
+    /// The candidate bands in order of preference, λ* first: stage 3 falls back along it when
+    /// the joint fit rejects a band's solution (`fit_rates`).
+    #[serde(default)]
+    pub ranking: Vec<usize>,
 }
 
 /// θ_R of fine grid point i \[deg\].
@@ -416,8 +420,16 @@ pub fn run_stage2_with(
     let Some((separation_index, best_sigma)) = chosen else {
         return Err(InversionError::NoSeparableBand);
     };
+    // Candidates in order of preference (λ* is moved to the front below).
+    let mut ranking: Vec<usize>;
     let chosen_index = match config.selection {
-        BandSelection::Separation => separation_index,
+        BandSelection::Separation => {
+            ranking = (0..out.len())
+                .filter(|&i| out[i].sigma.is_finite())
+                .collect();
+            ranking.sort_by(|&a, &b| out[b].sigma.total_cmp(&out[a].sigma).then(a.cmp(&b)));
+            separation_index
+        }
         BandSelection::SeparationThenSpecular => {
             let floor = if best_sigma > 0.0 {
                 r * best_sigma
@@ -428,15 +440,18 @@ pub fn run_stage2_with(
                 .filter(|&i| out[i].sigma.is_finite() && out[i].sigma >= floor)
                 .filter(|&i| out[i].specular_share.is_finite())
                 .collect();
+            let share = |i: usize| out[i].specular_share;
+            ranking = candidates.clone();
+            ranking.sort_by(|&a, &b| share(b).total_cmp(&share(a)).then(a.cmp(&b)));
             let top_share = candidates
                 .iter()
-                .map(|&i| out[i].specular_share)
+                .map(|&i| share(i))
                 .fold(f64::NEG_INFINITY, f64::max);
             // Shares within SAME_SHARE of the top are a tie (stage-1 round-off leaves tiny
             // diffuse coefficients on lobe-only materials); the larger σ breaks it.
             candidates
                 .into_iter()
-                .filter(|&i| out[i].specular_share >= top_share - SAME_SHARE)
+                .filter(|&i| share(i) >= top_share - SAME_SHARE)
                 .fold(None, |best: Option<usize>, i| match best {
                     Some(b) if out[b].sigma >= out[i].sigma => Some(b),
                     _ => Some(i),
@@ -444,10 +459,14 @@ pub fn run_stage2_with(
                 .unwrap_or(separation_index)
         }
     };
+    // λ* first, then the others in their order.
+    ranking.retain(|&i| i != chosen_index);
+    ranking.insert(0, chosen_index);
     Ok(Stage2Result {
         chosen_wavelength_nm: out[chosen_index].wavelength_nm,
         bands: out,
         chosen_index,
         separation_index,
+        ranking,
     })
 }

@@ -34,7 +34,7 @@ use crate::observability::{
 use serde::{Deserialize, Serialize};
 
 mod weak;
-pub use weak::{distance, mirror, WeakPrior};
+pub use weak::{disagreement_sigma, distance, mirror, WeakPrior};
 pub(crate) use weak::{keep_sense, sense_from};
 
 /// Multi-start settings.
@@ -98,6 +98,11 @@ pub struct Stage3Config {
     /// The two-facet model holds only while the observed face and the panel front are the lit
     /// and visible surfaces; turned further, the other faces and the panel back appear.
     pub max_rotation_deg: Option<f64>,
+    /// With the joint fit: a λ* solution farther than this many standard deviations (the two
+    /// covariances summed, over their determined directions) from the joint solution is
+    /// another minimum; stage 3 sets the band aside and fits the next in stage 2's ranking
+    /// (`None` or ∞: never).
+    pub joint_gate_sigma: Option<f64>,
 }
 
 impl Default for Stage3Config {
@@ -109,9 +114,14 @@ impl Default for Stage3Config {
             hold_unobservable_at_prior: true,
             weak_prior: WeakPrior::default(),
             max_rotation_deg: Some(DEFAULT_MAX_ROTATION_DEG),
+            joint_gate_sigma: Some(DEFAULT_JOINT_GATE_SIGMA),
         }
     }
 }
+
+/// Default [`Stage3Config::joint_gate_sigma`]: far beyond any scatter of the two fits (they share
+/// data), near nothing a second minimum can hide in.
+pub const DEFAULT_JOINT_GATE_SIGMA: f64 = 6.0;
 
 /// Default fit horizon \[deg of rotation\]. The noise-free Z error at λ* grows steadily with
 /// it (0.10 / 0.13 / 0.18 / 0.24 / 0.39 / 0.58 at 22 / 24 / 25 / 26 / 28 / 30°): the longer
@@ -216,6 +226,12 @@ fn validate(config: &Stage3Config) -> Result<(), InversionError> {
                 "must be in (0, 360], or inf for every frame",
             );
         }
+    }
+    if config
+        .joint_gate_sigma
+        .is_some_and(|g| g.is_nan() || g <= 0.0)
+    {
+        return bad("joint_gate_sigma", "must be > 0 (inf: never set λ* aside)");
     }
     if !(0.0..=1.0).contains(&config.observability.min_lobe_share) {
         return bad("observability.min_lobe_share", "must be in [0, 1]");

@@ -146,6 +146,9 @@ fn the_default_rule_prefers_the_most_specular_of_the_well_separated_bands() {
         "{result:?}"
     );
     assert_eq!(result.chosen_wavelength_nm, 450.0);
+    // The fallback order for stage 3: λ*, then the other candidate; the poorly separated band
+    // is no candidate.
+    assert_eq!(result.ranking, vec![1, 0]);
     // The paper's rule picks by σ alone (the diffuse floor changes the panel curve's peak and
     // width, so σ differs between the first two bands), and both rules report its choice.
     let paper = run_stage2_with(
@@ -157,6 +160,11 @@ fn the_default_rule_prefers_the_most_specular_of_the_well_separated_bands() {
     )
     .expect("stage 2");
     assert_eq!(paper.chosen_index, paper.separation_index);
+    // Its fallback order is by σ: every band with a finite σ, λ* first.
+    assert_eq!(paper.ranking.len(), 3);
+    assert_eq!(paper.ranking[0], paper.chosen_index);
+    let sigma = |i: usize| paper.bands[i].sigma;
+    assert!(sigma(paper.ranking[1]) >= sigma(paper.ranking[2]));
     assert_eq!(result.separation_index, paper.separation_index);
     // A bad fraction is a config error naming the field.
     let bad = Stage2Config {

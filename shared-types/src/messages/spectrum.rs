@@ -243,7 +243,7 @@ pub struct SolveResponse {
     /// Stage 2: index of argmax σ(λ), the paper's choice (λ* may differ, see the inversion's
     /// band-selection rule).
     pub separation_band: u32,
-    /// Stage 3 flags: [`SolveResponse::SENSE_FROM_JOINT`].
+    /// Stage 3 flags: [`SolveResponse::SENSE_FROM_JOINT`], [`SolveResponse::LAMBDA_REJECTED`].
     pub stage3_flags: u32,
     /// Stage 2: the lobes' share of the stage-1 coefficients per band.
     pub specular_share: [f64; MAX_BANDS],
@@ -254,6 +254,12 @@ pub struct SolveResponse {
     pub stage1_basis_dof: u32,
     /// Stage 1: lobes kept per facet, of 10.
     pub stage1_lobes_kept: u32,
+    /// Stage 3: index of the band the rate was fitted at: λ* (`chosen_band`), unless the joint
+    /// fit rejected λ*'s solution as another minimum ([`SolveResponse::LAMBDA_REJECTED`]).
+    pub stage3_band: u32,
+    /// Stage 3: bands whose solution the joint fit rejected before `stage3_band` was accepted
+    /// (with every candidate rejected, 1 and `stage3_band == chosen_band`).
+    pub stage3_set_aside: u32,
 }
 
 impl Default for SolveResponse {
@@ -292,6 +298,8 @@ impl Default for SolveResponse {
             stage1_basis_delta_chi2: f64::NAN,
             stage1_basis_dof: 0,
             stage1_lobes_kept: 0,
+            stage3_band: 0,
+            stage3_set_aside: 0,
         }
     }
 }
@@ -299,6 +307,8 @@ impl Default for SolveResponse {
 impl SolveResponse {
     /// The λ* data fit p and its mirror equally well; the joint fit decided the sense.
     pub const SENSE_FROM_JOINT: u32 = 1;
+    /// The joint fit rejected the solution at λ* as another minimum of that band's cost.
+    pub const LAMBDA_REJECTED: u32 = 2;
 
     /// Names of the `unobservable_reason` codes (index = code).
     pub const REASON_NAMES: [&'static str; 6] = [
@@ -332,7 +342,9 @@ impl SolveResponse {
         }
         if self.n_bands as usize > MAX_BANDS
             || (self.n_bands > 0
-                && (self.chosen_band >= self.n_bands || self.separation_band >= self.n_bands))
+                && (self.chosen_band >= self.n_bands
+                    || self.separation_band >= self.n_bands
+                    || self.stage3_band >= self.n_bands))
         {
             return Err(Reject::new(
                 "solve_response.n_bands/chosen_band",

@@ -7,13 +7,14 @@
 //! - [`mirror_if_ambiguous`]: the mirror reported beside a fit it cannot be told from.
 //! - [`sense_from`] / [`keep_sense`]: which fit's evidence decides the sense when one cannot.
 
-use super::{fit_from_starts, RateSolution, Stage3Config};
+use super::{fit_from_starts, RateFit, RateSolution, Stage3Config};
 use crate::error::InversionError;
 use crate::lm::{levenberg_marquardt, levenberg_marquardt_prior, LmOutcome, Prior};
 use crate::model::RateProblem;
 use crate::observability::{
-    analyse, given_sigma_scale, residual_variance, Analysis, Observability,
+    analyse, given_sigma_scale, residual_variance, Analysis, Observability, ObservabilityConfig,
 };
+use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// The mirror (−w_x, w_y, −w_z) of a rate: the same light curve when every geometry vector
@@ -25,6 +26,29 @@ pub fn mirror(p: [f64; 3]) -> [f64; 3] {
 /// ‖a − b‖ \[deg/frame\].
 pub fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
+}
+
+/// How many standard deviations apart two fits of the same rate are: the Mahalanobis
+/// distance of `a − b` under `Cov(a) + Cov(b)`, over the eigen-directions of that sum whose
+/// 1σ is within the observability threshold (a direction held under the prior has no
+/// evidence to disagree with). The fits share data (λ* is one of the joint fit's bands), so
+/// summing the covariances makes the test lenient: it is meant to catch another minimum,
+/// not a bias.
+pub fn disagreement_sigma(a: &RateFit, b: &RateFit, config: &ObservabilityConfig) -> f64 {
+    let ca = Matrix3::from(a.covariance_deg2_per_frame2);
+    let cb = Matrix3::from(b.covariance_deg2_per_frame2);
+    let sum = ca + cb;
+    if !sum.iter().all(|v| v.is_finite()) {
+        return f64::NAN;
+    }
+    let d = Vector3::from(a.rate_deg_per_frame) - Vector3::from(b.rate_deg_per_frame);
+    let eig = sum.symmetric_eigen();
+    let bound = config.unobservable_bound_deg_per_frame;
+    let d2: f64 = (0..3)
+        .filter(|&k| eig.eigenvalues[k] > 0.0 && eig.eigenvalues[k].sqrt() <= bound)
+        .map(|k| d.dot(&eig.eigenvectors.column(k)).powi(2) / eig.eigenvalues[k])
+        .sum();
+    d2.sqrt()
 }
 
 /// The stated prior under which stage 3 holds a direction the data cannot determine.
@@ -339,5 +363,50 @@ mod tests {
         // No sense to flip: p̂ is its own mirror.
         let flat = [0.0, 0.25, 0.001];
         assert_eq!(sense_from(&fit(flat, Some(flat)), &joint), None);
+    }
+
+    fn with_covariance(p: [f64; 3], cov: [[f64; 3]; 3]) -> RateFit {
+        let RateSolution::Determined(mut f) = fit(p, None) else {
+            unreachable!()
+        };
+        f.covariance_deg2_per_frame2 = cov;
+        f
+    }
+
+    #[test]
+    fn disagreement_is_the_mahalanobis_distance_over_the_determined_directions() {
+        let config = ObservabilityConfig::default();
+        // Diagonal: variances 1e-6 + 3e-6 along Y, 2e-6 + 2e-6 along Z; X held (1σ 3 ≫ 0.25).
+        let a = with_covariance(
+            [0.1, 0.25, 0.004],
+            [[9.0, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 2e-6]],
+        );
+        let b = with_covariance(
+            [-0.3, 0.248, 0.0],
+            [[0.0, 0.0, 0.0], [0.0, 3e-6, 0.0], [0.0, 0.0, 2e-6]],
+        );
+        let expected = (0.002f64.powi(2) / 4e-6 + 0.004f64.powi(2) / 4e-6).sqrt();
+        let d = disagreement_sigma(&a, &b, &config);
+        assert!((d - expected).abs() < 1e-9 * expected, "{d} vs {expected}");
+        assert_eq!(disagreement_sigma(&b, &a, &config), d);
+        // Rotated frame: the same distance (the test is coordinate-free).
+        let (c, s) = (0.6f64, 0.8f64);
+        let rot = |v: [f64; 3]| [v[0], c * v[1] - s * v[2], s * v[1] + c * v[2]];
+        let rot_cov = |d: [f64; 3]| {
+            let r = nalgebra::Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c);
+            let m = r * nalgebra::Matrix3::from_diagonal(&Vector3::from(d)) * r.transpose();
+            [
+                [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+                [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+                [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+            ]
+        };
+        let ar = with_covariance(rot(a.rate_deg_per_frame), rot_cov([9.0, 1e-6, 2e-6]));
+        let br = with_covariance(rot(b.rate_deg_per_frame), rot_cov([0.0, 3e-6, 2e-6]));
+        let dr = disagreement_sigma(&ar, &br, &config);
+        assert!(
+            (dr - expected).abs() < 1e-6 * expected,
+            "{dr} vs {expected}"
+        );
     }
 }
