@@ -1,0 +1,354 @@
+//! Stage 3 as the solve runs it: the fit horizon, the joint fit over all bands, the fit at λ*
+//! and its check against the joint fit (the fallback along stage 2's ranking).
+
+use crate::error::InversionError;
+use crate::model::{MotionModelConfig, RateBand, RateProblem};
+use crate::observation::Observation;
+use crate::stage1::Stage1Band;
+use crate::stage3::{self, RateFit, RateSolution, Stage3Config};
+
+/// Stage 3 at band `chosen` and, with `joint`, one p for all bands, each over its fit horizon.
+pub fn fit_rates(
+    motion: &[Observation],
+    stage1: &[Stage1Band],
+    ranking: &[usize],
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+    joint: bool,
+) -> Result<RateFits, InversionError> {
+    let joint_rate = if joint {
+        Some(fit_joint(motion, stage1, model, config)?)
+    } else {
+        None
+    };
+    let joint_fit = joint_rate.as_ref().map(|j| &j.0);
+    let Some((&chosen, others)) = ranking.split_first() else {
+        return Err(InversionError::NoSeparableBand);
+    };
+    let first = fit_band(motion, stage1, chosen, model, config, joint_fit)?;
+    let mut band_index = chosen;
+    let mut set_aside = Vec::new();
+    let mut fit = first.clone();
+    if first.rejected_by_joint {
+        set_aside.push(chosen);
+        for &b in others {
+            let next = fit_band(motion, stage1, b, model, config, joint_fit)?;
+            if !next.rejected_by_joint {
+                fit = next;
+                band_index = b;
+                break;
+            }
+            set_aside.push(b);
+        }
+        // Every candidate rejected: λ*'s own answer stands, flagged.
+        if band_index == chosen {
+            set_aside = vec![chosen];
+        }
+    }
+    Ok(RateFits {
+        rate: fit.rate,
+        band_index,
+        set_aside,
+        fitted_frames: fit.fitted_frames,
+        joint_fitted_frames: joint_rate.as_ref().map(|j| j.1),
+        joint_rate: joint_rate.map(|j| j.0),
+        sense_from_joint: fit.sense_from_joint,
+    })
+}
+
+fn rate_band(stage1: &[Stage1Band], b: usize) -> RateBand {
+    RateBand {
+        band_index: b,
+        wavelength_nm: stage1[b].wavelength_nm,
+        coeffs: stage1[b].coeffs,
+    }
+}
+
+/// Stage 3 at one band ([`fit_band`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BandFit {
+    /// The solution.
+    pub rate: RateSolution,
+    /// Motion frames fitted (the band's fit horizon).
+    pub fitted_frames: usize,
+    /// p̂ and its mirror fit the band equally well and the joint fit decided the sense.
+    pub sense_from_joint: bool,
+    /// The joint fit rejects p̂ as another minimum ([`Stage3Config::joint_gate_sigma`]).
+    pub rejected_by_joint: bool,
+}
+
+/// Stage 3 at band `b` over its fit horizon. With a `joint` solution:
+/// - when p̂ and its mirror fit this band equally well, the sense of rotation is the joint
+///   fit's (`stage3::sense_from`);
+/// - p̂ is checked against it ([`Stage3Config::joint_gate_sigma`]): rejected when the two are
+///   more than the gate's standard deviations apart *and* the band's own cost has a separate
+///   minimum on the joint solution's side (re-polished from the joint solution, LM does not
+///   slide back to p̂). A bias of the band — one minimum, shifted — is not rejected.
+pub fn fit_band(
+    motion: &[Observation],
+    stage1: &[Stage1Band],
+    b: usize,
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+    joint: Option<&RateSolution>,
+) -> Result<BandFit, InversionError> {
+    let covariance = vec![stage1[b].coeff_covariance.clone()];
+    let (rate, problem) = horizon_fit(
+        motion,
+        &[rate_band(stage1, b)],
+        &covariance,
+        None,
+        model,
+        config,
+    )?;
+    let mut out = BandFit {
+        rate,
+        fitted_frames: problem.frame_count(),
+        sense_from_joint: false,
+        rejected_by_joint: false,
+    };
+    let (Some(joint), Some(joint_fit)) = (joint, joint.and_then(RateSolution::fit)) else {
+        return Ok(out);
+    };
+    if let Some(flipped) = flip_to_joint(&problem, &out.rate, joint, joint_fit, config) {
+        out.rate = RateSolution::Determined(flipped);
+        out.sense_from_joint = true;
+    }
+    out.rejected_by_joint = match (config.joint_gate_sigma, out.rate.fit()) {
+        (Some(gate), Some(fit))
+            if stage3::disagreement_sigma(fit, joint_fit, &config.observability) > gate =>
+        {
+            // Compared on the frames both rates model: the faster one's horizon.
+            let speed = |p: [f64; 3]| p.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let faster = speed(fit.rate_deg_per_frame).max(speed(joint_fit.rate_deg_per_frame));
+            let common = problem_within(
+                motion,
+                &[rate_band(stage1, b)],
+                &covariance,
+                model,
+                config,
+                faster,
+            )?;
+            separate_minimum(&common, fit, joint_fit, config)
+        }
+        _ => false,
+    };
+    Ok(out)
+}
+
+/// The problem over the motion frames within the fit horizon of a rate of `speed_deg_per_frame`.
+fn problem_within(
+    motion: &[Observation],
+    bands: &[RateBand],
+    coefficient_covariance: &[Option<Vec<f64>>],
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+    speed_deg_per_frame: f64,
+) -> Result<RateProblem, InversionError> {
+    let motion_model = with_epoch(motion, model);
+    let horizon_frames = config
+        .max_rotation_deg
+        .filter(|d| d.is_finite())
+        .map_or(f64::INFINITY, |d| {
+            (d / speed_deg_per_frame.max(1e-12)).max(MIN_FIT_FRAMES)
+        });
+    let frames = frames_within(motion, &motion_model, horizon_frames);
+    Ok(RateProblem::new(&frames, bands, &motion_model)?
+        .with_coefficient_covariance(coefficient_covariance.to_vec()))
+}
+
+/// `model` with its epoch fixed: the given one, or the first motion frame.
+fn with_epoch(motion: &[Observation], model: &MotionModelConfig) -> MotionModelConfig {
+    let epoch = model
+        .epoch_frame
+        .unwrap_or_else(|| motion.iter().map(|o| o.frame_index).min().unwrap_or(0));
+    MotionModelConfig {
+        epoch_frame: Some(epoch),
+        ..model.clone()
+    }
+}
+
+/// The motion frames at most `horizon_frames` after the epoch of `model` (see [`with_epoch`]).
+fn frames_within(
+    motion: &[Observation],
+    model: &MotionModelConfig,
+    horizon_frames: f64,
+) -> Vec<Observation> {
+    let epoch = model.epoch_frame.unwrap_or(0);
+    motion
+        .iter()
+        .filter(|o| (o.frame_index.saturating_sub(epoch) as f64) <= horizon_frames)
+        .cloned()
+        .collect()
+}
+
+/// When p̂ and its mirror fit equally well, the fit re-polished from the mirror on the joint
+/// fit's side (if it does end there).
+fn flip_to_joint(
+    problem: &RateProblem,
+    rate: &RateSolution,
+    joint: &RateSolution,
+    joint_fit: &RateFit,
+    config: &Stage3Config,
+) -> Option<RateFit> {
+    let first = rate.fit()?;
+    let start = stage3::sense_from(rate, joint)?;
+    let to_joint = |p: [f64; 3]| stage3::distance(p, joint_fit.rate_deg_per_frame);
+    let RateSolution::Determined(mut flipped) =
+        stage3::fit_from_starts(problem, &[start], config).ok()?
+    else {
+        return None;
+    };
+    if to_joint(flipped.rate_deg_per_frame) >= to_joint(first.rate_deg_per_frame) {
+        return None;
+    }
+    // The record covers the whole search: the first multi-start and the re-polish.
+    flipped.total_iterations += first.total_iterations;
+    flipped.starts_polished += first.starts_polished;
+    flipped.grid_points = first.grid_points;
+    flipped.starts_screened = first.starts_screened;
+    Some(flipped)
+}
+
+/// Whether the band's cost (over `problem`'s frames) has a minimum apart from p̂ near the joint
+/// solution: LM from the joint solution ends nearer it than half-way back to p̂.
+fn separate_minimum(
+    problem: &RateProblem,
+    fit: &RateFit,
+    joint_fit: &RateFit,
+    config: &Stage3Config,
+) -> bool {
+    let (p, pj) = (fit.rate_deg_per_frame, joint_fit.rate_deg_per_frame);
+    match stage3::fit_from_starts(problem, &[pj], config) {
+        Ok(RateSolution::Determined(local)) => {
+            stage3::distance(local.rate_deg_per_frame, p) > 0.5 * stage3::distance(pj, p)
+        }
+        _ => false,
+    }
+}
+
+/// One p for all bands over its fit horizon; returns the solution and the frames fitted.
+///
+/// Feasible weighted least squares: a first fit weights every band by its σ (or, without σ,
+/// equally, in units of its mean flux). Each band's noise is then re-estimated from its own
+/// residual level at that solution, with its correlation time, floored at σ when σ is given
+/// ([`RateProblem::band_mismatch_scales`]), and the fit is run again. The bands the two-facet
+/// model explains worst (the diffuse-heavy ones, whose mismatch exceeds their noise) then stop
+/// pulling the common p. Down-weighting them also weakens the evidence for the sense of
+/// rotation, so the reweighted fit keeps the first fit's sense (`stage3::keep_sense`).
+pub fn fit_joint(
+    motion: &[Observation],
+    stage1: &[Stage1Band],
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+) -> Result<(RateSolution, usize), InversionError> {
+    let bands: Vec<RateBand> = (0..stage1.len()).map(|b| rate_band(stage1, b)).collect();
+    let covs: Vec<Option<Vec<f64>>> = stage1.iter().map(|s| s.coeff_covariance.clone()).collect();
+    let (j, problem) = horizon_fit(motion, &bands, &covs, None, model, config)?;
+    let Some(first) = j.fit().map(|f| f.rate_deg_per_frame) else {
+        return Ok((j, problem.frame_count()));
+    };
+    let scales = problem.band_mismatch_scales(first);
+    let (reweighted, reweighted_problem) =
+        horizon_fit(motion, &bands, &covs, Some(&scales), model, config)?;
+    Ok(
+        match stage3::keep_sense(reweighted, &reweighted_problem, first, config) {
+            Some(j2) => (j2, reweighted_problem.frame_count()),
+            None => (j, problem.frame_count()),
+        },
+    )
+}
+
+/// Multi-start fit on the frames within the fit horizon: the first window is valid for every
+/// rate in the start box (the fastest turns `max_rotation_deg` in it); it then grows to the
+/// horizon of the fastest rate fitted so far, searching again (with the previous solution as
+/// an extra start), until the fitted frames stop changing. Returns the solution and the number
+/// of frames fitted.
+///
+/// The horizon never grows past that of a rate already fitted: frames beyond the model's
+/// validity pull the fit towards slower rates, a slower rate would admit more such frames, and
+/// the window would run away (the Z case at phase 20° crept from 0.21 to 0.11 deg/frame over
+/// 184 frames that way).
+pub fn fit_within_horizon(
+    motion: &[Observation],
+    bands: &[RateBand],
+    coefficient_covariance: &[Option<Vec<f64>>],
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+) -> Result<(RateSolution, usize), InversionError> {
+    let (rate, problem) = horizon_fit(motion, bands, coefficient_covariance, None, model, config)?;
+    Ok((rate, problem.frame_count()))
+}
+
+/// [`fit_within_horizon`], returning the problem of the frames finally fitted.
+fn horizon_fit(
+    motion: &[Observation],
+    bands: &[RateBand],
+    coefficient_covariance: &[Option<Vec<f64>>],
+    band_scales: Option<&[f64]>,
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+) -> Result<(RateSolution, RateProblem), InversionError> {
+    let model = with_epoch(motion, model);
+    let build = |frames: &[Observation]| -> Result<RateProblem, InversionError> {
+        let problem = RateProblem::new(frames, bands, &model)?
+            .with_coefficient_covariance(coefficient_covariance.to_vec());
+        Ok(match band_scales {
+            Some(scales) => problem.with_band_scales(scales),
+            None => problem,
+        })
+    };
+    let within = |horizon_frames: f64| frames_within(motion, &model, horizon_frames);
+    let Some(max_deg) = config.max_rotation_deg.filter(|d| d.is_finite()) else {
+        let problem = build(motion)?;
+        return Ok((stage3::fit_multistart(&problem, config)?, problem));
+    };
+    let fastest = 3f64.sqrt() * config.start.half_width_deg_per_frame;
+    let mut frames = within((max_deg / fastest).max(MIN_FIT_FRAMES));
+    let mut problem = build(&frames)?;
+    let mut rate = stage3::fit_multistart(&problem, config)?;
+    let mut fastest_fitted_deg_per_frame = 0.0f64;
+    for _ in 0..HORIZON_ROUNDS {
+        let Some(fit) = rate.fit() else { break };
+        let p = fit.rate_deg_per_frame;
+        let speed = p.iter().map(|v| v * v).sum::<f64>().sqrt();
+        fastest_fitted_deg_per_frame = fastest_fitted_deg_per_frame.max(speed);
+        let next = within((max_deg / fastest_fitted_deg_per_frame.max(1e-12)).max(MIN_FIT_FRAMES));
+        if next.len() == frames.len() {
+            break;
+        }
+        frames = next;
+        problem = build(&frames)?;
+        // A fresh global search on the longer window (it can rank the minima the short one
+        // could not), with the short window's solution as one more start.
+        rate = stage3::fit_multistart_with(&problem, config, &[p])?;
+    }
+    Ok((rate, problem))
+}
+
+/// The fit horizon never shrinks below this many frames.
+const MIN_FIT_FRAMES: f64 = 24.0;
+/// Re-fits while the horizon grows, at most.
+const HORIZON_ROUNDS: usize = 4;
+
+/// Stage-3 results and the window they were fitted on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RateFits {
+    /// At λ* (or the band that replaced it, `band_index`).
+    pub rate: RateSolution,
+    /// The band `rate` was fitted at: λ*, unless the joint fit rejected λ*'s solution.
+    pub band_index: usize,
+    /// Bands whose solution the joint fit rejected, in the order tried
+    /// ([`Stage3Config::joint_gate_sigma`]); when it holds every candidate, `rate` is λ*'s
+    /// and this is `[λ*]`.
+    pub set_aside: Vec<usize>,
+    /// All bands jointly, when asked.
+    pub joint_rate: Option<RateSolution>,
+    /// Motion frames fitted at λ* (those within its horizon).
+    pub fitted_frames: usize,
+    /// Motion frames of the joint fit.
+    pub joint_fitted_frames: Option<usize>,
+    /// The λ* data could not tell p̂ from its mirror and the joint fit decided the sense of
+    /// rotation (see [`fit_rates`]).
+    pub sense_from_joint: bool,
+}
