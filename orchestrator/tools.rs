@@ -252,6 +252,13 @@ fn sweep_bands(
                 "λ* is NOT within 10 % of the lowest"
             }
         );
+        let fitted = result.stage1[result.rate_band_index].wavelength_nm;
+        if let Some(e) = errors.iter().find(|e| e.0 == fitted && fitted != chosen) {
+            text += &format!(
+                "stage 3 set λ* aside and fitted {fitted} nm: error {:.3}.\n",
+                e.1
+            );
+        }
     }
     Ok((rows, text))
 }
