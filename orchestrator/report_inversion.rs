@@ -306,16 +306,19 @@ fn basis_phrase(r: &SolveResponse) -> String {
 fn set_aside_phrase(r: &SolveResponse) -> String {
     let lambda = r.wavelength_nm[r.chosen_band as usize];
     let why = format!(
-        "its solution and the joint fit's are more than {}σ apart and the band's cost has a separate minimum at the joint solution: the noise in that band's stage-1 coefficients made another minimum the lowest",
+        "its solution and the joint fit's are more than {}σ apart and the band's cost has a separate minimum at the joint solution: that band's stage-1 coefficients, most often their noise, make another minimum its lowest",
         glint_inversion::stage3::DEFAULT_JOINT_GATE_SIGMA
     );
     if r.stage3_band == r.chosen_band {
         format!("**The joint fit rejects the solution at λ* = {lambda} nm and at every other candidate band** ({why}); λ*'s is reported, and the joint fit is the one to use.")
     } else {
         format!(
-            "**The joint fit rejected the solution at λ* = {lambda} nm** ({why}); stage 3 is reported at {} nm, the next candidate of stage 2's ranking the joint fit accepts ({} band(s) set aside).",
+            "**The joint fit rejected the solution at λ* = {lambda} nm** ({why}); stage 3 is reported at {} nm, the next candidate of stage 2's ranking the joint fit accepts ({} set aside, λ* included).",
             r.wavelength_nm[r.stage3_band as usize],
-            r.stage3_set_aside
+            match r.stage3_set_aside {
+                1 => "1 band".to_string(),
+                n => format!("{n} bands"),
+            }
         )
     }
 }
