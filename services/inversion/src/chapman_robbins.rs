@@ -158,16 +158,25 @@ pub fn chapman_robbins(
             }
         }
         // The copy: the smallest Δ among offsets the slope at p₀ says should be clearly
-        // rejected, refined between its grid neighbours.
+        // rejected. Each dip of Δ along the grid is refined between its grid neighbours: at
+        // high SNR a copy's well is narrower than the grid's ×1.15 step, so no grid point need
+        // lie inside it.
         let is_copy = |s: &Sample| {
             s.c >= COPY_MIN_CRB * crb_sd
                 && s.delta < COPY_MAX_DIVERGENCE.min(0.25 * (s.c / crb_sd).powi(2))
         };
-        let copy_k = (0..grid.len())
-            .filter(|&i| is_copy(&grid[i]))
-            .min_by(|&i, &j| grid[i].delta.total_cmp(&grid[j].delta));
-        let mut found = copy_k.map(|j| grid[j]);
-        if let Some(j) = copy_k {
+        let dips = (0..grid.len()).filter(|&j| {
+            let below = |i: Option<usize>| {
+                i.and_then(|i| grid.get(i))
+                    .is_none_or(|g| grid[j].delta <= g.delta)
+            };
+            is_copy(&grid[j]) || (j > 0 && below(Some(j - 1)) && below(Some(j + 1)))
+        });
+        let mut found: Option<Sample> = None;
+        for j in dips.collect::<Vec<_>>() {
+            if is_copy(&grid[j]) && found.is_none_or(|f| grid[j].delta < f.delta) {
+                found = Some(grid[j]);
+            }
             let (mut x0, mut x1) = (
                 grid[j.saturating_sub(1)].c,
                 grid.get(j + 1).map_or(grid[j].c, |g| g.c),
@@ -178,6 +187,10 @@ pub fn chapman_robbins(
                 for s in [s1, s2] {
                     if is_copy(&s) && found.is_none_or(|f| s.delta < f.delta) {
                         found = Some(s);
+                    }
+                    // A well the grid missed can hold the supremum too.
+                    if s.ratio > top.ratio {
+                        top = s;
                     }
                 }
                 if s1.delta <= s2.delta {

@@ -80,3 +80,36 @@ fn is_unbounded_when_the_mirror_rate_gives_the_same_light_curve() {
         );
     }
 }
+
+#[test]
+fn finds_a_copy_whose_well_is_narrower_than_the_offset_grid() {
+    // The exact mirror at SNR 10⁴: Δ < 1 only within about one CRB (≈ 1e-5 deg/frame) of the
+    // mirror, while the offset grid steps by 15 % (≈ 3e-3 deg/frame there). The dip of Δ between
+    // two grid points must still be refined into the copy, and the supremum found in it.
+    let p = [0.0, 0.25, 0.01];
+    let obs = with_noise(in_plane_window(p, 100), 1e4, None);
+    let problem = RateProblem::new(&obs, &[band()], &MotionModelConfig::default()).expect("p");
+    let (info, dirs) = fisher_eigen(&problem, p);
+    let i = 1;
+    let crb = info[i].recip();
+    let hcr = chapman_robbins(&problem, p, dirs[i], &[dirs[2]], crb.sqrt(), 0.05).expect("b");
+    let to_mirror: f64 = (0..3).map(|k| dirs[i][k] * (mirror(p)[k] - p[k])).sum();
+    assert!(
+        to_mirror.abs() > 1e3 * crb.sqrt(),
+        "the well must be narrow: mirror at {to_mirror}, CRB 1σ {:.1e}",
+        crb.sqrt()
+    );
+    let copy = hcr.copy.expect("the mirror is a copy");
+    assert!(copy.divergence < 1.0, "{copy:?}");
+    assert!(
+        (copy.offset_deg_per_frame - to_mirror).abs() < 1e-2 * to_mirror.abs(),
+        "copy at {} vs mirror at {to_mirror}",
+        copy.offset_deg_per_frame
+    );
+    // The bound sees it: (v·h)²/(e^Δ − 1) at the copy dwarfs the CRB.
+    assert!(
+        hcr.variance > 1e4 * crb,
+        "HCR {:.3e} vs CRB {crb:.3e}",
+        hcr.variance
+    );
+}
