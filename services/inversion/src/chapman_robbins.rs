@@ -173,7 +173,7 @@ pub fn chapman_robbins(
             is_copy(&grid[j]) || (j > 0 && below(Some(j - 1)) && below(Some(j + 1)))
         });
         let mut found: Option<Sample> = None;
-        for j in dips.collect::<Vec<_>>() {
+        for j in dips {
             if is_copy(&grid[j]) && found.is_none_or(|f| grid[j].delta < f.delta) {
                 found = Some(grid[j]);
             }

@@ -7,7 +7,9 @@ use crate::observation::Observation;
 use crate::stage1::Stage1Band;
 use crate::stage3::{self, RateFit, RateSolution, Stage3Config};
 
-/// Stage 3 at band `chosen` and, with `joint`, one p for all bands, each over its fit horizon.
+/// Stage 3 at the first band of stage 2's `ranking` (λ*) and, with `joint`, one p for all
+/// bands, each over its fit horizon. A λ* solution the joint fit rejects ([`fit_band`]) is set
+/// aside for the next band of the ranking the joint fit accepts.
 pub fn fit_rates(
     motion: &[Observation],
     stage1: &[Stage1Band],
@@ -25,11 +27,10 @@ pub fn fit_rates(
     let Some((&chosen, others)) = ranking.split_first() else {
         return Err(InversionError::NoSeparableBand);
     };
-    let first = fit_band(motion, stage1, chosen, model, config, joint_fit)?;
+    let mut fit = fit_band(motion, stage1, chosen, model, config, joint_fit)?;
     let mut band_index = chosen;
     let mut set_aside = Vec::new();
-    let mut fit = first.clone();
-    if first.rejected_by_joint {
+    if fit.rejected_by_joint {
         set_aside.push(chosen);
         for &b in others {
             let next = fit_band(motion, stage1, b, model, config, joint_fit)?;
@@ -118,43 +119,39 @@ pub fn fit_band(
         (Some(gate), Some(fit))
             if stage3::disagreement_sigma(fit, joint_fit, &config.observability) > gate =>
         {
-            // Compared on the frames both rates model: the faster one's horizon.
-            let speed = |p: [f64; 3]| p.iter().map(|v| v * v).sum::<f64>().sqrt();
+            // Compared on the frames both rates model: the faster one's horizon (often the
+            // frames already fitted, then `problem` serves).
             let faster = speed(fit.rate_deg_per_frame).max(speed(joint_fit.rate_deg_per_frame));
-            let common = problem_within(
-                motion,
-                &[rate_band(stage1, b)],
-                &covariance,
-                model,
-                config,
-                faster,
-            )?;
-            separate_minimum(&common, fit, joint_fit, config)
+            let model = with_epoch(motion, model);
+            let frames = frames_within(motion, &model, horizon_frames(config, faster));
+            let common = if frames.len() == problem.frame_count() {
+                None
+            } else {
+                Some(
+                    RateProblem::new(&frames, &[rate_band(stage1, b)], &model)?
+                        .with_coefficient_covariance(covariance),
+                )
+            };
+            separate_minimum(common.as_ref().unwrap_or(&problem), fit, joint_fit, config)
         }
         _ => false,
     };
     Ok(out)
 }
 
-/// The problem over the motion frames within the fit horizon of a rate of `speed_deg_per_frame`.
-fn problem_within(
-    motion: &[Observation],
-    bands: &[RateBand],
-    coefficient_covariance: &[Option<Vec<f64>>],
-    model: &MotionModelConfig,
-    config: &Stage3Config,
-    speed_deg_per_frame: f64,
-) -> Result<RateProblem, InversionError> {
-    let motion_model = with_epoch(motion, model);
-    let horizon_frames = config
+/// ‖p‖ \[deg/frame\].
+fn speed(p: [f64; 3]) -> f64 {
+    p.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+/// Frames within the fit horizon of a rate of `speed_deg_per_frame` (every frame without one).
+fn horizon_frames(config: &Stage3Config, speed_deg_per_frame: f64) -> f64 {
+    config
         .max_rotation_deg
         .filter(|d| d.is_finite())
         .map_or(f64::INFINITY, |d| {
             (d / speed_deg_per_frame.max(1e-12)).max(MIN_FIT_FRAMES)
-        });
-    let frames = frames_within(motion, &motion_model, horizon_frames);
-    Ok(RateProblem::new(&frames, bands, &motion_model)?
-        .with_coefficient_covariance(coefficient_covariance.to_vec()))
+        })
 }
 
 /// `model` with its epoch fixed: the given one, or the first motion frame.
@@ -299,21 +296,20 @@ fn horizon_fit(
         })
     };
     let within = |horizon_frames: f64| frames_within(motion, &model, horizon_frames);
-    let Some(max_deg) = config.max_rotation_deg.filter(|d| d.is_finite()) else {
+    if !config.max_rotation_deg.is_some_and(f64::is_finite) {
         let problem = build(motion)?;
         return Ok((stage3::fit_multistart(&problem, config)?, problem));
-    };
+    }
     let fastest = 3f64.sqrt() * config.start.half_width_deg_per_frame;
-    let mut frames = within((max_deg / fastest).max(MIN_FIT_FRAMES));
+    let mut frames = within(horizon_frames(config, fastest));
     let mut problem = build(&frames)?;
     let mut rate = stage3::fit_multistart(&problem, config)?;
     let mut fastest_fitted_deg_per_frame = 0.0f64;
     for _ in 0..HORIZON_ROUNDS {
         let Some(fit) = rate.fit() else { break };
         let p = fit.rate_deg_per_frame;
-        let speed = p.iter().map(|v| v * v).sum::<f64>().sqrt();
-        fastest_fitted_deg_per_frame = fastest_fitted_deg_per_frame.max(speed);
-        let next = within((max_deg / fastest_fitted_deg_per_frame.max(1e-12)).max(MIN_FIT_FRAMES));
+        fastest_fitted_deg_per_frame = fastest_fitted_deg_per_frame.max(speed(p));
+        let next = within(horizon_frames(config, fastest_fitted_deg_per_frame));
         if next.len() == frames.len() {
             break;
         }
