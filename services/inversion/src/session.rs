@@ -36,7 +36,7 @@ pub struct Session {
     pub fitted_frames: usize,
     /// The joint fit decided the sense of rotation at λ* (see `fit_rates`).
     pub sense_from_joint: bool,
-    /// The band stage 3 fitted and the bands set aside before it (see `fit_rates`).
+    /// The band stage 3 fitted: λ*, unless the joint fit set it aside (see `fit_rates`).
     pub rate_band: usize,
     /// Bands whose solution the joint fit rejected.
     pub set_aside: Vec<usize>,

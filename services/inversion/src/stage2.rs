@@ -443,10 +443,7 @@ pub fn run_stage2_with(
             let share = |i: usize| out[i].specular_share;
             ranking = candidates.clone();
             ranking.sort_by(|&a, &b| share(b).total_cmp(&share(a)).then(a.cmp(&b)));
-            let top_share = candidates
-                .iter()
-                .map(|&i| share(i))
-                .fold(f64::NEG_INFINITY, f64::max);
+            let top_share = ranking.first().map_or(f64::NEG_INFINITY, |&i| share(i));
             // Shares within SAME_SHARE of the top are a tie (stage-1 round-off leaves tiny
             // diffuse coefficients on lobe-only materials); the larger σ breaks it.
             candidates
