@@ -199,14 +199,21 @@ struct Reference {
 }
 
 impl Reference {
-    /// The offline solve of the noise-free run's observations (the service gives the same
-    /// answer to the bit) and the CRB of each fit on the frames it used, at σ = mean/SNR.
+    /// p₀, the estimator's noise-free solution: the noise-free run's observations solved
+    /// offline with the noisy runs' σ = mean/SNR attached to the windows they make noisy (the
+    /// weights, the stage-1 basis test and the joint fit's reweighting all depend on σ, so the
+    /// σ-free answer is another estimator's limit). Then the CRB of each fit at p₀ on the
+    /// frames it used.
     fn solve(observations: &Path, snr: f64, stable_noisy: bool) -> Result<Reference> {
-        let file = crate::observations::read(observations)?;
+        let mut file = crate::observations::read(observations)?;
         let config = InversionConfig {
             joint_fit: true,
             ..Default::default()
         };
+        attach_sigma(&mut file.set.motion, snr);
+        if stable_noisy {
+            attach_sigma(&mut file.set.stable, snr);
+        }
         let result = solve_three_stage(&file.set, &config)
             .map_err(|e| anyhow!("{}: {e}", observations.display()))?;
         let band = |b: usize| RateBand {
@@ -217,24 +224,13 @@ impl Reference {
         let mut motion = file.set.motion.clone();
         motion.sort_by_key(|o| o.frame_index);
         let n_bands = file.set.wavelengths_nm.len();
-        let sigma: Vec<f64> = (0..n_bands)
-            .map(|b| motion.iter().map(|o| o.flux_w[b]).sum::<f64>() / motion.len() as f64 / snr)
-            .collect();
-        for o in &mut motion {
-            o.sigma_w = sigma.clone();
-        }
         let model = MotionModelConfig {
             epoch_frame: motion.first().map(|o| o.frame_index),
             ..config.model.clone()
         };
         // The stable window's information about the coefficients at the same σ rule.
         let mut stable = file.set.stable.clone();
-        let stable_sigma: Vec<f64> = (0..n_bands)
-            .map(|b| stable.iter().map(|o| o.flux_w[b]).sum::<f64>() / stable.len() as f64 / snr)
-            .collect();
-        for o in &mut stable {
-            o.sigma_w = stable_sigma.clone();
-        }
+        attach_sigma(&mut stable, snr);
         let (with_covariance, _) = run_stage1_with(
             &stable,
             &file.set.wavelengths_nm,
@@ -275,6 +271,19 @@ impl Reference {
             (0..n_bands).map(band).collect(),
         )?;
         Ok(Reference { single, joint })
+    }
+}
+
+/// Sets every sample's σ to the window's mean flux / SNR, per band: the noise the sensor adds
+/// to a noisy window (and publishes with it).
+fn attach_sigma(window: &mut [Observation], snr: f64) {
+    let n = window.len().max(1) as f64;
+    let bands = window.first().map_or(0, |o| o.flux_w.len());
+    let sigma: Vec<f64> = (0..bands)
+        .map(|b| window.iter().map(|o| o.flux_w[b]).sum::<f64>() / n / snr)
+        .collect();
+    for o in window {
+        o.sigma_w = sigma.clone();
     }
 }
 
