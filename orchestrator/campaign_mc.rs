@@ -35,13 +35,12 @@ use anyhow::{anyhow, Context, Result};
 use glint_inversion::chapman_robbins::{chapman_robbins, RateCopy};
 use glint_inversion::lm::normal_equations;
 use glint_inversion::observability::symmetric_eigen;
-use glint_inversion::stage1::run_stage1_with;
+use glint_inversion::stage1::{spectral, Stage1Config};
 use glint_inversion::stage3::{distance, mirror};
 use glint_inversion::{
     rate_error_metric, solve_three_stage, InversionConfig, MotionModelConfig, Observation,
-    RateBand, RateProblem,
+    ObservationSet, RateBand, RateProblem, Stage1Band,
 };
-use nalgebra::Vector3;
 use serde_json::{json, Value};
 use shared_types::scenario::NoiseWindows;
 use shared_types::Scenario;
@@ -206,21 +205,17 @@ impl Reference {
     /// frames it used.
     fn solve(observations: &Path, snr: f64, stable_noisy: bool) -> Result<Reference> {
         let mut file = crate::observations::read(observations)?;
-        let config = InversionConfig {
+        let mut config = InversionConfig {
             joint_fit: true,
             ..Default::default()
         };
         attach_sigma(&mut file.set.motion, snr);
         if stable_noisy {
             attach_sigma(&mut file.set.stable, snr);
+            expected_pooling(&file.set, &mut config.stage1);
         }
         let result = solve_three_stage(&file.set, &config)
             .map_err(|e| anyhow!("{}: {e}", observations.display()))?;
-        let band = |b: usize| RateBand {
-            band_index: b,
-            wavelength_nm: result.stage1[b].wavelength_nm,
-            coeffs: result.stage1[b].coeffs,
-        };
         let mut motion = file.set.motion.clone();
         motion.sort_by_key(|o| o.frame_index);
         let n_bands = file.set.wavelengths_nm.len();
@@ -228,38 +223,39 @@ impl Reference {
             epoch_frame: motion.first().map(|o| o.frame_index),
             ..config.model.clone()
         };
-        // The stable window's information about the coefficients at the same σ rule.
-        let mut stable = file.set.stable.clone();
-        attach_sigma(&mut stable, snr);
-        let (with_covariance, _) = run_stage1_with(
-            &stable,
-            &file.set.wavelengths_nm,
-            Vector3::from(config.model.body_normal),
-            None,
-            &config.stage1,
-        )
-        .map_err(|e| anyhow!("{}: {e}", observations.display()))?;
-        let bound = |p0: Option<[f64; 3]>, frames: usize, bands: Vec<RateBand>| -> Result<Bound> {
+        // The coefficients each fit used, with their covariance from the stable window's σ
+        // (none when the stable window is noise-free: the coefficients are known).
+        let bound = |p0: Option<[f64; 3]>,
+                     frames: usize,
+                     stage1: &[Stage1Band],
+                     bands: &[usize]|
+         -> Result<Bound> {
             let frames: Vec<Observation> = motion.iter().take(frames).cloned().collect();
-            // A noise-free stable window (`noise_windows = "motion"`) leaves no doubt about
-            // the coefficients.
+            let rate_bands: Vec<RateBand> = bands
+                .iter()
+                .map(|&b| RateBand {
+                    band_index: b,
+                    wavelength_nm: stage1[b].wavelength_nm,
+                    coeffs: stage1[b].coeffs,
+                })
+                .collect();
             let covariance = bands
                 .iter()
-                .map(|b| {
+                .map(|&b| {
                     stable_noisy
-                        .then(|| with_covariance[b.band_index].coeff_covariance.clone())
+                        .then(|| stage1[b].coeff_covariance.clone())
                         .flatten()
                 })
                 .collect();
-            let problem =
-                RateProblem::new(&frames, &bands, &model)?.with_coefficient_covariance(covariance);
+            let problem = RateProblem::new(&frames, &rate_bands, &model)?
+                .with_coefficient_covariance(covariance);
             crb(&problem, p0)
         };
-        let chosen = result.stage2.chosen_index;
         let single = bound(
             result.rate.fit().map(|f| f.rate_deg_per_frame),
             result.fitted_frames,
-            vec![band(chosen)],
+            result.single_band_stage1(),
+            &[result.rate_band_index],
         )?;
         let joint = bound(
             result
@@ -268,9 +264,24 @@ impl Reference {
                 .and_then(|r| r.fit())
                 .map(|f| f.rate_deg_per_frame),
             result.joint_fitted_frames.unwrap_or(result.fitted_frames),
-            (0..n_bands).map(band).collect(),
+            &result.stage1,
+            &(0..n_bands).collect::<Vec<_>>(),
         )?;
         Ok(Reference { single, joint })
+    }
+}
+
+/// Fixes stage 1's pooling decision to the one the noisy runs take on average: on the
+/// noise-free window with σ attached the pooling test's residual is the pooled curves' bias
+/// itself ([`spectral::bias_to_noise_noise_free`]), which the runs' test estimates through
+/// their noise.
+fn expected_pooling(set: &ObservationSet, stage1: &mut Stage1Config) {
+    let weights = spectral::local_linear_weights(&set.wavelengths_nm, stage1.spectral_window_nm);
+    let rho = spectral::bias_to_noise_noise_free(&set.stable, &weights);
+    if rho.is_some_and(|r| r <= stage1.spectral_max_bias_to_noise) {
+        stage1.spectral_max_bias_to_noise = f64::INFINITY;
+    } else {
+        stage1.spectral_window_nm = 0.0;
     }
 }
 

@@ -75,10 +75,11 @@ pub fn plots(dir: &Path) -> Result<bool> {
         epoch_frame: Some(epoch),
         ..config.model.clone()
     };
+    // The coefficients stage 3 used there (the spectrally pooled ones when stage 1 pooled).
     let band = RateBand {
         band_index: chosen,
         wavelength_nm: nm,
-        coeffs: result.stage1[chosen].coeffs,
+        coeffs: result.single_band_stage1()[chosen].coeffs,
     };
     let problem = RateProblem::new(&motion, &[band], &model)?;
     let p = fit.rate_deg_per_frame;

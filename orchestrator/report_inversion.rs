@@ -64,6 +64,10 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 "delta_chi2": finite(r.stage1_basis_delta_chi2),
                 "dof": r.stage1_basis_dof,
             },
+            "spectral_pooling": {
+                "window_nm": r.stage1_spectral_window_nm,
+                "bias_to_noise": finite(r.stage1_spectral_bias_to_noise),
+            },
         })
     });
     let stage2 = get(2).map_or(Value::Null, |r| {
@@ -141,7 +145,11 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             "Stage 1: reconstruction error ≤ {:.2e} over {} bands; {}. Stage 2: chosen band {} nm (σ = {:.4}, specular share {:.3}); the largest σ is at {} nm (σ = {:.4}, the paper's rule). λ* is the band with the largest specular share among those with σ ≥ ½ max σ: the diffuse light is what the two-facet model misplaces.\n\n![separation](inversion-sigma.svg)\n",
             worst,
             r1.n_bands,
-            basis_phrase(r1),
+            [basis_phrase(r1), pooling_phrase(r1)]
+                .into_iter()
+                .filter(|p| !p.is_empty())
+                .collect::<Vec<_>>()
+                .join("; "),
             r2.wavelength_nm[r2.chosen_band as usize],
             r2.separation[r2.chosen_band as usize],
             r2.specular_share[r2.chosen_band as usize],
@@ -300,6 +308,24 @@ fn basis_phrase(r: &SolveResponse) -> String {
         "basis: diffuse + the {} narrowest lobes (μ ≤ {}); the broader ones, which the stable window cannot tell from diffuse light, add nothing the data support (Δχ² = {:.1} for k = {} parameters)",
         r.stage1_lobes_kept, r.stage1_widest_lobe_mu, r.stage1_basis_delta_chi2, r.stage1_basis_dof
     )
+}
+
+/// Stage 1's spectral pooling decision, in words (empty when it was not tested).
+fn pooling_phrase(r: &SolveResponse) -> String {
+    let rho = r.stage1_spectral_bias_to_noise;
+    if !rho.is_finite() {
+        return String::new();
+    }
+    if r.stage1_spectral_window_nm > 0.0 {
+        format!(
+            "stage 2 and λ* use the stable window pooled over ±{} nm (the pooled curves' bias is {rho:.2} of the noise; the joint fit keeps every band's own)",
+            r.stage1_spectral_window_nm
+        )
+    } else {
+        format!(
+            "every band on its own (pooling neighbouring bands would smear {rho:.2} of the noise)"
+        )
+    }
 }
 
 /// What the joint-fit check did to λ* (`SolveResponse::LAMBDA_REJECTED`).

@@ -95,7 +95,7 @@ pub fn invert(
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let mut j = serde_json::to_value(&result)?;
     let mut text = format!(
-        "{}: {} bands, stable {} samples, motion {} frames\nstage 1: max reconstruction error {:.3e}; lobes kept {} of 10 (widest μ = {}, Δχ² = {:.1} for k = {})\nstage 2: chosen band {} nm (largest σ at {} nm)\n",
+        "{}: {} bands, stable {} samples, motion {} frames\nstage 1: max reconstruction error {:.3e}; lobes kept {} of 10 (widest μ = {}, Δχ² = {:.1} for k = {})\n{}stage 2: chosen band {} nm (largest σ at {} nm)\n",
         path.display(),
         file.set.wavelengths_nm.len(),
         file.set.stable.len(),
@@ -105,6 +105,7 @@ pub fn invert(
         result.stage1_basis.widest_lobe_mu,
         result.stage1_basis.delta_chi2,
         result.stage1_basis.dof,
+        pooling_line(&result.spectral_pooling),
         result.chosen_wavelength_nm,
         result.stage2.bands[result.stage2.separation_index].wavelength_nm,
     );
@@ -198,7 +199,7 @@ fn sweep_bands(
             ..
         } = glint_inversion::fit_band(
             &file.set.motion,
-            &result.stage1,
+            result.single_band_stage1(),
             b,
             &config.model,
             &config.stage3,
@@ -276,6 +277,21 @@ fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> anyhow::Error {
         path.display(),
         e.message()
     )
+}
+
+/// What stage 1 decided about spectral pooling, one line (empty when it was not tested).
+fn pooling_line(pooling: &glint_inversion::SpectralPooling) -> String {
+    match pooling.bias_to_noise {
+        None => String::new(),
+        Some(rho) if pooling.applied => format!(
+            "stage 1: stage 2 and λ* use the stable window pooled over ±{} nm (bias/noise ρ = {rho:.2})\n",
+            pooling.window_nm
+        ),
+        Some(rho) => format!(
+            "stage 1: every band on its own (pooling over ±{} nm would smear ρ = {rho:.2} of the noise)\n",
+            pooling.window_nm
+        ),
+    }
 }
 
 /// Reads solver settings for `glint invert --config` (TOML; unknown fields are errors).

@@ -343,15 +343,16 @@ fn the_held_axis_is_judged_where_the_prior_puts_the_fit() {
 
 #[test]
 fn a_lambda_star_solution_in_another_minimum_is_set_aside_by_the_joint_fit() {
-    // Y rotation at SNR 10, seed 7: the noise gives 560 nm's stage-1 coefficients a narrow body
-    // lobe, stage 2 ranks the band first, and its own cost is lowest at the reversed rotation
-    // [0, −0.195, −0.076] (error ≈ 45). The joint fit (all bands) is 0.7 from the truth and
-    // rejects that solution as another minimum; stage 3 falls back to the next candidate.
+    // Y rotation at SNR 10, seed 29: the noise leaves 640 nm's stage-1 coefficients (pooled
+    // over ±20 nm) ranked first by stage 2, and the band's own cost is lowest at the reversed
+    // rotation [0, −0.189, −0.083] (error ≈ 45). The joint fit (all bands) is 0.02 from the
+    // truth and rejects that solution as another minimum; stage 3 falls back to the next
+    // candidate.
     let dir = temp_dir("lambda-rejected");
     let file = scenario_variant(
         "geo-hover-yspin.toml",
         &[
-            ("seed = 2020", "seed = 7"),
+            ("seed = 2020", "seed = 29"),
             (
                 "materials = \"physical\"",
                 "materials = \"physical\"\nsnr = 10.0",
@@ -362,9 +363,9 @@ fn a_lambda_star_solution_in_another_minimum_is_set_aside_by_the_joint_fit() {
     let r = run_ok(Some(&file), &dir.join("out"), &[]);
     let inv = &r.report["inversion"];
     let s3 = &inv["stage3"];
-    assert_eq!(inv["stage2"]["chosen_nm"], 560.0, "{}", inv["stage2"]);
+    assert_eq!(inv["stage2"]["chosen_nm"], 640.0, "{}", inv["stage2"]);
     assert_eq!(s3["lambda_rejected_by_joint"], true, "{s3}");
-    assert_ne!(s3["band_nm"], 560.0, "{s3}");
+    assert_ne!(s3["band_nm"], 640.0, "{s3}");
     // Against the truth: the fallback band's rate is near it, and so is the joint fit's.
     let err = s3["err_paper_metric"].as_f64().unwrap();
     assert!(err < 2.0, "error {err}: {s3}");
@@ -373,9 +374,9 @@ fn a_lambda_star_solution_in_another_minimum_is_set_aside_by_the_joint_fit() {
         "{s3}"
     );
     let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
-    assert!(summary.contains("The joint fit rejected the solution at λ* = 560 nm"));
+    assert!(summary.contains("The joint fit rejected the solution at λ* = 640 nm"));
 
-    // Offline, the same file: the same answer; and with the check switched off, λ* at 560 nm
+    // Offline, the same file: the same answer; and with the check switched off, λ* at 640 nm
     // lands in the reversed rotation that was set aside.
     let obs = r.dir.join("observations.csv");
     let offline = invert_ok(&obs, &dir.join("offline"), &[]);

@@ -219,7 +219,7 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, flags), 44);
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (2520, 8)
+        (2536, 8)
     );
     assert_eq!(offset_of!(SolveResponse, status), 44);
     assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
@@ -243,4 +243,9 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveResponse, stage1_lobes_kept), 2508);
     assert_eq!(offset_of!(SolveResponse, stage3_band), 2512);
     assert_eq!(offset_of!(SolveResponse, stage3_set_aside), 2516);
+    assert_eq!(offset_of!(SolveResponse, stage1_spectral_window_nm), 2520);
+    assert_eq!(
+        offset_of!(SolveResponse, stage1_spectral_bias_to_noise),
+        2528
+    );
 }

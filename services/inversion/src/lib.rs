@@ -45,7 +45,7 @@ pub use model::{MotionModelConfig, PanelNormalMode, RateBand, RateProblem};
 pub use observation::{Observation, ObservationSet};
 pub use rates::{fit_band, fit_joint, fit_rates, fit_within_horizon, BandFit, RateFits};
 pub use rotation::AttitudeModel;
-pub use stage1::{BasisChoice, Stage1Band, Stage1Config};
+pub use stage1::{BasisChoice, SpectralPooling, Stage1Band, Stage1Config, Stage1Output};
 pub use stage2::{BandSelection, Stage2Config, Stage2Result};
 pub use stage3::{RateFit, RateSolution, Stage3Config, WeakPrior};
 
@@ -78,6 +78,13 @@ pub struct InversionResult {
     /// The lobes stage 1 kept ([`stage1::basis`]).
     #[serde(default)]
     pub stage1_basis: BasisChoice,
+    /// Stage 1 on the spectrally pooled stable window, when pooling applied: the coefficients
+    /// stage 2 and the single-band fit used ([`stage1::spectral`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stage1_pooled: Option<Vec<Stage1Band>>,
+    /// The pooling decision.
+    #[serde(default = "no_pooling")]
+    pub spectral_pooling: SpectralPooling,
     /// Stage 2: σ(λ, θ_I), σ(λ) and λ*.
     pub stage2: Stage2Result,
     /// λ* \[nm\].
@@ -101,6 +108,22 @@ pub struct InversionResult {
     pub sense_from_joint: bool,
 }
 
+fn no_pooling() -> SpectralPooling {
+    SpectralPooling {
+        window_nm: 0.0,
+        bias_to_noise: None,
+        applied: false,
+    }
+}
+
+impl InversionResult {
+    /// The stage-1 coefficients stage 2 and the single-band fit used: the pooled ones when
+    /// stage 1 pooled, else every band's own.
+    pub fn single_band_stage1(&self) -> &[Stage1Band] {
+        self.stage1_pooled.as_deref().unwrap_or(&self.stage1)
+    }
+}
+
 /// The paper's error metric ε_p = 100·‖p̂ − p*‖₂ (p in deg/frame; §1.6, not relative).
 pub fn rate_error_metric(p_hat_deg_per_frame: [f64; 3], p_true_deg_per_frame: [f64; 3]) -> f64 {
     let d: f64 = (0..3)
@@ -116,26 +139,35 @@ pub fn solve_three_stage(
 ) -> Result<InversionResult, InversionError> {
     set.validate()?;
     let body_normal = Vector3::from(config.model.body_normal);
-    let (stage1, stage1_basis) = stage1::run_stage1_with(
+    let stage1 = stage1::run_stage1_full(
         &set.stable,
         &set.wavelengths_nm,
         body_normal,
         config.band_scale_w.as_deref(),
         &config.stage1,
     )?;
-    let stage2 = stage2::run_stage2_with(&stage1, &config.stage2)?;
+    let stage2 = stage2::run_stage2_with(stage1.single_band(), &config.stage2)?;
     let fits = fit_rates(
         &set.motion,
-        &stage1,
+        &stage1.bands,
+        stage1.single_band(),
         &stage2.ranking,
         &config.model,
         &config.stage3,
         config.joint_fit,
     )?;
+    let stage1::Stage1Output {
+        bands: stage1_bands,
+        basis: stage1_basis,
+        pooled,
+        pooling: spectral_pooling,
+    } = stage1;
     Ok(InversionResult {
         chosen_wavelength_nm: stage2.chosen_wavelength_nm,
-        stage1,
+        stage1: stage1_bands,
         stage1_basis,
+        stage1_pooled: pooled.map(|(bands, _)| bands),
+        spectral_pooling,
         stage2,
         rate: fits.rate,
         rate_band_index: fits.band_index,

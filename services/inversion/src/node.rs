@@ -144,11 +144,17 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
         Ok(StageOutcome::Done) => out.status = SolveStatus::Ok as u32,
     }
     if let Some(s1) = &session.stage1 {
-        for (slot, b) in out.recon_err.iter_mut().zip(s1) {
+        for (slot, b) in out.recon_err.iter_mut().zip(&s1.bands) {
             *slot = b.recon_err;
         }
-    }
-    if let Some(basis) = &session.stage1_basis {
+        let pooling = &s1.pooling;
+        out.stage1_spectral_window_nm = if pooling.applied {
+            pooling.window_nm
+        } else {
+            0.0
+        };
+        out.stage1_spectral_bias_to_noise = pooling.bias_to_noise.unwrap_or(f64::NAN);
+        let basis = &s1.basis;
         out.stage1_widest_lobe_mu = basis.widest_lobe_mu;
         out.stage1_basis_delta_chi2 = basis.delta_chi2;
         out.stage1_basis_dof = basis.dof as u32;

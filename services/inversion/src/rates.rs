@@ -9,10 +9,14 @@ use crate::stage3::{self, RateFit, RateSolution, Stage3Config};
 
 /// Stage 3 at the first band of stage 2's `ranking` (λ*) and, with `joint`, one p for all
 /// bands, each over its fit horizon. A λ* solution the joint fit rejects ([`fit_band`]) is set
-/// aside for the next band of the ranking the joint fit accepts.
+/// aside for the next band of the ranking the joint fit accepts. The joint fit uses every
+/// band's own coefficients (`stage1`), the single-band fits those of `single_band` (the
+/// spectrally pooled ones when stage 1 pooled, [`crate::stage1::Stage1Output`]).
+#[allow(clippy::too_many_arguments)]
 pub fn fit_rates(
     motion: &[Observation],
     stage1: &[Stage1Band],
+    single_band: &[Stage1Band],
     ranking: &[usize],
     model: &MotionModelConfig,
     config: &Stage3Config,
@@ -27,13 +31,13 @@ pub fn fit_rates(
     let Some((&chosen, others)) = ranking.split_first() else {
         return Err(InversionError::NoSeparableBand);
     };
-    let mut fit = fit_band(motion, stage1, chosen, model, config, joint_fit)?;
+    let mut fit = fit_band(motion, single_band, chosen, model, config, joint_fit)?;
     let mut band_index = chosen;
     let mut set_aside = Vec::new();
     if fit.rejected_by_joint {
         set_aside.push(chosen);
         for &b in others {
-            let next = fit_band(motion, stage1, b, model, config, joint_fit)?;
+            let next = fit_band(motion, single_band, b, model, config, joint_fit)?;
             if !next.rejected_by_joint {
                 fit = next;
                 band_index = b;

@@ -5,7 +5,7 @@
 use nalgebra::Vector3;
 
 use crate::model::MotionModelConfig;
-use crate::stage1::{run_stage1_with, BasisChoice, Stage1Band, Stage1Config};
+use crate::stage1::{run_stage1_full, Stage1Config, Stage1Output};
 use crate::stage2::{run_stage2, Stage2Result};
 use crate::stage3::{RateSolution, Stage3Config};
 use crate::{fit_rates, InversionError, Observation, ObservationSet};
@@ -26,9 +26,8 @@ pub struct Session {
     pub model: MotionModelConfig,
     pub stage3_config: Stage3Config,
     pub stage1_config: Stage1Config,
-    pub stage1: Option<Vec<Stage1Band>>,
-    /// The lobes stage 1 kept.
-    pub stage1_basis: Option<BasisChoice>,
+    /// Stage 1: every band on its own, and on the pooled window when pooling applied.
+    pub stage1: Option<Stage1Output>,
     pub stage2: Option<Stage2Result>,
     pub rate: Option<RateSolution>,
     pub joint_rate: Option<RateSolution>,
@@ -67,7 +66,6 @@ impl Session {
             stage3_config,
             stage1_config: Stage1Config::default(),
             stage1: None,
-            stage1_basis: None,
             stage2: None,
             rate: None,
             joint_rate: None,
@@ -95,15 +93,13 @@ impl Session {
             }));
         }
         let body = Vector3::from(self.model.body_normal);
-        let (bands, basis) = run_stage1_with(
+        self.stage1 = Some(run_stage1_full(
             &self.set.stable,
             &self.set.wavelengths_nm,
             body,
             None,
             &self.stage1_config,
-        )?;
-        self.stage1 = Some(bands);
-        self.stage1_basis = Some(basis);
+        )?);
         Ok(StageOutcome::Done)
     }
 
@@ -112,7 +108,7 @@ impl Session {
         let Some(s1) = &self.stage1 else {
             return Ok(StageOutcome::NotReady(NotReady::Stage(1)));
         };
-        self.stage2 = Some(run_stage2(s1)?);
+        self.stage2 = Some(run_stage2(s1.single_band())?);
         Ok(StageOutcome::Done)
     }
 
@@ -130,7 +126,8 @@ impl Session {
         }
         let fits = fit_rates(
             &self.set.motion,
-            s1,
+            &s1.bands,
+            s1.single_band(),
             &s2.ranking,
             &self.model,
             &self.stage3_config,

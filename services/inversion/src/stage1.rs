@@ -80,6 +80,7 @@ pub fn design_matrix(obs: &[Observation], body_normal: Vector3<f64>) -> Mat<f64>
 }
 
 pub mod basis;
+pub mod spectral;
 
 pub use basis::BasisChoice;
 
@@ -95,6 +96,12 @@ pub struct Stage1Config {
     /// A lobe may leave the basis only when its variance inflation against the diffuse column
     /// is at least this (allowed: ≥ 1; 10, the usual rule of thumb for collinearity).
     pub basis_min_vif: f64,
+    /// Half-width \[nm\] of the spectral window pooled for stage 2 and the single-band fit
+    /// ([`spectral`]; allowed: ≥ 0, 0 = never pool).
+    pub spectral_window_nm: f64,
+    /// Pool only while the pooled curves' RMS bias is at most this fraction of the noise
+    /// (allowed: > 0; `inf` pools whenever σ is given).
+    pub spectral_max_bias_to_noise: f64,
 }
 
 impl Default for Stage1Config {
@@ -103,15 +110,18 @@ impl Default for Stage1Config {
             basis_selection: true,
             basis_test_sigmas: 3.0,
             basis_min_vif: 10.0,
+            spectral_window_nm: 20.0,
+            spectral_max_bias_to_noise: 1.0 / 3.0,
         }
     }
 }
 
 impl Stage1Config {
-    /// The paper's stage 1: every column of G.
+    /// The paper's stage 1: every column of G, each band on its own.
     pub fn paper() -> Self {
         Self {
             basis_selection: false,
+            spectral_window_nm: 0.0,
             ..Self::default()
         }
     }
@@ -128,6 +138,18 @@ impl Stage1Config {
             return Err(InversionError::InvalidConfig {
                 field: "stage1.basis_min_vif",
                 reason: "must be a finite number ≥ 1",
+            });
+        }
+        if !(self.spectral_window_nm.is_finite() && self.spectral_window_nm >= 0.0) {
+            return Err(InversionError::InvalidConfig {
+                field: "stage1.spectral_window_nm",
+                reason: "must be a finite number ≥ 0",
+            });
+        }
+        if self.spectral_max_bias_to_noise.is_nan() || self.spectral_max_bias_to_noise <= 0.0 {
+            return Err(InversionError::InvalidConfig {
+                field: "stage1.spectral_max_bias_to_noise",
+                reason: "must be a number > 0 (inf allowed)",
             });
         }
         Ok(())
@@ -247,6 +269,77 @@ pub fn run_stage1_with(
         });
     }
     Ok((out, choice))
+}
+
+/// What [`run_stage1_full`] decided about spectral pooling.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SpectralPooling {
+    /// Half-width of the window \[nm\] (the setting; 0 = off).
+    pub window_nm: f64,
+    /// ρ, the pooled curves' RMS bias in units of the noise ([`spectral`]); `None` when not
+    /// tested (no σ, or no band has a neighbour within the window).
+    pub bias_to_noise: Option<f64>,
+    /// Whether stage 2 and the single-band fit use the pooled window.
+    pub applied: bool,
+}
+
+/// Stage 1 as the solve uses it: every band on its own (the joint fit, the reported
+/// reconstruction), and, when the spectral test accepts it, every band on the pooled stable
+/// window (stage 2 and the single-band fit; [`spectral`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stage1Output {
+    pub bands: Vec<Stage1Band>,
+    pub basis: BasisChoice,
+    /// The bands fitted on the pooled window, when pooling applies.
+    pub pooled: Option<(Vec<Stage1Band>, BasisChoice)>,
+    pub pooling: SpectralPooling,
+}
+
+impl Stage1Output {
+    /// The coefficients stage 2 and the single-band fit use.
+    pub fn single_band(&self) -> &[Stage1Band] {
+        self.pooled.as_ref().map_or(&self.bands, |(b, _)| b)
+    }
+}
+
+/// [`run_stage1_with`] on the stable window, then on its spectrally pooled version when σ is
+/// given and the pooled curves' bias is at most `spectral_max_bias_to_noise` of the noise.
+pub fn run_stage1_full(
+    stable: &[Observation],
+    wavelengths_nm: &[f64],
+    body_normal: Vector3<f64>,
+    band_scale_w: Option<&[f64]>,
+    config: &Stage1Config,
+) -> Result<Stage1Output, InversionError> {
+    let (bands, basis) =
+        run_stage1_with(stable, wavelengths_nm, body_normal, band_scale_w, config)?;
+    let weights = spectral::local_linear_weights(wavelengths_nm, config.spectral_window_nm);
+    let bias_to_noise = (config.spectral_window_nm > 0.0 && spectral::pools(&weights))
+        .then(|| spectral::bias_to_noise(stable, &weights))
+        .flatten();
+    let applied = bias_to_noise.is_some_and(|rho| rho <= config.spectral_max_bias_to_noise);
+    let pooled = if applied {
+        let window = spectral::pooled(stable, &weights);
+        Some(run_stage1_with(
+            &window,
+            wavelengths_nm,
+            body_normal,
+            band_scale_w,
+            config,
+        )?)
+    } else {
+        None
+    };
+    Ok(Stage1Output {
+        bands,
+        basis,
+        pooled,
+        pooling: SpectralPooling {
+            window_nm: config.spectral_window_nm,
+            bias_to_noise,
+            applied,
+        },
+    })
 }
 
 /// `(G_Pᵀ W G_P)⁻¹` on the passive set P = {m : x_m > 0} of band `b`, embedded in 22 × 22;

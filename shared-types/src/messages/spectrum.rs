@@ -260,6 +260,12 @@ pub struct SolveResponse {
     /// Stage 3: bands whose solution the joint fit rejected before `stage3_band` was accepted
     /// (with every candidate rejected, 1 and `stage3_band == chosen_band`).
     pub stage3_set_aside: u32,
+    /// Stage 1: half-width \[nm\] of the spectral window stage 2 and the single-band fit used
+    /// (0: every band on its own).
+    pub stage1_spectral_window_nm: f64,
+    /// Stage 1: the pooled curves' RMS bias in units of the noise, the pooling test's statistic
+    /// (NaN when not tested: no σ, or no band within the window of another).
+    pub stage1_spectral_bias_to_noise: f64,
 }
 
 impl Default for SolveResponse {
@@ -300,6 +306,8 @@ impl Default for SolveResponse {
             stage1_lobes_kept: 0,
             stage3_band: 0,
             stage3_set_aside: 0,
+            stage1_spectral_window_nm: 0.0,
+            stage1_spectral_bias_to_noise: f64::NAN,
         }
     }
 }
