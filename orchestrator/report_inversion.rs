@@ -93,6 +93,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
             "sense_from_joint": r.stage3_flags & SolveResponse::SENSE_FROM_JOINT != 0,
             "lambda_rejected_by_joint": r.stage3_flags & SolveResponse::LAMBDA_REJECTED != 0,
             "bands_set_aside": r.stage3_set_aside,
+            "joint_disagreement_sigma": finite(r.stage3_joint_disagreement_sigma),
             "fit_horizon_deg": glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG,
             "p_deg_per_frame": if determined { json!(p) } else { Value::Null },
             "truth_deg_per_frame": truth,
@@ -170,6 +171,14 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             );
             if r.stage3_flags & SolveResponse::LAMBDA_REJECTED != 0 {
                 let _ = writeln!(s, "\n{}", set_aside_phrase(r));
+            } else if let Some(phrase) = disagreement_phrase(r) {
+                let _ = writeln!(s, "\n{phrase}");
+            } else if r.stage3_joint_disagreement_sigma.is_finite() {
+                let _ = writeln!(
+                    s,
+                    "\nThe joint fit (all bands) is {:.1}σ from this rate (the two covariances summed, over the directions both determine).",
+                    r.stage3_joint_disagreement_sigma
+                );
             }
             if r.stage3_flags & SolveResponse::SENSE_FROM_JOINT != 0 {
                 let _ = writeln!(
@@ -328,6 +337,20 @@ fn pooling_phrase(r: &SolveResponse) -> String {
     }
 }
 
+/// A warning when the reported rate and the joint fit's are further apart than the joint-fit
+/// gate and the rate was kept (its band has no minimum near the joint solution): neither
+/// covariance covers the difference, so the rate's own error bars understate its error.
+fn disagreement_phrase(r: &SolveResponse) -> Option<String> {
+    let d = r.stage3_joint_disagreement_sigma;
+    let gate = glint_inversion::stage3::DEFAULT_JOINT_GATE_SIGMA;
+    (d.is_finite() && d > gate).then(|| {
+        format!(
+            "**This rate and the joint fit's are {d:.1}σ apart** (beyond the {gate}σ gate), and {} nm's cost has no minimum near the joint solution, so the band keeps its own: its coefficients point there. Its covariance does not cover the difference; the joint fit is the one to use.",
+            r.wavelength_nm[r.stage3_band as usize]
+        )
+    })
+}
+
 /// What the joint-fit check did to λ* (`SolveResponse::LAMBDA_REJECTED`).
 fn set_aside_phrase(r: &SolveResponse) -> String {
     let lambda = r.wavelength_nm[r.chosen_band as usize];
@@ -346,5 +369,33 @@ fn set_aside_phrase(r: &SolveResponse) -> String {
                 n => format!("{n} bands"),
             }
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn response(disagreement_sigma: f64, flags: u32) -> SolveResponse {
+        let mut r = SolveResponse {
+            stage3_joint_disagreement_sigma: disagreement_sigma,
+            stage3_flags: flags,
+            stage3_band: 1,
+            ..SolveResponse::default()
+        };
+        r.wavelength_nm[1] = 410.0;
+        r
+    }
+
+    #[test]
+    fn a_kept_rate_beyond_the_gate_is_flagged_and_one_within_it_is_not() {
+        let gate = glint_inversion::stage3::DEFAULT_JOINT_GATE_SIGMA;
+        let warned = disagreement_phrase(&response(gate + 2.0, 0)).expect("beyond the gate");
+        assert!(
+            warned.contains("8.0σ apart") && warned.contains("410 nm"),
+            "{warned}"
+        );
+        assert!(disagreement_phrase(&response(gate - 0.5, 0)).is_none());
+        assert!(disagreement_phrase(&response(f64::NAN, 0)).is_none());
     }
 }

@@ -109,6 +109,15 @@ pub fn invert(
         result.chosen_wavelength_nm,
         result.stage2.bands[result.stage2.separation_index].wavelength_nm,
     );
+    let gate = config.stage3.joint_gate_sigma.unwrap_or(f64::INFINITY);
+    if let Some(d) = result.joint_disagreement_sigma.filter(|d| *d > gate) {
+        if result.set_aside.is_empty() {
+            text += &format!(
+                "stage 3: warning: {} nm's rate is {d:.1}σ from the joint fit's and its cost has no minimum near it; its covariance does not cover the difference\n",
+                result.stage1[result.rate_band_index].wavelength_nm
+            );
+        }
+    }
     if !result.set_aside.is_empty() {
         let nm = |i: &usize| result.stage1[*i].wavelength_nm;
         let aside: Vec<String> = result

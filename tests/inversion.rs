@@ -369,6 +369,9 @@ fn a_lambda_star_solution_in_another_minimum_is_set_aside_by_the_joint_fit() {
     // Against the truth: the fallback band's rate is near it, and so is the joint fit's.
     let err = s3["err_paper_metric"].as_f64().unwrap();
     assert!(err < 2.0, "error {err}: {s3}");
+    // The band that replaced λ* agrees with the joint fit within the gate.
+    let apart = s3["joint_disagreement_sigma"].as_f64().expect("reported");
+    assert!(apart < 6.0, "{s3}");
     assert!(
         s3["joint"]["err_paper_metric"].as_f64().unwrap() < 2.0,
         "{s3}"

@@ -219,7 +219,7 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, flags), 44);
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (2536, 8)
+        (2544, 8)
     );
     assert_eq!(offset_of!(SolveResponse, status), 44);
     assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
@@ -247,5 +247,9 @@ fn solve_layout() {
     assert_eq!(
         offset_of!(SolveResponse, stage1_spectral_bias_to_noise),
         2528
+    );
+    assert_eq!(
+        offset_of!(SolveResponse, stage3_joint_disagreement_sigma),
+        2536
     );
 }

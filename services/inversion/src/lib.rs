@@ -106,6 +106,9 @@ pub struct InversionResult {
     /// The λ* data fit p̂ and its mirror equally well; the joint fit decided the sense.
     #[serde(default)]
     pub sense_from_joint: bool,
+    /// `rate`'s distance from the joint solution in σ ([`RateFits::joint_disagreement_sigma`]).
+    #[serde(default)]
+    pub joint_disagreement_sigma: Option<f64>,
 }
 
 fn no_pooling() -> SpectralPooling {
@@ -176,5 +179,6 @@ pub fn solve_three_stage(
         fitted_frames: fits.fitted_frames,
         joint_fitted_frames: fits.joint_fitted_frames,
         sense_from_joint: fits.sense_from_joint,
+        joint_disagreement_sigma: fits.joint_disagreement_sigma,
     })
 }

@@ -58,6 +58,7 @@ pub fn fit_rates(
         joint_fitted_frames: joint_rate.as_ref().map(|j| j.1),
         joint_rate: joint_rate.map(|j| j.0),
         sense_from_joint: fit.sense_from_joint,
+        joint_disagreement_sigma: fit.joint_disagreement_sigma,
     })
 }
 
@@ -80,6 +81,10 @@ pub struct BandFit {
     pub sense_from_joint: bool,
     /// The joint fit rejects p̂ as another minimum ([`Stage3Config::joint_gate_sigma`]).
     pub rejected_by_joint: bool,
+    /// How far p̂ is from the joint solution, in standard deviations of the two covariances
+    /// summed over the directions both determine (`stage3::disagreement_sigma`); `None`
+    /// without a determined joint solution.
+    pub joint_disagreement_sigma: Option<f64>,
 }
 
 /// Stage 3 at band `b` over its fit horizon. With a `joint` solution:
@@ -111,6 +116,7 @@ pub fn fit_band(
         fitted_frames: problem.frame_count(),
         sense_from_joint: false,
         rejected_by_joint: false,
+        joint_disagreement_sigma: None,
     };
     let (Some(joint), Some(joint_fit)) = (joint, joint.and_then(RateSolution::fit)) else {
         return Ok(out);
@@ -119,10 +125,12 @@ pub fn fit_band(
         out.rate = RateSolution::Determined(flipped);
         out.sense_from_joint = true;
     }
+    out.joint_disagreement_sigma = out
+        .rate
+        .fit()
+        .map(|fit| stage3::disagreement_sigma(fit, joint_fit, &config.observability));
     out.rejected_by_joint = match (config.joint_gate_sigma, out.rate.fit()) {
-        (Some(gate), Some(fit))
-            if stage3::disagreement_sigma(fit, joint_fit, &config.observability) > gate =>
-        {
+        (Some(gate), Some(fit)) if out.joint_disagreement_sigma.is_some_and(|d| d > gate) => {
             // Compared on the frames both rates model: the faster one's horizon (often the
             // frames already fitted, then `problem` serves).
             let faster = speed(fit.rate_deg_per_frame).max(speed(joint_fit.rate_deg_per_frame));
@@ -351,4 +359,8 @@ pub struct RateFits {
     /// The λ* data could not tell p̂ from its mirror and the joint fit decided the sense of
     /// rotation (see [`fit_rates`]).
     pub sense_from_joint: bool,
+    /// `rate`'s distance from the joint solution in σ ([`BandFit::joint_disagreement_sigma`]).
+    /// Beyond the gate with `rate` kept, the band has no minimum near the joint solution, and
+    /// its own covariance does not cover the difference.
+    pub joint_disagreement_sigma: Option<f64>,
 }

@@ -39,6 +39,8 @@ pub struct Session {
     pub rate_band: usize,
     /// Bands whose solution the joint fit rejected.
     pub set_aside: Vec<usize>,
+    /// The rate's distance from the joint solution in σ (see `fit_rates`).
+    pub joint_disagreement_sigma: Option<f64>,
 }
 
 pub enum StageOutcome {
@@ -73,6 +75,7 @@ impl Session {
             sense_from_joint: false,
             rate_band: 0,
             set_aside: Vec::new(),
+            joint_disagreement_sigma: None,
         }
     }
 
@@ -139,6 +142,7 @@ impl Session {
         self.sense_from_joint = fits.sense_from_joint;
         self.rate_band = fits.band_index;
         self.set_aside = fits.set_aside;
+        self.joint_disagreement_sigma = fits.joint_disagreement_sigma;
         Ok(StageOutcome::Done)
     }
 }

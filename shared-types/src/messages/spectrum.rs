@@ -266,6 +266,9 @@ pub struct SolveResponse {
     /// Stage 1: the pooled curves' RMS bias in units of the noise, the pooling test's statistic
     /// (NaN when not tested: no σ, or no band within the window of another).
     pub stage1_spectral_bias_to_noise: f64,
+    /// Stage 3: the rate's distance from the joint solution in standard deviations (the two
+    /// covariances summed, over the directions both determine); NaN without both.
+    pub stage3_joint_disagreement_sigma: f64,
 }
 
 impl Default for SolveResponse {
@@ -308,6 +311,7 @@ impl Default for SolveResponse {
             stage3_set_aside: 0,
             stage1_spectral_window_nm: 0.0,
             stage1_spectral_bias_to_noise: f64::NAN,
+            stage3_joint_disagreement_sigma: f64::NAN,
         }
     }
 }
