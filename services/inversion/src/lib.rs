@@ -83,7 +83,7 @@ pub struct InversionResult {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stage1_pooled: Option<Vec<Stage1Band>>,
     /// The pooling decision.
-    #[serde(default = "no_pooling")]
+    #[serde(default)]
     pub spectral_pooling: SpectralPooling,
     /// Stage 2: σ(λ, θ_I), σ(λ) and λ*.
     pub stage2: Stage2Result,
@@ -109,14 +109,6 @@ pub struct InversionResult {
     /// `rate`'s distance from the joint solution in σ ([`RateFits::joint_disagreement_sigma`]).
     #[serde(default)]
     pub joint_disagreement_sigma: Option<f64>,
-}
-
-fn no_pooling() -> SpectralPooling {
-    SpectralPooling {
-        window_nm: 0.0,
-        bias_to_noise: None,
-        applied: false,
-    }
 }
 
 impl InversionResult {
@@ -169,7 +161,7 @@ pub fn solve_three_stage(
         chosen_wavelength_nm: stage2.chosen_wavelength_nm,
         stage1: stage1_bands,
         stage1_basis,
-        stage1_pooled: pooled.map(|(bands, _)| bands),
+        stage1_pooled: pooled,
         spectral_pooling,
         stage2,
         rate: fits.rate,

@@ -271,8 +271,8 @@ pub fn run_stage1_with(
     Ok((out, choice))
 }
 
-/// What [`run_stage1_full`] decided about spectral pooling.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// What [`run_stage1_full`] decided about spectral pooling (default: not tested, not applied).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct SpectralPooling {
     /// Half-width of the window \[nm\] (the setting; 0 = off).
     pub window_nm: f64,
@@ -291,14 +291,14 @@ pub struct Stage1Output {
     pub bands: Vec<Stage1Band>,
     pub basis: BasisChoice,
     /// The bands fitted on the pooled window, when pooling applies.
-    pub pooled: Option<(Vec<Stage1Band>, BasisChoice)>,
+    pub pooled: Option<Vec<Stage1Band>>,
     pub pooling: SpectralPooling,
 }
 
 impl Stage1Output {
     /// The coefficients stage 2 and the single-band fit use.
     pub fn single_band(&self) -> &[Stage1Band] {
-        self.pooled.as_ref().map_or(&self.bands, |(b, _)| b)
+        self.pooled.as_deref().unwrap_or(&self.bands)
     }
 }
 
@@ -320,13 +320,9 @@ pub fn run_stage1_full(
     let applied = bias_to_noise.is_some_and(|rho| rho <= config.spectral_max_bias_to_noise);
     let pooled = if applied {
         let window = spectral::pooled(stable, &weights);
-        Some(run_stage1_with(
-            &window,
-            wavelengths_nm,
-            body_normal,
-            band_scale_w,
-            config,
-        )?)
+        let (bands, _) =
+            run_stage1_with(&window, wavelengths_nm, body_normal, band_scale_w, config)?;
+        Some(bands)
     } else {
         None
     };
