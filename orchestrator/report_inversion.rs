@@ -94,6 +94,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
             "lambda_rejected_by_joint": r.stage3_flags & SolveResponse::LAMBDA_REJECTED != 0,
             "bands_set_aside": r.stage3_set_aside,
             "joint_disagreement_sigma": finite(r.stage3_joint_disagreement_sigma),
+            "covariance_scale": finite(r.stage3_covariance_scale),
             "fit_horizon_deg": glint_inversion::stage3::DEFAULT_MAX_ROTATION_DEG,
             "p_deg_per_frame": if determined { json!(p) } else { Value::Null },
             "truth_deg_per_frame": truth,
@@ -176,8 +177,9 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             } else if r.stage3_joint_disagreement_sigma.is_finite() {
                 let _ = writeln!(
                     s,
-                    "\nThe joint fit (all bands) is {:.1}σ from this rate (the two covariances summed, over the directions both determine).",
-                    r.stage3_joint_disagreement_sigma
+                    "\nThe joint fit (all bands) is {:.1}σ from this rate (the two covariances summed, over the directions both determine){}.",
+                    r.stage3_joint_disagreement_sigma,
+                    widened_phrase(r)
                 );
             }
             if r.stage3_flags & SolveResponse::SENSE_FROM_JOINT != 0 {
@@ -345,10 +347,24 @@ fn disagreement_phrase(r: &SolveResponse) -> Option<String> {
     let gate = glint_inversion::stage3::DEFAULT_JOINT_GATE_SIGMA;
     (d.is_finite() && d > gate).then(|| {
         format!(
-            "**This rate and the joint fit's are {d:.1}σ apart** (beyond the {gate}σ gate), and {} nm's cost has no minimum near the joint solution, so the band keeps its own: its coefficients point there. Its covariance does not cover the difference; the joint fit is the one to use.",
-            r.wavelength_nm[r.stage3_band as usize]
+            "**This rate and the joint fit's are {d:.1}σ apart** (beyond the {gate}σ gate), and {} nm's cost has no minimum near the joint solution, so the band keeps its own: its coefficients point there{}; the joint fit is the one to use.",
+            r.wavelength_nm[r.stage3_band as usize],
+            widened_phrase(r)
         )
     })
+}
+
+/// How the rate's covariance was widened to cover its distance from the joint fit (empty when
+/// it was not: the two agree within their errors, or no widening was done).
+fn widened_phrase(r: &SolveResponse) -> String {
+    let scale = r.stage3_covariance_scale;
+    if scale.is_finite() && scale > 1.0 {
+        format!(
+            "; the rate's covariance is widened ×{scale:.1} (the Birge ratio of the two) to cover it"
+        )
+    } else {
+        String::new()
+    }
 }
 
 /// What the joint-fit check did to λ* (`SolveResponse::LAMBDA_REJECTED`).
@@ -379,6 +395,7 @@ mod tests {
     fn response(disagreement_sigma: f64, flags: u32) -> SolveResponse {
         let mut r = SolveResponse {
             stage3_joint_disagreement_sigma: disagreement_sigma,
+            stage3_covariance_scale: (disagreement_sigma.powi(2) / 2.0).max(1.0),
             stage3_flags: flags,
             stage3_band: 1,
             ..SolveResponse::default()
@@ -395,6 +412,9 @@ mod tests {
             warned.contains("8.0σ apart") && warned.contains("410 nm"),
             "{warned}"
         );
+        // 8σ over two directions: widened by 64 / 2.
+        assert!(warned.contains("widened ×32.0"), "{warned}");
+        assert!(widened_phrase(&response(1.2, 0)).is_empty());
         assert!(disagreement_phrase(&response(gate - 0.5, 0)).is_none());
         assert!(disagreement_phrase(&response(f64::NAN, 0)).is_none());
     }

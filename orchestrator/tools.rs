@@ -113,10 +113,16 @@ pub fn invert(
     if let Some(d) = result.joint_disagreement_sigma.filter(|d| *d > gate) {
         if result.set_aside.is_empty() {
             text += &format!(
-                "stage 3: warning: {} nm's rate is {d:.1}σ from the joint fit's and its cost has no minimum near it; its covariance does not cover the difference\n",
+                "stage 3: warning: {} nm's rate is {d:.1}σ from the joint fit's and its cost has no minimum near it; use the joint fit\n",
                 result.stage1[result.rate_band_index].wavelength_nm
             );
         }
+    }
+    if let Some(scale) = result.rate_covariance_scale.filter(|s| *s > 1.0) {
+        text += &format!(
+            "stage 3: the rate's covariance is widened ×{scale:.1} to cover its distance from the joint fit ({:.1}σ)\n",
+            result.joint_disagreement_sigma.unwrap_or(f64::NAN)
+        );
     }
     if !result.set_aside.is_empty() {
         let nm = |i: &usize| result.stage1[*i].wavelength_nm;

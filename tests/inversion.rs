@@ -372,6 +372,17 @@ fn a_lambda_star_solution_in_another_minimum_is_set_aside_by_the_joint_fit() {
     // The band that replaced λ* agrees with the joint fit within the gate.
     let apart = s3["joint_disagreement_sigma"].as_f64().expect("reported");
     assert!(apart < 6.0, "{s3}");
+    // Its covariance is widened by the Birge ratio of that distance, as the service says it
+    // is; and the same widening offline.
+    // (k, the directions compared, is 1–3).
+    let scale = s3["covariance_scale"].as_f64().expect("reported");
+    let birge = |k: f64| (apart * apart / k).max(1.0);
+    assert!(
+        [1.0, 2.0, 3.0]
+            .iter()
+            .any(|&k| (birge(k) - scale).abs() <= 1e-9 * scale),
+        "{s3}"
+    );
     assert!(
         s3["joint"]["err_paper_metric"].as_f64().unwrap() < 2.0,
         "{s3}"
@@ -386,6 +397,7 @@ fn a_lambda_star_solution_in_another_minimum_is_set_aside_by_the_joint_fit() {
     let fitted = offline["rate_band_index"].as_u64().unwrap() as usize;
     assert_eq!(offline["stage1"][fitted]["wavelength_nm"], s3["band_nm"]);
     assert_eq!(offline["rate"]["rate_deg_per_frame"], s3["p_deg_per_frame"]);
+    assert_eq!(offline["rate_covariance_scale"].as_f64(), Some(scale));
     let config = dir.join("no-gate.toml");
     std::fs::write(&config, "[stage3]\njoint_gate_sigma = inf\n").unwrap();
     let config_arg = config.to_str().unwrap();

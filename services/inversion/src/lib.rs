@@ -109,6 +109,10 @@ pub struct InversionResult {
     /// `rate`'s distance from the joint solution in σ ([`RateFits::joint_disagreement_sigma`]).
     #[serde(default)]
     pub joint_disagreement_sigma: Option<f64>,
+    /// The factor `rate`'s covariance was widened by to cover that distance
+    /// ([`RateFits::covariance_scale`]).
+    #[serde(default)]
+    pub rate_covariance_scale: Option<f64>,
 }
 
 impl InversionResult {
@@ -172,5 +176,6 @@ pub fn solve_three_stage(
         joint_fitted_frames: fits.joint_fitted_frames,
         sense_from_joint: fits.sense_from_joint,
         joint_disagreement_sigma: fits.joint_disagreement_sigma,
+        rate_covariance_scale: fits.covariance_scale,
     })
 }

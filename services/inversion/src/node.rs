@@ -179,6 +179,7 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
             out.stage3_set_aside = session.set_aside.len() as u32;
             out.stage3_joint_disagreement_sigma =
                 session.joint_disagreement_sigma.unwrap_or(f64::NAN);
+            out.stage3_covariance_scale = session.covariance_scale.unwrap_or(f64::NAN);
             if !session.set_aside.is_empty() {
                 out.stage3_flags |= SolveResponse::LAMBDA_REJECTED;
             }

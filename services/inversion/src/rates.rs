@@ -50,8 +50,18 @@ pub fn fit_rates(
             set_aside = vec![chosen];
         }
     }
+    // The kept rate's covariance covers its distance from the joint fit (measured before the
+    // widening, and reported as such).
+    let mut rate = fit.rate;
+    let covariance_scale = match (&mut rate, joint_fit.and_then(RateSolution::fit)) {
+        (RateSolution::Determined(kept), Some(joint)) if config.widen_to_joint => {
+            Some(stage3::widen_to_joint(kept, joint, &config.observability))
+        }
+        _ => None,
+    };
     Ok(RateFits {
-        rate: fit.rate,
+        rate,
+        covariance_scale,
         band_index,
         set_aside,
         fitted_frames: fit.fitted_frames,
@@ -363,4 +373,8 @@ pub struct RateFits {
     /// Beyond the gate with `rate` kept, the band has no minimum near the joint solution, and
     /// its own covariance does not cover the difference.
     pub joint_disagreement_sigma: Option<f64>,
+    /// The factor `rate`'s covariance was widened by to cover its distance from the joint
+    /// solution ([`Stage3Config::widen_to_joint`]; 1 when the two agree within their errors);
+    /// `None` without a determined joint solution or with the widening off.
+    pub covariance_scale: Option<f64>,
 }

@@ -41,6 +41,8 @@ pub struct Session {
     pub set_aside: Vec<usize>,
     /// The rate's distance from the joint solution in σ (see `fit_rates`).
     pub joint_disagreement_sigma: Option<f64>,
+    /// The factor the rate's covariance was widened by (see `fit_rates`).
+    pub covariance_scale: Option<f64>,
 }
 
 pub enum StageOutcome {
@@ -76,6 +78,7 @@ impl Session {
             rate_band: 0,
             set_aside: Vec::new(),
             joint_disagreement_sigma: None,
+            covariance_scale: None,
         }
     }
 
@@ -143,6 +146,7 @@ impl Session {
         self.rate_band = fits.band_index;
         self.set_aside = fits.set_aside;
         self.joint_disagreement_sigma = fits.joint_disagreement_sigma;
+        self.covariance_scale = fits.covariance_scale;
         Ok(StageOutcome::Done)
     }
 }

@@ -34,7 +34,7 @@ use crate::observability::{
 use serde::{Deserialize, Serialize};
 
 mod weak;
-pub use weak::{disagreement_sigma, distance, mirror, WeakPrior};
+pub use weak::{disagreement, disagreement_sigma, distance, mirror, widen_to_joint, WeakPrior};
 pub(crate) use weak::{keep_sense, sense_from};
 
 /// Multi-start settings.
@@ -103,6 +103,10 @@ pub struct Stage3Config {
     /// another minimum; stage 3 sets the band aside and fits the next in stage 2's ranking
     /// (`None` or ∞: never).
     pub joint_gate_sigma: Option<f64>,
+    /// With the joint fit: widen the covariance of the rate kept at λ* (or the band that
+    /// replaced it) by the Birge ratio of its distance from the joint solution, so that it
+    /// covers that distance ([`widen_to_joint`]). `false`: the band's own covariance.
+    pub widen_to_joint: bool,
 }
 
 impl Default for Stage3Config {
@@ -115,6 +119,7 @@ impl Default for Stage3Config {
             weak_prior: WeakPrior::default(),
             max_rotation_deg: Some(DEFAULT_MAX_ROTATION_DEG),
             joint_gate_sigma: Some(DEFAULT_JOINT_GATE_SIGMA),
+            widen_to_joint: true,
         }
     }
 }

@@ -319,3 +319,48 @@ fn stage_one_pools_neighbouring_bands_only_for_the_single_band_fit_and_only_with
     let ratio = (with / without).sqrt();
     assert!(ratio < 0.85, "pooled/alone rebuild error {ratio}");
 }
+
+/// The kept rate's covariance is its own times the Birge ratio max(1, d²/k) of its distance
+/// from the joint fit (`stage3.widen_to_joint`): checked against the same solve with the
+/// widening off, on noisy seeds (SNR 2) where the two fits agree (seeds 1–5) and where they do
+/// not (seed 6, d² ≈ 1900).
+#[test]
+fn kept_rate_covariance_is_widened_by_the_birge_ratio_of_the_joint_fit() {
+    let on = InversionConfig {
+        joint_fit: true,
+        ..InversionConfig::default()
+    };
+    let mut off = on.clone();
+    off.stage3.widen_to_joint = false;
+    let mut widened = 0;
+    for seed in 1..=6 {
+        let (_, noisy) = fine_bands(2.0, seed);
+        let a = solve_three_stage(&noisy, &on).expect("widened");
+        let b = solve_three_stage(&noisy, &off).expect("own");
+        let (fa, fb) = (a.rate.fit().expect("rate"), b.rate.fit().expect("rate"));
+        let joint = b.joint_rate.as_ref().and_then(|j| j.fit()).expect("joint");
+        assert_eq!(fa.rate_deg_per_frame, fb.rate_deg_per_frame);
+        assert!(b.rate_covariance_scale.is_none());
+        let (d2, k) = glint_inversion::stage3::disagreement(fb, joint, &on.stage3.observability);
+        let want = (d2 / k as f64).max(1.0);
+        let scale = a.rate_covariance_scale.expect("scale");
+        assert!(
+            (scale - want).abs() <= 1e-12 * want,
+            "seed {seed}: {scale} vs {want}"
+        );
+        for i in 0..3 {
+            for j in 0..3 {
+                let (ca, cb) = (
+                    fa.covariance_deg2_per_frame2[i][j],
+                    fb.covariance_deg2_per_frame2[i][j],
+                );
+                assert!(
+                    (ca - scale * cb).abs() <= 1e-12 * (scale * cb).abs(),
+                    "{ca} vs {cb}"
+                );
+            }
+        }
+        widened += usize::from(scale > 1.0);
+    }
+    assert!((1..6).contains(&widened), "widened in {widened} of 6 seeds");
+}

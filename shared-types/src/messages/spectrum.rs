@@ -269,6 +269,9 @@ pub struct SolveResponse {
     /// Stage 3: the rate's distance from the joint solution in standard deviations (the two
     /// covariances summed, over the directions both determine); NaN without both.
     pub stage3_joint_disagreement_sigma: f64,
+    /// Stage 3: the factor `p_covariance` was widened by to cover the rate's distance from the
+    /// joint solution (1: they agree within their errors); NaN without both.
+    pub stage3_covariance_scale: f64,
 }
 
 impl Default for SolveResponse {
@@ -312,6 +315,7 @@ impl Default for SolveResponse {
             stage1_spectral_window_nm: 0.0,
             stage1_spectral_bias_to_noise: f64::NAN,
             stage3_joint_disagreement_sigma: f64::NAN,
+            stage3_covariance_scale: f64::NAN,
         }
     }
 }

@@ -35,20 +35,49 @@ pub fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
 /// summing the covariances makes the test lenient: it is meant to catch another minimum,
 /// not a bias.
 pub fn disagreement_sigma(a: &RateFit, b: &RateFit, config: &ObservabilityConfig) -> f64 {
+    disagreement(a, b, config).0.sqrt()
+}
+
+/// [`disagreement_sigma`] squared, d², and the number k of directions it is taken over
+/// (`(NaN, 0)` when a covariance is not finite).
+pub fn disagreement(a: &RateFit, b: &RateFit, config: &ObservabilityConfig) -> (f64, usize) {
     let ca = Matrix3::from(a.covariance_deg2_per_frame2);
     let cb = Matrix3::from(b.covariance_deg2_per_frame2);
     let sum = ca + cb;
     if !sum.iter().all(|v| v.is_finite()) {
-        return f64::NAN;
+        return (f64::NAN, 0);
     }
     let d = Vector3::from(a.rate_deg_per_frame) - Vector3::from(b.rate_deg_per_frame);
     let eig = sum.symmetric_eigen();
     let bound = config.unobservable_bound_deg_per_frame;
-    let d2: f64 = (0..3)
+    let determined: Vec<usize> = (0..3)
         .filter(|&k| eig.eigenvalues[k] > 0.0 && eig.eigenvalues[k].sqrt() <= bound)
-        .map(|k| d.dot(&eig.eigenvectors.column(k)).powi(2) / eig.eigenvalues[k])
+        .collect();
+    let d2 = determined
+        .iter()
+        .map(|&k| d.dot(&eig.eigenvectors.column(k)).powi(2) / eig.eigenvalues[k])
         .sum();
-    d2.sqrt()
+    (d2, determined.len())
+}
+
+/// Widens `fit`'s covariance so that it covers its distance from `joint`, the fit of the same
+/// rate on every band: by the Birge ratio s² = max(1, d²/k) of the two fits
+/// ([`disagreement`]), as [`crate::observability::CovarianceSource::GivenSigmaScaled`] does
+/// for residuals that reject the model. Two fits that agree within their errors keep their
+/// covariance (s² = 1); a band whose own mismatch or stage-1 noise moves its answer further
+/// than its covariance says gets error bars that cover the move. Returns s².
+pub fn widen_to_joint(fit: &mut RateFit, joint: &RateFit, config: &ObservabilityConfig) -> f64 {
+    let (d2, k) = disagreement(fit, joint, config);
+    if k == 0 || !d2.is_finite() || d2 <= k as f64 {
+        return 1.0;
+    }
+    let scale = d2 / k as f64;
+    for row in &mut fit.covariance_deg2_per_frame2 {
+        for v in row.iter_mut() {
+            *v *= scale;
+        }
+    }
+    scale
 }
 
 /// The stated prior under which stage 3 holds a direction the data cannot determine.
@@ -371,6 +400,33 @@ mod tests {
         };
         f.covariance_deg2_per_frame2 = cov;
         f
+    }
+
+    #[test]
+    fn widening_covers_the_distance_from_the_joint_fit_and_only_beyond_its_errors() {
+        let config = ObservabilityConfig::default();
+        // X held (1σ 3 ≫ 0.25): Y and Z are the k = 2 directions compared.
+        let cov = [[9.0, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 1e-6]];
+        let joint = with_covariance(
+            [0.0, 0.25, 0.0],
+            [[0.0; 3], [0.0, 1e-8, 0.0], [0.0, 0.0, 1e-8]],
+        );
+        // 0.001 along Y and Z: d² = 2e-6 / 1.01e-6 < k, kept as it is.
+        let mut near = with_covariance([0.0, 0.251, 0.001], cov);
+        assert_eq!(widen_to_joint(&mut near, &joint, &config), 1.0);
+        assert_eq!(near.covariance_deg2_per_frame2, cov);
+        // 0.004 along Z: d² = 16e-6 / 1.01e-6 = 15.84, widened by d²/k = 7.92 …
+        let mut far = with_covariance([0.0, 0.25, 0.004], cov);
+        let scale = widen_to_joint(&mut far, &joint, &config);
+        let want = 16e-6 / 1.01e-6 / 2.0;
+        assert!((scale - want).abs() < 1e-9 * want, "{scale} vs {want}");
+        assert_eq!(far.covariance_deg2_per_frame2[2][2], 1e-6 * scale);
+        assert_eq!(far.covariance_deg2_per_frame2[0][0], 9.0 * scale);
+        // … after which its covariance covers the distance: d² ≈ k (the joint fit's own 1 %
+        // of the sum leaves it 16 / (7.92 + 0.01) = 2.017).
+        let (d2, k) = disagreement(&far, &joint, &config);
+        assert_eq!(k, 2);
+        assert!((d2 - 2.0).abs() < 0.03, "{d2}");
     }
 
     #[test]
