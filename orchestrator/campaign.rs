@@ -110,6 +110,9 @@ pub fn run(
     };
     std::fs::write(dir.join("summary.md"), text)?;
     plot(&dir, &camp.parameter, &rows)?;
+    if camp.seeds > 1 {
+        crate::campaign_mc_summary::plot_honesty(&dir, &camp.parameter, &rows)?;
+    }
     Ok((dir, all_ok))
 }
 

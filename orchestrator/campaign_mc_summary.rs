@@ -2,13 +2,16 @@
 //! efficiency and honesty table (see [`crate::campaign_mc`] for the statistics).
 
 use std::fmt::Write as _;
+use std::path::Path;
 
+use anyhow::Result;
 use serde_json::Value;
 use shared_types::scenario::NoiseWindows;
 use shared_types::Scenario;
 
 use crate::campaign::fmt;
 use crate::campaign_mc::vec3;
+use crate::plots::{line_chart, Series, BLUE, GREEN, ORANGE, RED};
 
 /// "k at [w_x, w_y, w_z] (Δ = …)" for the copy column, "—" without a copy.
 fn copy_cell(e: &Value) -> String {
@@ -97,5 +100,72 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
         }
     }
     s.push_str("\n![error against the parameter](campaign.svg)\n");
+    s.push_str("\n![NEES against its 95 % interval](campaign-nees.svg)\n");
+    s.push_str("\n![efficiency against the target](campaign-efficiency.svg)\n");
     s
+}
+
+/// `campaign-nees.svg` and `campaign-efficiency.svg`: each fit's NEES mean beside the joint
+/// fit's 95 % interval, and its RMS / CRB beside the 1.25 target, against the parameter, on
+/// log10 axes (the values span 0.1 to 10⁴). Nothing is drawn for a non-numeric parameter.
+pub fn plot_honesty(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
+    let x: Vec<Option<f64>> = rows
+        .iter()
+        .map(|r| r["value"].as_str().and_then(|v| v.parse().ok()))
+        .collect();
+    if x.iter().any(Option::is_none) {
+        return Ok(());
+    }
+    let series = |fit: &str, key: &str, index: Option<usize>| -> Vec<(f64, f64)> {
+        rows.iter()
+            .zip(&x)
+            .filter_map(|(r, x)| {
+                let v = &r["monte_carlo"][fit][key];
+                let v = match index {
+                    Some(i) => v[i].as_f64(),
+                    None => v.as_f64(),
+                }?;
+                let x = (*x)?;
+                (v > 0.0).then(|| (x, v.log10()))
+            })
+            .collect()
+    };
+    let line = |label, points, color| Series {
+        label,
+        points,
+        color,
+        markers: false,
+    };
+    line_chart(
+        &dir.join("campaign-nees.svg"),
+        &format!("Honesty against {parameter}: mean NEES over the runs (log10)"),
+        parameter,
+        "log10 NEES mean",
+        &[
+            line("λ*", series("single", "nees_mean", None), BLUE),
+            line("joint", series("joint", "nees_mean", None), GREEN),
+            line(
+                "joint's 95 % interval, low",
+                series("joint", "nees_bounds_95", Some(0)),
+                RED,
+            ),
+            line(
+                "joint's 95 % interval, high",
+                series("joint", "nees_bounds_95", Some(1)),
+                RED,
+            ),
+        ],
+    )?;
+    let target: Vec<(f64, f64)> = x.iter().flatten().map(|&v| (v, 1.25f64.log10())).collect();
+    line_chart(
+        &dir.join("campaign-efficiency.svg"),
+        &format!("Efficiency against {parameter}: RMS about p₀ / CRB (log10)"),
+        parameter,
+        "log10 (RMS / CRB)",
+        &[
+            line("λ*", series("single", "efficiency", None), BLUE),
+            line("joint", series("joint", "efficiency", None), GREEN),
+            line("target 1.25", target, ORANGE),
+        ],
+    )
 }

@@ -295,6 +295,15 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
         .sqrt();
     assert!((1e-3..1e-2).contains(&gap), "{joint}");
     assert!(joint["copy_divergence"].as_f64().unwrap() < 1.0, "{joint}");
+    // The honesty and efficiency pictures beside the table.
+    let summary = std::fs::read_to_string(root.join("summary.md")).unwrap();
+    for (svg, text) in [
+        ("campaign-nees.svg", "log10 NEES mean"),
+        ("campaign-efficiency.svg", "target 1.25"),
+    ] {
+        let drawn = std::fs::read_to_string(root.join(svg)).expect(svg);
+        assert!(drawn.contains(text) && summary.contains(svg), "{svg}");
+    }
     // Re-scoring reads the deployments' reports instead of deploying again: the same rows.
     std::fs::remove_file(root.join("campaign.json")).unwrap();
     assert_success(&rescore(&file, &root));
