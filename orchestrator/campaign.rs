@@ -188,18 +188,21 @@ fn summary(scenario: &Scenario, parameter: &str, rows: &[Value]) -> String {
     s
 }
 
-fn plot(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
-    let x: Vec<Option<f64>> = rows
-        .iter()
+/// The swept parameter's value of every row, when all are numeric (a chart's x axis).
+pub(crate) fn numeric_values(rows: &[Value]) -> Option<Vec<f64>> {
+    rows.iter()
         .map(|r| r["value"].as_str().and_then(|v| v.parse().ok()))
-        .collect();
-    if x.iter().any(|v| v.is_none()) {
+        .collect()
+}
+
+fn plot(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
+    let Some(x) = numeric_values(rows) else {
         return Ok(());
-    }
+    };
     let series = |key: &str| -> Vec<(f64, f64)> {
         rows.iter()
             .zip(&x)
-            .filter_map(|(r, x)| Some(((*x)?, num(&r[key])?)))
+            .filter_map(|(r, &x)| Some((x, num(&r[key])?)))
             .collect()
     };
     line_chart(

@@ -109,23 +109,18 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
 /// fit's 95 % interval, and its RMS / CRB beside the 1.25 target, against the parameter, on
 /// log10 axes (the values span 0.1 to 10⁴). Nothing is drawn for a non-numeric parameter.
 pub fn plot_honesty(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
-    let x: Vec<Option<f64>> = rows
-        .iter()
-        .map(|r| r["value"].as_str().and_then(|v| v.parse().ok()))
-        .collect();
-    if x.iter().any(Option::is_none) {
+    let Some(x) = crate::campaign::numeric_values(rows) else {
         return Ok(());
-    }
+    };
     let series = |fit: &str, key: &str, index: Option<usize>| -> Vec<(f64, f64)> {
         rows.iter()
             .zip(&x)
-            .filter_map(|(r, x)| {
+            .filter_map(|(r, &x)| {
                 let v = &r["monte_carlo"][fit][key];
                 let v = match index {
                     Some(i) => v[i].as_f64(),
                     None => v.as_f64(),
                 }?;
-                let x = (*x)?;
                 (v > 0.0).then(|| (x, v.log10()))
             })
             .collect()
@@ -156,7 +151,7 @@ pub fn plot_honesty(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
             ),
         ],
     )?;
-    let target: Vec<(f64, f64)> = x.iter().flatten().map(|&v| (v, 1.25f64.log10())).collect();
+    let target: Vec<(f64, f64)> = x.iter().map(|&v| (v, 1.25f64.log10())).collect();
     line_chart(
         &dir.join("campaign-efficiency.svg"),
         &format!("Efficiency against {parameter}: RMS about p₀ / CRB (log10)"),
