@@ -219,8 +219,13 @@ impl Reference {
         let mut motion = file.set.motion.clone();
         motion.sort_by_key(|o| o.frame_index);
         let n_bands = file.set.wavelengths_nm.len();
-        let model = MotionModelConfig {
-            epoch_frame: motion.first().map(|o| o.frame_index),
+        let epoch_frame = motion.first().map(|o| o.frame_index);
+        // The bound of the model each fit ends with (with the polish's re-fitted terms).
+        let model_for = |bands: usize| MotionModelConfig {
+            epoch_frame,
+            refit_diffuse: config.model.refit_diffuse || config.stage3.refit_diffuse,
+            refit_widest_lobe: config.stage3.refit_diffuse
+                && config.stage3.refit_widest_lobe.applies(bands),
             ..config.model.clone()
         };
         // The coefficients each fit used, with their covariance from the stable window's σ
@@ -247,7 +252,7 @@ impl Reference {
                         .flatten()
                 })
                 .collect();
-            let problem = RateProblem::new(&frames, &rate_bands, &model)?
+            let problem = RateProblem::new(&frames, &rate_bands, &model_for(bands.len()))?
                 .with_coefficient_covariance(covariance);
             crb(&problem, p0)
         };

@@ -71,8 +71,11 @@ pub fn plots(dir: &Path) -> Result<bool> {
     motion.sort_by_key(|o| o.frame_index);
     motion.truncate(result.fitted_frames);
     let epoch = motion.first().map_or(0, |o| o.frame_index);
+    // The model the fit ended with: with the polish's re-fitted terms, if it was polished.
     let model = MotionModelConfig {
         epoch_frame: Some(epoch),
+        refit_diffuse: config.model.refit_diffuse || fit.refit.is_some(),
+        refit_widest_lobe: fit.refit.is_some_and(|r| r.widest_lobe),
         ..config.model.clone()
     };
     // The coefficients stage 3 used there (the spectrally pooled ones when stage 1 pooled).
@@ -108,7 +111,7 @@ pub fn plots(dir: &Path) -> Result<bool> {
         ),
         "frame after the motion start",
         observed,
-        ("two-facet model at p̂", modelled),
+        (if fit.refit.is_some() { "two-facet model at p̂, diffuse terms re-fitted" } else { "two-facet model at p̂" }, modelled),
     )?;
     line_chart(
         &dir.join("stage3-residuals.svg"),

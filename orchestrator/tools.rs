@@ -171,6 +171,14 @@ pub fn invert(
                     text += &format!(", error {e:.3} (100·|Δp|)");
                     j[format!("{}_err_paper_metric", label.replace(' ', ""))] = json!(e);
                 }
+                if let Some(refit) = fit.refit {
+                    let e = refit.held_direction;
+                    text += &format!(
+                        "; polished with each band's diffuse terms{} re-fitted, [{}, {}, {}]·p held at 0",
+                        if refit.widest_lobe { " and widest lobe" } else { "" },
+                        e[0], e[1], e[2]
+                    );
+                }
                 text += "\n";
             }
             None => {

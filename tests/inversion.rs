@@ -280,21 +280,30 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
         .map(|k| e[k].as_f64().unwrap());
         assert!(hcr >= 0.95 * crb, "{e}");
     }
-    // A Y rotation is nearly its own mirror: the joint fit's p₀ has a copy a few 10⁻³ deg/frame
-    // away that fits its light curve within one noise variance.
+    // The two-facet body leaves no mismatch for the polish's re-fitted diffuse terms: the
+    // joint p₀ is the true rate, which is its own mirror (−w_x, w_y, −w_z). The near-mirror
+    // then shows as a Hammersley–Chapman–Robbins bound far above the CRB along the direction
+    // nearest Z (a rate that far off fits nearly as well), not as a separate copy.
     let joint = &mc["joint"];
     let p0: Vec<f64> = (0..3)
         .map(|i| joint["p0_deg_per_frame"][i].as_f64().unwrap())
         .collect();
-    let copy: Vec<f64> = (0..3)
-        .map(|i| joint["copy_deg_per_frame"][i].as_f64().expect("copy"))
-        .collect();
-    let gap = (0..3)
-        .map(|i| (copy[i] - p0[i]).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    assert!((1e-3..1e-2).contains(&gap), "{joint}");
-    assert!(joint["copy_divergence"].as_f64().unwrap() < 1.0, "{joint}");
+    let truth = [0.0, 0.25, 0.0];
+    assert!((0..3).all(|i| (p0[i] - truth[i]).abs() < 1e-6), "{joint}");
+    assert!(joint["copy_deg_per_frame"].is_null(), "{joint}");
+    let along_z = joint["directions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|d| d["observable"] == true)
+        .max_by(|a, b| {
+            let z = |d: &serde_json::Value| d["direction"][2].as_f64().unwrap().abs();
+            z(a).total_cmp(&z(b))
+        })
+        .expect("an observable direction");
+    let [crb, hcr] = ["crb_1sigma_deg_per_frame", "hcr_1sigma_deg_per_frame"]
+        .map(|k| along_z[k].as_f64().unwrap());
+    assert!(hcr > 10.0 * crb, "{joint}");
     // The honesty and efficiency pictures beside the table.
     let summary = std::fs::read_to_string(root.join("summary.md")).unwrap();
     for (svg, text) in [

@@ -47,7 +47,7 @@ pub use rates::{fit_band, fit_joint, fit_rates, fit_within_horizon, BandFit, Rat
 pub use rotation::AttitudeModel;
 pub use stage1::{BasisChoice, SpectralPooling, Stage1Band, Stage1Config, Stage1Output};
 pub use stage2::{BandSelection, Stage2Config, Stage2Result};
-pub use stage3::{RateFit, RateSolution, Stage3Config, WeakPrior};
+pub use stage3::{LobeRefit, RateFit, RateSolution, Refit, Stage3Config, WeakPrior};
 
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};

@@ -58,9 +58,13 @@ pub struct MotionModelConfig {
     /// Eq (17) convention.
     pub attitude: AttitudeModel,
     /// Re-estimate the diffuse coefficients of both facets and a constant remainder per band
-    /// in stage 3 (variable projection, [`crate::nuisance`]; beyond the paper). `false`
-    /// (default) is the paper's model: every coefficient from stage 1.
+    /// at every p (variable projection, [`crate::nuisance`]; beyond the paper), with the
+    /// sun–observer bisector held at the stated prior. `false` (default) is the paper's model:
+    /// every coefficient from stage 1. The solve searches with this model and polishes with
+    /// the re-fit ([`crate::stage3::Stage3Config::refit_diffuse`]).
     pub refit_diffuse: bool,
+    /// With `refit_diffuse`: also re-estimate each facet's widest lobe in use.
+    pub refit_widest_lobe: bool,
     /// Frame index with t = 0 (all angles 0); `None` = the smallest motion frame index.
     pub epoch_frame: Option<u64>,
 }
@@ -72,6 +76,7 @@ impl Default for MotionModelConfig {
             panel_normal: PanelNormalMode::Literal,
             attitude: AttitudeModel::Verbatim,
             refit_diffuse: false,
+            refit_widest_lobe: false,
             epoch_frame: None,
         }
     }
@@ -117,6 +122,8 @@ pub struct RateProblem {
     active: [[bool; TERMS]; 2],
     sigma_given: bool,
     refit_diffuse: bool,
+    /// Per facet: the lobe re-fitted with the diffuse terms (0: none).
+    refit_lobes: [usize; 2],
     /// Per band: Cov(x̃) of the stage-1 coefficients, normalised like `x` (22 × 22), if known.
     coeff_cov: Vec<Option<Vec<f64>>>,
 }
@@ -237,12 +244,24 @@ impl RateProblem {
                 mean_flux_w: mean,
             });
         }
+        let mut refit_lobes = [0usize; 2];
         if config.refit_diffuse {
             // The nuisance columns need the diffuse basis of both facets.
             active[0][0] = true;
             active[1][0] = true;
+            if config.refit_widest_lobe {
+                for f in 0..2 {
+                    if let Some(k) = (1..TERMS).rev().find(|&k| active[f][k]) {
+                        refit_lobes[f] = k;
+                        for band in &mut data {
+                            band.x[f][k] = 0.0;
+                        }
+                    }
+                }
+            }
         }
         Ok(Self {
+            refit_lobes,
             frames,
             bands: data,
             wavelengths_nm: bands.iter().map(|b| b.wavelength_nm).collect(),
@@ -293,6 +312,28 @@ impl RateProblem {
     /// Whether residuals are whitened by the observations' σ.
     pub fn sigma_given(&self) -> bool {
         self.sigma_given
+    }
+
+    /// Whether the diffuse terms are re-estimated at every p ([`MotionModelConfig::refit_diffuse`]).
+    pub fn refits_diffuse(&self) -> bool {
+        self.refit_diffuse
+    }
+
+    /// Whether each facet's widest lobe is re-estimated too ([`MotionModelConfig::refit_widest_lobe`]).
+    pub fn refits_widest_lobe(&self) -> bool {
+        self.refit_lobes.iter().any(|&k| k > 0)
+    }
+
+    /// The sun–observer bisector in the body frame at the epoch (unit; the earliest frame's
+    /// `normalize(s + o)`): the axis a rotation about which only the diffuse terms see.
+    pub fn bisector_at_epoch(&self) -> [f64; 3] {
+        let first = self
+            .frames
+            .iter()
+            .min_by(|a, b| a.t_frames.total_cmp(&b.t_frames))
+            .expect("a problem has frames");
+        let h = (first.s + first.o).normalize();
+        [h.x, h.y, h.z]
     }
 
     fn facets(&self, frame: &Frame, s: Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
@@ -369,6 +410,12 @@ impl RateProblem {
         self.residuals_with_nuisance(p, r).0
     }
 
+    /// The nuisance coefficients per band at p in the problem's units (zeros without the re-fit).
+    fn nuisance_fit(&self, p: [f64; 3]) -> Vec<[f64; NUISANCE]> {
+        let mut scratch = vec![0.0; self.residual_count()];
+        self.residuals_with_nuisance(p, &mut scratch).1
+    }
+
     /// Residuals, cost and the nuisance coefficients per band (zeros without the re-fit).
     fn residuals_with_nuisance(&self, p: [f64; 3], r: &mut [f64]) -> (f64, Vec<[f64; NUISANCE]>) {
         let nb = self.bands.len();
@@ -382,7 +429,8 @@ impl RateProblem {
                 let m = frame.inv_range2 * dot22(&band.x, &g);
                 r[t * nb + b] = band.w[t] * (band.y[t] - m);
                 if let Some(rows) = rows.get_mut(b) {
-                    rows[t].a = nuisance_columns(band.w[t] * frame.inv_range2, &g);
+                    rows[t].a =
+                        nuisance_columns(band.w[t] * frame.inv_range2, &g, self.refit_lobes);
                 }
             }
         }
@@ -428,7 +476,10 @@ impl RateProblem {
             for (band, normal) in self.bands.iter().zip(normals.iter_mut()) {
                 let res = band.w[t] * (band.y[t] - frame.inv_range2 * dot22(&band.x, &g));
                 if self.refit_diffuse {
-                    normal.add(&nuisance_columns(band.w[t] * frame.inv_range2, &g), res);
+                    normal.add(
+                        &nuisance_columns(band.w[t] * frame.inv_range2, &g, self.refit_lobes),
+                        res,
+                    );
                 } else {
                     cost += res * res;
                 }
@@ -472,11 +523,13 @@ impl RateProblem {
                 jac[t * nb + b] = [wk * dm[0], wk * dm[1], wk * dm[2]];
                 if let Some(rows) = rows.get_mut(b) {
                     rows[t] = Row {
-                        a: nuisance_columns(wk, &g),
+                        a: nuisance_columns(wk, &g, self.refit_lobes),
                         da: [
                             slopes[0].d_diffuse.map(|d| wk * d),
                             slopes[1].d_diffuse.map(|d| wk * d),
                             [0.0; 3],
+                            lobe_slope_of(&slopes[0], self.refit_lobes[0], wk),
+                            lobe_slope_of(&slopes[1], self.refit_lobes[1], wk),
                         ],
                     };
                 }
@@ -497,7 +550,7 @@ impl RateProblem {
             let rot = self.attitude.matrix_from_trig(&trig.at(frame.t_frames));
             self.basis(frame, &rot, &mut g);
             for ((band, series), c) in self.bands.iter().zip(out.iter_mut()).zip(&c) {
-                let a = nuisance_columns(frame.inv_range2, &g);
+                let a = nuisance_columns(frame.inv_range2, &g, self.refit_lobes);
                 let nuisance: f64 = (0..NUISANCE).map(|i| a[i] * c[i]).sum();
                 let m = frame.inv_range2 * dot22(&band.x, &g) + nuisance;
                 series.push(m * band.mean_flux_w);
@@ -518,9 +571,25 @@ impl RateProblem {
     }
 }
 
-/// The nuisance column row `scale·[G_0(panel), G_0(body), 1]`.
-fn nuisance_columns(scale: f64, g: &Basis) -> [f64; NUISANCE] {
-    [scale * g[0][0], scale * g[1][0], scale]
+/// The nuisance column row `scale·[G_0(panel), G_0(body), 1, G_k(panel), G_k(body)]`, k the
+/// re-fitted lobe of each facet (a zero column when none).
+fn nuisance_columns(scale: f64, g: &Basis, lobes: [usize; 2]) -> [f64; NUISANCE] {
+    let lobe = |f: usize| {
+        if lobes[f] > 0 {
+            scale * g[f][lobes[f]]
+        } else {
+            0.0
+        }
+    };
+    [scale * g[0][0], scale * g[1][0], scale, lobe(0), lobe(1)]
+}
+
+/// ∂(scale·G_k)/∂p of facet slopes `sl` for lobe k (zeros when k = 0).
+fn lobe_slope_of(sl: &FacetSlopes, k: usize, scale: f64) -> [f64; 3] {
+    if k == 0 {
+        return [0.0; 3];
+    }
+    sl.dc.map(|dc| scale * sl.lobe[k - 1] * dc)
 }
 
 fn dot22(x: &Basis, g: &Basis) -> f64 {

@@ -27,7 +27,7 @@
 //! equilibrated and solved with a ridge of 1e-12.
 
 /// Nuisance columns per band.
-pub const NUISANCE: usize = 3;
+pub const NUISANCE: usize = 5;
 
 /// Per-band sums `AᵀA`, `Aᵀr⁰`, `r⁰ᵀr⁰` for the cost-only path.
 #[derive(Debug, Clone, Copy, Default)]
@@ -107,7 +107,7 @@ pub fn solve_ridge(m: &[[f64; NUISANCE]; NUISANCE], b: &[f64; NUISANCE]) -> [f64
         let s: f64 = (col + 1..NUISANCE).map(|k| a[col][k] * x[k]).sum();
         x[col] = (x[col] - s) / a[col][col];
     }
-    [0, 1, 2].map(|i| d[i] * x[i])
+    std::array::from_fn(|i| d[i] * x[i])
 }
 
 /// Ridge on the equilibrated normal matrix (unit diagonal).
@@ -155,7 +155,7 @@ pub fn project_band(
     }
     let mut coef = [[0.0; 3]; NUISANCE]; // (AᵀA)⁻¹ (AᵀJ − ∂Aᵀr), column by column
     for i in 0..3 {
-        let x = solve_ridge(&normal.ata, &[atj[0][i], atj[1][i], atj[2][i]]);
+        let x = solve_ridge(&normal.ata, &std::array::from_fn(|m| atj[m][i]));
         for m in 0..NUISANCE {
             coef[m][i] = x[m];
         }
@@ -175,15 +175,19 @@ mod tests {
 
     #[test]
     fn ridge_solve_matches_a_known_system() {
-        let m = [[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]];
-        let x_true = [1.0, -2.0, 0.5];
-        let b = [
-            4.0 * 1.0 + 1.0 * -2.0,
-            1.0 + 3.0 * -2.0 + 0.5,
-            -2.0 + 2.0 * 0.5,
-        ];
+        // Tridiagonal, diagonally dominant: b = M x for a known x.
+        let m: [[f64; NUISANCE]; NUISANCE] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| match i.abs_diff(j) {
+                0 => 4.0 + i as f64,
+                1 => 1.0,
+                _ => 0.0,
+            })
+        });
+        let x_true: [f64; NUISANCE] = std::array::from_fn(|i| [1.0, -2.0, 0.5, 3.0, -0.25][i]);
+        let b: [f64; NUISANCE] =
+            std::array::from_fn(|i| (0..NUISANCE).map(|j| m[i][j] * x_true[j]).sum());
         let x = solve_ridge(&m, &b);
-        for i in 0..3 {
+        for i in 0..NUISANCE {
             assert!((x[i] - x_true[i]).abs() < 1e-9, "{x:?}");
         }
     }
@@ -202,18 +206,23 @@ mod tests {
             (state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
         };
         let mut gen = |n: usize| (0..n).map(|_| rnd()).collect::<Vec<f64>>();
-        let (a0, a1, y, g, h) = (gen(T * 3), gen(T * 9), gen(T), gen(T * 3), gen(T * 3));
+        let (a0, a1, y, g, h) = (
+            gen(T * NUISANCE),
+            gen(T * NUISANCE * 3),
+            gen(T),
+            gen(T * 3),
+            gen(T * 3),
+        );
         let eval = |p: [f64; 3], with_jac: bool| {
             let mut rows = vec![Row::default(); T];
             let mut r = vec![0.0; T];
             let mut jac = vec![[0.0; 3]; T];
             for t in 0..T {
                 for m in 0..NUISANCE {
+                    let k = (t * NUISANCE + m) * 3;
                     rows[t].a[m] =
-                        a0[t * 3 + m] + (0..3).map(|i| p[i] * a1[t * 9 + m * 3 + i]).sum::<f64>();
-                    for i in 0..3 {
-                        rows[t].da[m][i] = a1[t * 9 + m * 3 + i];
-                    }
+                        a0[t * NUISANCE + m] + (0..3).map(|i| p[i] * a1[k + i]).sum::<f64>();
+                    rows[t].da[m].copy_from_slice(&a1[k..k + 3]);
                 }
                 r[t] = y[t]
                     - (0..3)
@@ -249,7 +258,7 @@ mod tests {
     fn zero_column_gets_zero_coefficient() {
         let mut n = Normal::default();
         for t in 0..10 {
-            let a = [t as f64, 0.0, 1.0];
+            let a = [t as f64, 0.0, 1.0, 0.0, 0.0];
             n.add(&a, 2.0 * t as f64 + 3.0);
         }
         let c = n.coefficients();

@@ -7,6 +7,9 @@ use crate::observation::Observation;
 use crate::stage1::Stage1Band;
 use crate::stage3::{self, RateFit, RateSolution, Stage3Config};
 
+mod horizon;
+use horizon::{horizon_frames, speed, FitSetup};
+
 /// Stage 3 at the first band of stage 2's `ranking` (λ*) and, with `joint`, one p for all
 /// bands, each over its fit horizon. A λ* solution the joint fit rejects ([`fit_band`]) is set
 /// aside for the next band of the ranking the joint fit accepts. The joint fit uses every
@@ -113,28 +116,31 @@ pub fn fit_band(
     joint: Option<&RateSolution>,
 ) -> Result<BandFit, InversionError> {
     let covariance = vec![stage1[b].coeff_covariance.clone()];
-    let (rate, problem) = horizon_fit(
-        motion,
-        &[rate_band(stage1, b)],
-        &covariance,
-        None,
-        model,
-        config,
-    )?;
+    let bands = [rate_band(stage1, b)];
+    let setup = FitSetup::new(motion, &bands, &covariance, None, model);
+    let (mut rate, mut problem) = horizon::search(&setup, config)?;
+    let joint = joint.zip(joint.and_then(RateSolution::fit));
+    // The sense is decided on the stage-1 coefficients, before any diffuse re-fit.
+    let mut sense_from_joint = false;
+    if let Some((joint, joint_fit)) = joint {
+        if let Some(flipped) = flip_to_joint(&problem, &rate, joint, joint_fit, config) {
+            rate = RateSolution::Determined(flipped);
+            sense_from_joint = true;
+        }
+    }
+    if let Some((polished, refit_problem)) = horizon::polish_with_refit(&setup, config, &rate)? {
+        (rate, problem) = (polished, refit_problem);
+    }
     let mut out = BandFit {
         rate,
         fitted_frames: problem.frame_count(),
-        sense_from_joint: false,
+        sense_from_joint,
         rejected_by_joint: false,
         joint_disagreement_sigma: None,
     };
-    let (Some(joint), Some(joint_fit)) = (joint, joint.and_then(RateSolution::fit)) else {
+    let Some((_, joint_fit)) = joint else {
         return Ok(out);
     };
-    if let Some(flipped) = flip_to_joint(&problem, &out.rate, joint, joint_fit, config) {
-        out.rate = RateSolution::Determined(flipped);
-        out.sense_from_joint = true;
-    }
     out.joint_disagreement_sigma = out
         .rate
         .fit()
@@ -144,61 +150,17 @@ pub fn fit_band(
             // Compared on the frames both rates model: the faster one's horizon (often the
             // frames already fitted, then `problem` serves).
             let faster = speed(fit.rate_deg_per_frame).max(speed(joint_fit.rate_deg_per_frame));
-            let model = with_epoch(motion, model);
-            let frames = frames_within(motion, &model, horizon_frames(config, faster));
+            let frames = setup.frames_within(horizon_frames(config, faster));
             let common = if frames.len() == problem.frame_count() {
                 None
             } else {
-                Some(
-                    RateProblem::new(&frames, &[rate_band(stage1, b)], &model)?
-                        .with_coefficient_covariance(covariance),
-                )
+                Some(setup.problem(&frames, problem.refits_diffuse().then_some(config))?)
             };
             separate_minimum(common.as_ref().unwrap_or(&problem), fit, joint_fit, config)
         }
         _ => false,
     };
     Ok(out)
-}
-
-/// ‖p‖ \[deg/frame\].
-fn speed(p: [f64; 3]) -> f64 {
-    p.iter().map(|v| v * v).sum::<f64>().sqrt()
-}
-
-/// Frames within the fit horizon of a rate of `speed_deg_per_frame` (every frame without one).
-fn horizon_frames(config: &Stage3Config, speed_deg_per_frame: f64) -> f64 {
-    config
-        .max_rotation_deg
-        .filter(|d| d.is_finite())
-        .map_or(f64::INFINITY, |d| {
-            (d / speed_deg_per_frame.max(1e-12)).max(MIN_FIT_FRAMES)
-        })
-}
-
-/// `model` with its epoch fixed: the given one, or the first motion frame.
-fn with_epoch(motion: &[Observation], model: &MotionModelConfig) -> MotionModelConfig {
-    let epoch = model
-        .epoch_frame
-        .unwrap_or_else(|| motion.iter().map(|o| o.frame_index).min().unwrap_or(0));
-    MotionModelConfig {
-        epoch_frame: Some(epoch),
-        ..model.clone()
-    }
-}
-
-/// The motion frames at most `horizon_frames` after the epoch of `model` (see [`with_epoch`]).
-fn frames_within(
-    motion: &[Observation],
-    model: &MotionModelConfig,
-    horizon_frames: f64,
-) -> Vec<Observation> {
-    let epoch = model.epoch_frame.unwrap_or(0);
-    motion
-        .iter()
-        .filter(|o| (o.frame_index.saturating_sub(epoch) as f64) <= horizon_frames)
-        .cloned()
-        .collect()
 }
 
 /// When p̂ and its mirror fit equally well, the fit re-polished from the mirror on the joint
@@ -263,17 +225,25 @@ pub fn fit_joint(
 ) -> Result<(RateSolution, usize), InversionError> {
     let bands: Vec<RateBand> = (0..stage1.len()).map(|b| rate_band(stage1, b)).collect();
     let covs: Vec<Option<Vec<f64>>> = stage1.iter().map(|s| s.coeff_covariance.clone()).collect();
-    let (j, problem) = horizon_fit(motion, &bands, &covs, None, model, config)?;
+    let setup = FitSetup::new(motion, &bands, &covs, None, model);
+    let (j, problem) = horizon::search(&setup, config)?;
+    // The bands' mismatch is measured with the model the fit ends with.
+    let (j, problem) = horizon::polish_with_refit(&setup, config, &j)?.unwrap_or((j, problem));
     let Some(first) = j.fit().map(|f| f.rate_deg_per_frame) else {
         return Ok((j, problem.frame_count()));
     };
     let scales = problem.band_mismatch_scales(first);
-    let (reweighted, reweighted_problem) =
-        horizon_fit(motion, &bands, &covs, Some(&scales), model, config)?;
-    Ok(
+    let reweighted_setup = setup.with_band_scales(&scales);
+    let (reweighted, reweighted_problem) = horizon::search(&reweighted_setup, config)?;
+    let (searched, problem, setup) =
         match stage3::keep_sense(reweighted, &reweighted_problem, first, config) {
-            Some(j2) => (j2, reweighted_problem.frame_count()),
-            None => (j, problem.frame_count()),
+            Some(j2) => (j2, reweighted_problem, reweighted_setup),
+            None => (j, problem, setup),
+        };
+    Ok(
+        match horizon::polish_with_refit(&setup, config, &searched)? {
+            Some((polished, problem)) => (polished, problem.frame_count()),
+            None => (searched, problem.frame_count()),
         },
     )
 }
@@ -281,13 +251,14 @@ pub fn fit_joint(
 /// Multi-start fit on the frames within the fit horizon: the first window is valid for every
 /// rate in the start box (the fastest turns `max_rotation_deg` in it); it then grows to the
 /// horizon of the fastest rate fitted so far, searching again (with the previous solution as
-/// an extra start), until the fitted frames stop changing. Returns the solution and the number
-/// of frames fitted.
+/// an extra start), until the fitted frames stop changing. With
+/// [`MotionModelConfig::refit_diffuse`] the solution is then polished with the diffuse terms
+/// re-estimated, on its own horizon. Returns the solution and the number of frames fitted.
 ///
-/// The horizon never grows past that of a rate already fitted: frames beyond the model's
-/// validity pull the fit towards slower rates, a slower rate would admit more such frames, and
-/// the window would run away (the Z case at phase 20° crept from 0.21 to 0.11 deg/frame over
-/// 184 frames that way).
+/// The search's horizon never grows past that of a rate already fitted: frames beyond the
+/// model's validity pull the fit towards slower rates, a slower rate would admit more such
+/// frames, and the window would run away (the Z case at phase 20° crept from 0.21 to 0.11
+/// deg/frame over 184 frames that way).
 pub fn fit_within_horizon(
     motion: &[Observation],
     bands: &[RateBand],
@@ -295,59 +266,12 @@ pub fn fit_within_horizon(
     model: &MotionModelConfig,
     config: &Stage3Config,
 ) -> Result<(RateSolution, usize), InversionError> {
-    let (rate, problem) = horizon_fit(motion, bands, coefficient_covariance, None, model, config)?;
+    let setup = FitSetup::new(motion, bands, coefficient_covariance, None, model);
+    let (rate, problem) = horizon::search(&setup, config)?;
+    let (rate, problem) =
+        horizon::polish_with_refit(&setup, config, &rate)?.unwrap_or((rate, problem));
     Ok((rate, problem.frame_count()))
 }
-
-/// [`fit_within_horizon`], returning the problem of the frames finally fitted.
-fn horizon_fit(
-    motion: &[Observation],
-    bands: &[RateBand],
-    coefficient_covariance: &[Option<Vec<f64>>],
-    band_scales: Option<&[f64]>,
-    model: &MotionModelConfig,
-    config: &Stage3Config,
-) -> Result<(RateSolution, RateProblem), InversionError> {
-    let model = with_epoch(motion, model);
-    let build = |frames: &[Observation]| -> Result<RateProblem, InversionError> {
-        let problem = RateProblem::new(frames, bands, &model)?
-            .with_coefficient_covariance(coefficient_covariance.to_vec());
-        Ok(match band_scales {
-            Some(scales) => problem.with_band_scales(scales),
-            None => problem,
-        })
-    };
-    let within = |horizon_frames: f64| frames_within(motion, &model, horizon_frames);
-    if !config.max_rotation_deg.is_some_and(f64::is_finite) {
-        let problem = build(motion)?;
-        return Ok((stage3::fit_multistart(&problem, config)?, problem));
-    }
-    let fastest = 3f64.sqrt() * config.start.half_width_deg_per_frame;
-    let mut frames = within(horizon_frames(config, fastest));
-    let mut problem = build(&frames)?;
-    let mut rate = stage3::fit_multistart(&problem, config)?;
-    let mut fastest_fitted_deg_per_frame = 0.0f64;
-    for _ in 0..HORIZON_ROUNDS {
-        let Some(fit) = rate.fit() else { break };
-        let p = fit.rate_deg_per_frame;
-        fastest_fitted_deg_per_frame = fastest_fitted_deg_per_frame.max(speed(p));
-        let next = within(horizon_frames(config, fastest_fitted_deg_per_frame));
-        if next.len() == frames.len() {
-            break;
-        }
-        frames = next;
-        problem = build(&frames)?;
-        // A fresh global search on the longer window (it can rank the minima the short one
-        // could not), with the short window's solution as one more start.
-        rate = stage3::fit_multistart_with(&problem, config, &[p])?;
-    }
-    Ok((rate, problem))
-}
-
-/// The fit horizon never shrinks below this many frames.
-const MIN_FIT_FRAMES: f64 = 24.0;
-/// Re-fits while the horizon grows, at most.
-const HORIZON_ROUNDS: usize = 4;
 
 /// Stage-3 results and the window they were fitted on.
 #[derive(Debug, Clone, PartialEq)]

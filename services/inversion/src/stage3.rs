@@ -103,6 +103,18 @@ pub struct Stage3Config {
     /// another minimum; stage 3 sets the band aside and fits the next in stage 2's ranking
     /// (`None` or ∞: never).
     pub joint_gate_sigma: Option<f64>,
+    /// Polish the searched rate with each band's diffuse terms (panel, body) and a constant
+    /// remainder re-estimated from the motion window, the sun–observer bisector held at the
+    /// stated prior ([`crate::model::MotionModelConfig::refit_diffuse`]; default `true`, ADR
+    /// 0010). The stable window cannot tell the panel's diffuse light from the body's and the
+    /// rest's (their columns are nearly collinear there); the motion window can. The search
+    /// itself, and so the sense of rotation, stays on the stage-1 coefficients. `false`: the
+    /// paper's model throughout.
+    pub refit_diffuse: bool,
+    /// Which fits also re-estimate each facet's widest lobe in that polish: its stage-1
+    /// estimate shares the stable window's diffuse column and carries most of stage 1's noise
+    /// (default: the joint fit's, whose bands use their own unpooled stage-1 coefficients).
+    pub refit_widest_lobe: LobeRefit,
     /// With the joint fit: widen the covariance of the rate kept at λ* (or the band that
     /// replaced it) by the Birge ratio of its distance from the joint solution, so that it
     /// covers that distance ([`widen_to_joint`]). `false`: the band's own covariance.
@@ -119,7 +131,33 @@ impl Default for Stage3Config {
             weak_prior: WeakPrior::default(),
             max_rotation_deg: Some(DEFAULT_MAX_ROTATION_DEG),
             joint_gate_sigma: Some(DEFAULT_JOINT_GATE_SIGMA),
+            refit_diffuse: true,
+            refit_widest_lobe: LobeRefit::Joint,
             widen_to_joint: true,
+        }
+    }
+}
+
+/// Which stage-3 fits re-estimate the widest lobe ([`Stage3Config::refit_widest_lobe`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LobeRefit {
+    /// None: every lobe comes from stage 1.
+    None,
+    /// The fits of more than one band: the joint fit (default).
+    #[default]
+    Joint,
+    /// Every fit.
+    All,
+}
+
+impl LobeRefit {
+    /// Whether a fit of `bands` bands re-estimates the widest lobe.
+    pub fn applies(self, bands: usize) -> bool {
+        match self {
+            LobeRefit::None => false,
+            LobeRefit::Joint => bands > 1,
+            LobeRefit::All => true,
         }
     }
 }
@@ -169,9 +207,25 @@ pub struct RateFit {
     /// data distinguish them (or p̂ is its own mirror).
     #[serde(default)]
     pub mirror_deg_per_frame: Option<[f64; 3]>,
+    /// Which coefficients stage 3 re-estimated from the motion window (the polish of
+    /// [`Stage3Config::refit_diffuse`]); `None`: every coefficient from stage 1.
+    #[serde(default)]
+    pub refit: Option<Refit>,
+}
+
+/// The terms a fit re-estimated per band from the motion window, with the body axis it held.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Refit {
+    /// Each facet's widest lobe too (besides both diffuse terms and the constant).
+    pub widest_lobe: bool,
+    /// The direction held at the prior (the body axis nearest the sun–observer bisector).
+    pub held_direction: [f64; 3],
 }
 
 /// Stage-3 outcome: a rate, or the statement that the data do not determine it.
+// A handful of these exist per solve, nearly all `Determined`: boxing the fit would only add an
+// indirection.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "status", rename_all = "snake_case")]
 pub enum RateSolution {
@@ -343,6 +397,10 @@ fn polish(
     config: &Stage3Config,
 ) -> Result<RateSolution, InversionError> {
     validate(config)?;
+    let hold = match (problem.refits_diffuse(), starts.first()) {
+        (true, Some(&p0)) => Some(weak::BisectorHold::new(problem, p0, config)),
+        _ => None,
+    };
     let mut best: Option<(LmOutcome, [f64; 3])> = None;
     let mut total_iterations = 0;
     for &p0 in starts {
@@ -352,7 +410,10 @@ fn polish(
             Some((q, c)) => weak::distance(*p, q) < REJOIN_DEG_PER_FRAME && cost >= c,
             None => false,
         };
-        let out = levenberg_marquardt_with(problem, p0, &config.lm, abandon)?;
+        let out = match &hold {
+            Some(hold) => hold.fit(problem, p0, config, abandon)?,
+            None => levenberg_marquardt_with(problem, p0, &config.lm, abandon)?,
+        };
         total_iterations += out.iterations;
         if out.stop == StopReason::Abandoned {
             continue;
@@ -377,7 +438,9 @@ fn polish(
     let wavelengths_nm = problem.wavelengths_nm().to_vec();
     let mut best = best;
     // Directions the data cannot determine are held under the stated prior.
-    if analysis.unobservable.is_none() && config.hold_unobservable_at_prior {
+    if let Some(hold) = &hold {
+        hold.restate(&mut analysis, config)?;
+    } else if analysis.unobservable.is_none() && config.hold_unobservable_at_prior {
         let iterations;
         (best, analysis, iterations) = weak::hold_weak_direction(problem, best, analysis, config)?;
         total_iterations += iterations;
@@ -412,6 +475,7 @@ fn polish(
         best.cost,
         &analysis.observability,
         config,
+        hold.as_ref(),
     )?;
     Ok(RateSolution::Determined(RateFit {
         wavelengths_nm,
@@ -428,6 +492,10 @@ fn polish(
         start_deg_per_frame: start,
         observability: analysis.observability,
         mirror_deg_per_frame,
+        refit: hold.as_ref().map(|h| Refit {
+            widest_lobe: problem.refits_widest_lobe(),
+            held_direction: h.held_direction(),
+        }),
     }))
 }
 

@@ -46,15 +46,17 @@ fn config(model: AttitudeModel, mode: PanelNormalMode) -> MotionModelConfig {
 /// with the re-fit's constant column; the re-fit's Jacobian is checked on a well-conditioned
 /// problem in `nuisance`'s unit tests.)
 fn both_refits(base: MotionModelConfig) -> Vec<MotionModelConfig> {
-    let refits: &[bool] = if base.panel_normal == PanelNormalMode::Tracking {
-        &[false]
+    // (re-fit the diffuse terms, and also each facet's widest lobe)
+    let refits: &[(bool, bool)] = if base.panel_normal == PanelNormalMode::Tracking {
+        &[(false, false)]
     } else {
-        &[false, true]
+        &[(false, false), (true, false), (true, true)]
     };
     refits
         .iter()
-        .map(|&refit_diffuse| MotionModelConfig {
+        .map(|&(refit_diffuse, refit_widest_lobe)| MotionModelConfig {
             refit_diffuse,
+            refit_widest_lobe,
             ..base.clone()
         })
         .collect()
@@ -149,8 +151,9 @@ fn analytic_jacobian_matches_central_differences() {
                             }
                             assert!(
                                 (fd - jac[t][i]).abs() <= tol * scale,
-                                "{model:?} {mode:?} refit {} p {p:?} row {t} axis {i}: {fd:e} vs {:e}",
+                                "{model:?} {mode:?} refit {} {} p {p:?} row {t} axis {i}: {fd:e} vs {:e}",
                                 cfg.refit_diffuse,
+                                cfg.refit_widest_lobe,
                                 jac[t][i]
                             );
                         }

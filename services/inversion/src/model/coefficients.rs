@@ -9,9 +9,15 @@
 //! Cramér–Rao bound with x unknown and both windows informing it (the scenario's bound):
 //!     CRB_p = (F − L)⁻¹,   L = Σ_b F_pb (S_b + B_bᵀB_b)⁻¹ F_bp
 //! ```
+//!
+//! With the diffuse re-fit (`refit_diffuse`) the coefficients stage 3 re-estimates drop out
+//! (their stage-1 values are not used), and the others act through the residual after the
+//! nuisance projection: B_b becomes P⊥B_b with P⊥ = I − A(AᵀA)⁻¹Aᵀ, A the band's nuisance
+//! columns (`crate::nuisance`).
 
-use super::RateProblem;
+use super::{nuisance_columns, RateProblem};
 use crate::facet::TERMS;
+use crate::nuisance::{solve_ridge, NUISANCE};
 use crate::rotation::TrigStepper;
 use nalgebra::DMatrix;
 
@@ -39,7 +45,14 @@ impl RateProblem {
     /// Whether some band carries a stage-1 coefficient covariance to propagate (not when the
     /// diffuse re-fit replaces the coefficients).
     fn propagates_coefficients(&self) -> bool {
-        !self.refit_diffuse && self.coeff_cov.iter().any(Option::is_some)
+        self.coeff_cov.iter().any(Option::is_some)
+    }
+
+    /// Whether coefficient m (of 22) is re-estimated by stage 3 (so its stage-1 value is not
+    /// used).
+    fn refitted(&self, m: usize) -> bool {
+        let (f, k) = (m / TERMS, m % TERMS);
+        self.refit_diffuse && (k == 0 || k == self.refit_lobes[f])
     }
 
     /// `C = Σ_b F_pb Cov(x_b) F_bp` (3 × 3) at p, with `jac` the whitened Jacobian at p. The
@@ -62,7 +75,7 @@ impl RateProblem {
             for m in 0..n {
                 for k in 0..n {
                     let v = cov[m * n + k];
-                    if v == 0.0 {
+                    if v == 0.0 || self.refitted(m) || self.refitted(k) {
                         continue;
                     }
                     for i in 0..3 {
@@ -99,7 +112,9 @@ impl RateProblem {
             let (Some((jb, Some(btb))), Some(cov)) = (sens, cov) else {
                 continue;
             };
-            let free: Vec<usize> = (0..n).filter(|&m| cov[m * n + m] > 0.0).collect();
+            let free: Vec<usize> = (0..n)
+                .filter(|&m| cov[m * n + m] > 0.0 && !self.refitted(m))
+                .collect();
             if free.is_empty() {
                 continue;
             }
@@ -120,7 +135,7 @@ impl RateProblem {
     }
 
     /// Per band with a coefficient covariance: `F_bp` (n rows of 3) and, with `with_btb`,
-    /// `B_bᵀB_b`.
+    /// `B_bᵀB_b`; with the diffuse re-fit, of the projected P⊥B_b (see the module docs).
     fn coefficient_sensitivity(
         &self,
         p: [f64; 3],
@@ -137,6 +152,8 @@ impl RateProblem {
                     .map(|_| (vec![[0.0; 3]; n], with_btb.then(|| vec![0.0; n * n])))
             })
             .collect();
+        // Per band, for the projection: AᵀA, Aᵀ B (NUISANCE × n) and Jᵀ A (3 × NUISANCE).
+        let mut projections = vec![Projection::new(n); if self.refit_diffuse { nb } else { 0 }];
         let mut g = [[0.0; TERMS]; 2];
         let mut trig = TrigStepper::new(p);
         for (t, frame) in self.frames.iter().enumerate() {
@@ -151,6 +168,9 @@ impl RateProblem {
                 let mut flat = [0.0; 2 * TERMS];
                 for (dst, gm) in flat.iter_mut().zip(g.iter().flatten()) {
                     *dst = scale * gm;
+                }
+                if let Some(projection) = projections.get_mut(b) {
+                    projection.add(&nuisance_columns(scale, &g, self.refit_lobes), &flat, &row);
                 }
                 for (m, bm) in flat.iter().enumerate() {
                     for i in 0..3 {
@@ -169,6 +189,65 @@ impl RateProblem {
                 }
             }
         }
+        for (sens, projection) in out.iter_mut().zip(&projections) {
+            if let Some((jb, btb)) = sens {
+                projection.apply(jb, btb.as_deref_mut());
+            }
+        }
         out
+    }
+}
+
+/// One band's sums for replacing B by P⊥B: AᵀA, AᵀB and JᵀA.
+#[derive(Clone)]
+struct Projection {
+    ata: [[f64; NUISANCE]; NUISANCE],
+    atb: Vec<[f64; NUISANCE]>,
+    jta: [[f64; NUISANCE]; 3],
+}
+
+impl Projection {
+    fn new(n: usize) -> Self {
+        Projection {
+            ata: [[0.0; NUISANCE]; NUISANCE],
+            atb: vec![[0.0; NUISANCE]; n],
+            jta: [[0.0; NUISANCE]; 3],
+        }
+    }
+
+    fn add(&mut self, a: &[f64; NUISANCE], b: &[f64], j: &[f64; 3]) {
+        for i in 0..NUISANCE {
+            for k in 0..NUISANCE {
+                self.ata[i][k] += a[i] * a[k];
+            }
+            for (atb, bm) in self.atb.iter_mut().zip(b) {
+                atb[i] += a[i] * bm;
+            }
+            for (jta, jv) in self.jta.iter_mut().zip(j) {
+                jta[i] += jv * a[i];
+            }
+        }
+    }
+
+    /// `jb ← Jᵀ P⊥ B = JᵀB − (JᵀA)(AᵀA)⁻¹AᵀB`, `btb ← BᵀP⊥B = BᵀB − (AᵀB)ᵀ(AᵀA)⁻¹AᵀB`.
+    fn apply(&self, jb: &mut [[f64; 3]], btb: Option<&mut [f64]>) {
+        let n = self.atb.len();
+        let solved: Vec<[f64; NUISANCE]> =
+            self.atb.iter().map(|c| solve_ridge(&self.ata, c)).collect();
+        let dot = |a: &[f64; NUISANCE], b: &[f64; NUISANCE]| {
+            (0..NUISANCE).map(|i| a[i] * b[i]).sum::<f64>()
+        };
+        for (row, x) in jb.iter_mut().zip(&solved) {
+            for (v, jta) in row.iter_mut().zip(&self.jta) {
+                *v -= dot(jta, x);
+            }
+        }
+        if let Some(btb) = btb {
+            for m in 0..n {
+                for k in 0..n {
+                    btb[m * n + k] -= dot(&self.atb[m], &solved[k]);
+                }
+            }
+        }
     }
 }

@@ -45,9 +45,17 @@ impl RateProblem {
     pub fn lobe_sensitivity_share(&self, p: [f64; 3]) -> f64 {
         let mut lobes = self.clone();
         lobes.refit_diffuse = false;
-        for band in &mut lobes.bands {
+        lobes.refit_lobes = [0; 2];
+        let refitted = self.nuisance_fit(p);
+        for (band, c) in lobes.bands.iter_mut().zip(&refitted) {
             band.x[0][0] = 0.0;
             band.x[1][0] = 0.0;
+            // A re-fitted lobe is a lobe: its fitted coefficient joins the others.
+            for f in 0..2 {
+                if self.refit_lobes[f] > 0 {
+                    band.x[f][self.refit_lobes[f]] = c[3 + f];
+                }
+            }
         }
         let n = self.residual_count();
         let mut r = vec![0.0; n];
