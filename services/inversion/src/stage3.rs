@@ -33,6 +33,7 @@ use crate::observability::{
 };
 use serde::{Deserialize, Serialize};
 
+mod bisector;
 mod weak;
 pub use weak::{disagreement, disagreement_sigma, distance, mirror, widen_to_joint, WeakPrior};
 pub(crate) use weak::{keep_sense, sense_from};
@@ -398,7 +399,7 @@ fn polish(
 ) -> Result<RateSolution, InversionError> {
     validate(config)?;
     let hold = match (problem.refits_diffuse(), starts.first()) {
-        (true, Some(&p0)) => Some(weak::BisectorHold::new(problem, p0, config)),
+        (true, Some(&p0)) => Some(bisector::BisectorHold::new(problem, p0, config)),
         _ => None,
     };
     let mut best: Option<(LmOutcome, [f64; 3])> = None;

@@ -7,13 +7,13 @@
 //! - [`mirror_if_ambiguous`]: the mirror reported beside a fit it cannot be told from.
 //! - [`sense_from`] / [`keep_sense`]: which fit's evidence decides the sense when one cannot.
 
+use super::bisector::BisectorHold;
 use super::{fit_from_starts, RateFit, RateSolution, Stage3Config};
 use crate::error::InversionError;
 use crate::lm::{levenberg_marquardt, levenberg_marquardt_prior, LmOutcome, Prior};
 use crate::model::RateProblem;
 use crate::observability::{
-    analyse, given_sigma_scale, inverse_from_eigen, residual_variance, symmetric_eigen, Analysis,
-    Observability, ObservabilityConfig, UnobservableReason,
+    analyse, given_sigma_scale, residual_variance, Analysis, Observability, ObservabilityConfig,
 };
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -188,149 +188,7 @@ fn hold_at_prior(
 
 /// Weight of the prior on unobservable directions, relative to the largest eigenvalue of the
 /// information matrix: large enough that the prior decides those components.
-const PRIOR_WEIGHT_FACTOR: f64 = 1e6;
-
-/// The bisector held throughout a fit whose diffuse terms are re-estimated at every p.
-///
-/// A rotation about the sun–observer bisector u leaves every Beckmann lobe unchanged; only the
-/// diffuse terms see it (math.md §1.6). When stage 3 re-fits those terms
-/// ([`crate::model::MotionModelConfig::refit_diffuse`]) they absorb what little the light
-/// curve says about u, and an unconstrained LM slides along it (by 0.04–1.4 deg/frame, ADR
-/// 0004) to wherever the mismatch gives it apparent curvature. So u is unobservable by
-/// construction: every LM run of such a fit carries the stated prior ([`WeakPrior`]) from its
-/// start, and u is reported unobservable.
-pub(super) struct BisectorHold {
-    /// u, the bisector at the epoch.
-    weak: [f64; 3],
-    /// The prior's direction e (u itself, or the body axis nearest it).
-    prior: Prior,
-}
-
-impl BisectorHold {
-    /// The hold for `problem`, weighted against the information at `p`.
-    pub(super) fn new(problem: &RateProblem, p: [f64; 3], config: &Stage3Config) -> Self {
-        let weak = problem.bisector_at_epoch();
-        let n = problem.residual_count();
-        let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
-        problem.residuals_and_jacobian(p, &mut r, &mut jac);
-        // The trace bounds the largest eigenvalue of JᵀJ.
-        let trace: f64 = jac.iter().flat_map(|row| row.iter().map(|v| v * v)).sum();
-        let weight = PRIOR_WEIGHT_FACTOR
-            * if trace.is_finite() {
-                trace.max(1.0)
-            } else {
-                1.0
-            };
-        let directions = config.weak_prior.directions(&[weak]);
-        BisectorHold {
-            weak,
-            prior: Prior { directions, weight },
-        }
-    }
-
-    /// The direction held at the prior (e).
-    pub(super) fn held_direction(&self) -> [f64; 3] {
-        self.prior.directions[0]
-    }
-
-    /// `p` moved along u onto the prior's plane (the other combinations keep their values).
-    pub(super) fn onto_plane(&self, p: [f64; 3]) -> [f64; 3] {
-        let e = self.prior.directions[0];
-        let u = self.weak;
-        let dot = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
-        let t = dot(&e, &p) / dot(&e, &u);
-        std::array::from_fn(|i| p[i] - u[i] * t)
-    }
-
-    /// LM from `p0` (moved onto the plane) under the prior; the outcome's cost is the data's.
-    pub(super) fn fit(
-        &self,
-        problem: &RateProblem,
-        p0: [f64; 3],
-        config: &Stage3Config,
-        abandon: impl FnMut(&[f64; 3], f64, usize) -> bool,
-    ) -> Result<LmOutcome, InversionError> {
-        let out = levenberg_marquardt_prior(
-            problem,
-            self.onto_plane(p0),
-            &config.lm,
-            &self.prior,
-            abandon,
-        )?;
-        Ok(LmOutcome {
-            cost: problem.cost(out.p_deg_per_frame),
-            ..out
-        })
-    }
-
-    /// Restates `analysis` for a fit held on the plane e·p = 0: the information within the
-    /// plane (`P F P`, P = I − e eᵀ) gives the determined directions and their covariance
-    /// (conditional on the prior), and e itself is reported unobservable with the start box's
-    /// half-width as its 1σ: the data say nothing about it that the fit used.
-    pub(super) fn restate(
-        &self,
-        analysis: &mut Analysis,
-        config: &Stage3Config,
-    ) -> Result<(), InversionError> {
-        let e = self.prior.directions[0];
-        let obs = &mut analysis.observability;
-        let info: [[f64; 3]; 3] = std::array::from_fn(|i| {
-            std::array::from_fn(|j| {
-                (0..3)
-                    .map(|k| {
-                        obs.information_eigenvalues[k]
-                            * obs.eigenvectors[k][i]
-                            * obs.eigenvectors[k][j]
-                    })
-                    .sum()
-            })
-        });
-        let project = |v: [f64; 3]| -> [f64; 3] {
-            let d: f64 = (0..3).map(|i| v[i] * e[i]).sum();
-            std::array::from_fn(|i| v[i] - d * e[i])
-        };
-        let rows: [[f64; 3]; 3] = std::array::from_fn(|i| project(info[i]));
-        let cols: [[f64; 3]; 3] =
-            std::array::from_fn(|j| project([rows[0][j], rows[1][j], rows[2][j]]));
-        let in_plane: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cols[j][i]));
-        let (vals, vecs) = symmetric_eigen(&in_plane)?;
-        // The eigen-pair nearest e is the plane's normal (eigenvalue ≈ 0): replace it by e.
-        let along = |k: usize| (0..3).map(|i| vecs[k][i] * e[i]).sum::<f64>().abs();
-        let normal = (0..3)
-            .max_by(|&a, &b| along(a).total_cmp(&along(b)))
-            .unwrap_or(0);
-        let held_sigma = config.start.half_width_deg_per_frame;
-        let mut pairs: Vec<(f64, [f64; 3])> = (0..3)
-            .map(|k| {
-                if k == normal {
-                    (held_sigma.powi(-2), e)
-                } else {
-                    (vals[k], vecs[k])
-                }
-            })
-            .collect();
-        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-        obs.information_eigenvalues = std::array::from_fn(|k| pairs[k].0);
-        obs.eigenvectors = std::array::from_fn(|k| pairs[k].1);
-        obs.bounds_1sigma_deg_per_frame = obs.information_eigenvalues.map(|v| {
-            if v > 0.0 {
-                v.sqrt().recip()
-            } else {
-                f64::INFINITY
-            }
-        });
-        let threshold = obs.threshold_deg_per_frame;
-        obs.unobservable = std::array::from_fn(|k| {
-            let bound = obs.bounds_1sigma_deg_per_frame[k];
-            pairs[k].1 == e || bound.is_nan() || bound > threshold
-        });
-        analysis.covariance = inverse_from_eigen(&obs.information_eigenvalues, &obs.eigenvectors);
-        if analysis.unobservable.is_none() && obs.unobservable.iter().all(|&u| u) {
-            analysis.unobservable = Some(UnobservableReason::AllDirectionsAboveThreshold);
-        }
-        Ok(())
-    }
-}
+pub(super) const PRIOR_WEIGHT_FACTOR: f64 = 1e6;
 
 /// Holds the directions the data cannot determine (math.md §1.6: the sun–observer bisector)
 /// under the stated prior ([`WeakPrior`]) and re-fits the rest, instead of reporting wherever
