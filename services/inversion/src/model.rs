@@ -23,7 +23,7 @@
 
 use crate::error::InversionError;
 use crate::facet::{FacetGeometry, LOBES, TERMS};
-use crate::nuisance::{project_band, Normal, Row, NUISANCE};
+use crate::nuisance::{Normal, Row, NUISANCE};
 use crate::observation::Observation;
 use crate::rotation::{AttitudeModel, TrigStepper};
 use glint_physics::two_facet::{panel_normal, TwoFacetCoefficients};
@@ -33,6 +33,9 @@ use std::f64::consts::FRAC_1_PI;
 
 mod coefficients;
 mod diagnostics;
+mod refit;
+
+use refit::{lobe_slope_of, nuisance_columns, take_widest_lobes};
 
 /// Panel normal during the motion window (§1.6 \[ASSUMP\]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -250,14 +253,7 @@ impl RateProblem {
             active[0][0] = true;
             active[1][0] = true;
             if config.refit_widest_lobe {
-                for f in 0..2 {
-                    if let Some(k) = (1..TERMS).rev().find(|&k| active[f][k]) {
-                        refit_lobes[f] = k;
-                        for band in &mut data {
-                            band.x[f][k] = 0.0;
-                        }
-                    }
-                }
+                refit_lobes = take_widest_lobes(&mut data, &active);
             }
         }
         Ok(Self {
@@ -312,28 +308,6 @@ impl RateProblem {
     /// Whether residuals are whitened by the observations' σ.
     pub fn sigma_given(&self) -> bool {
         self.sigma_given
-    }
-
-    /// Whether the diffuse terms are re-estimated at every p ([`MotionModelConfig::refit_diffuse`]).
-    pub fn refits_diffuse(&self) -> bool {
-        self.refit_diffuse
-    }
-
-    /// Whether each facet's widest lobe is re-estimated too ([`MotionModelConfig::refit_widest_lobe`]).
-    pub fn refits_widest_lobe(&self) -> bool {
-        self.refit_lobes.iter().any(|&k| k > 0)
-    }
-
-    /// The sun–observer bisector in the body frame at the epoch (unit; the earliest frame's
-    /// `normalize(s + o)`): the axis a rotation about which only the diffuse terms see.
-    pub fn bisector_at_epoch(&self) -> [f64; 3] {
-        let first = self
-            .frames
-            .iter()
-            .min_by(|a, b| a.t_frames.total_cmp(&b.t_frames))
-            .expect("a problem has frames");
-        let h = (first.s + first.o).normalize();
-        [h.x, h.y, h.z]
     }
 
     fn facets(&self, frame: &Frame, s: Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
@@ -410,12 +384,6 @@ impl RateProblem {
         self.residuals_with_nuisance(p, r).0
     }
 
-    /// The nuisance coefficients per band at p in the problem's units (zeros without the re-fit).
-    fn nuisance_fit(&self, p: [f64; 3]) -> Vec<[f64; NUISANCE]> {
-        let mut scratch = vec![0.0; self.residual_count()];
-        self.residuals_with_nuisance(p, &mut scratch).1
-    }
-
     /// Residuals, cost and the nuisance coefficients per band (zeros without the re-fit).
     fn residuals_with_nuisance(&self, p: [f64; 3], r: &mut [f64]) -> (f64, Vec<[f64; NUISANCE]>) {
         let nb = self.bands.len();
@@ -436,32 +404,6 @@ impl RateProblem {
         }
         let c = self.project(&rows, r, None);
         (r.iter().map(|v| v * v).sum(), c)
-    }
-
-    /// Empty per-band rows for the nuisance projection (none without the re-fit).
-    fn nuisance_rows(&self) -> Vec<Vec<Row>> {
-        if self.refit_diffuse {
-            vec![vec![Row::default(); self.frames.len()]; self.bands.len()]
-        } else {
-            Vec::new()
-        }
-    }
-
-    /// Applies the variable projection of every band; returns the coefficients c per band.
-    fn project(
-        &self,
-        rows: &[Vec<Row>],
-        r: &mut [f64],
-        mut jac: Option<&mut [[f64; 3]]>,
-    ) -> Vec<[f64; NUISANCE]> {
-        let nb = self.bands.len();
-        if rows.is_empty() {
-            return vec![[0.0; NUISANCE]; nb];
-        }
-        rows.iter()
-            .enumerate()
-            .map(|(b, band_rows)| project_band(band_rows, |t| t * nb + b, r, jac.as_deref_mut()))
-            .collect()
     }
 
     /// Cost Σ r² over every `stride`-th frame (stride ≥ 1), without storing residuals.
@@ -558,38 +500,6 @@ impl RateProblem {
         }
         out
     }
-
-    /// The re-fitted nuisance coefficients per band at p (stage-1 units W·m², like x̃; the
-    /// constant remainder in W·m² per sr⁻¹ of G), or zeros without the re-fit.
-    pub fn nuisance_coefficients(&self, p: [f64; 3]) -> Vec<[f64; NUISANCE]> {
-        let mut scratch = vec![0.0; self.residual_count()];
-        let (_, c) = self.residuals_with_nuisance(p, &mut scratch);
-        c.iter()
-            .zip(&self.bands)
-            .map(|(c, band)| c.map(|v| v * band.mean_flux_w))
-            .collect()
-    }
-}
-
-/// The nuisance column row `scale·[G_0(panel), G_0(body), 1, G_k(panel), G_k(body)]`, k the
-/// re-fitted lobe of each facet (a zero column when none).
-fn nuisance_columns(scale: f64, g: &Basis, lobes: [usize; 2]) -> [f64; NUISANCE] {
-    let lobe = |f: usize| {
-        if lobes[f] > 0 {
-            scale * g[f][lobes[f]]
-        } else {
-            0.0
-        }
-    };
-    [scale * g[0][0], scale * g[1][0], scale, lobe(0), lobe(1)]
-}
-
-/// ∂(scale·G_k)/∂p of facet slopes `sl` for lobe k (zeros when k = 0).
-fn lobe_slope_of(sl: &FacetSlopes, k: usize, scale: f64) -> [f64; 3] {
-    if k == 0 {
-        return [0.0; 3];
-    }
-    sl.dc.map(|dc| scale * sl.lobe[k - 1] * dc)
 }
 
 fn dot22(x: &Basis, g: &Basis) -> f64 {

@@ -226,9 +226,8 @@ pub fn fit_joint(
     let bands: Vec<RateBand> = (0..stage1.len()).map(|b| rate_band(stage1, b)).collect();
     let covs: Vec<Option<Vec<f64>>> = stage1.iter().map(|s| s.coeff_covariance.clone()).collect();
     let setup = FitSetup::new(motion, &bands, &covs, None, model);
-    let (j, problem) = horizon::search(&setup, config)?;
     // The bands' mismatch is measured with the model the fit ends with.
-    let (j, problem) = horizon::polish_with_refit(&setup, config, &j)?.unwrap_or((j, problem));
+    let (j, problem) = horizon::search_and_polish(&setup, config)?;
     let Some(first) = j.fit().map(|f| f.rate_deg_per_frame) else {
         return Ok((j, problem.frame_count()));
     };
@@ -267,9 +266,7 @@ pub fn fit_within_horizon(
     config: &Stage3Config,
 ) -> Result<(RateSolution, usize), InversionError> {
     let setup = FitSetup::new(motion, bands, coefficient_covariance, None, model);
-    let (rate, problem) = horizon::search(&setup, config)?;
-    let (rate, problem) =
-        horizon::polish_with_refit(&setup, config, &rate)?.unwrap_or((rate, problem));
+    let (rate, problem) = horizon::search_and_polish(&setup, config)?;
     Ok((rate, problem.frame_count()))
 }
 

@@ -129,6 +129,15 @@ pub(super) fn search(
     Ok((rate, problem))
 }
 
+/// [`search`], then [`polish_with_refit`] when it polishes.
+pub(super) fn search_and_polish(
+    setup: &FitSetup,
+    config: &Stage3Config,
+) -> Result<(RateSolution, RateProblem), InversionError> {
+    let (rate, problem) = search(setup, config)?;
+    Ok(polish_with_refit(setup, config, &rate)?.unwrap_or((rate, problem)))
+}
+
 /// Polishes `searched` with the diffuse terms re-estimated ([`Stage3Config::refit_diffuse`]; the
 /// bisector held, see `stage3`) on the horizon of the polished rate, until the fitted frames stop
 /// changing.

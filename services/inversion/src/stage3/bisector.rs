@@ -1,7 +1,7 @@
 //! The sun–observer bisector held throughout a fit whose diffuse terms are re-estimated at every
 //! p (the polish of [`super::Stage3Config::refit_diffuse`], ADR 0010).
 
-use super::weak::PRIOR_WEIGHT_FACTOR;
+use super::weak::{onto_prior_planes, PRIOR_WEIGHT_FACTOR};
 use super::Stage3Config;
 use crate::error::InversionError;
 use crate::lm::{levenberg_marquardt_prior, LmOutcome, Prior};
@@ -53,11 +53,7 @@ impl BisectorHold {
 
     /// `p` moved along u onto the prior's plane (the other combinations keep their values).
     pub(super) fn onto_plane(&self, p: [f64; 3]) -> [f64; 3] {
-        let e = self.prior.directions[0];
-        let u = self.weak;
-        let dot = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
-        let t = dot(&e, &p) / dot(&e, &u);
-        std::array::from_fn(|i| p[i] - u[i] * t)
+        onto_prior_planes(p, &[self.weak], &self.prior.directions)
     }
 
     /// LM from `p0` (moved onto the plane) under the prior; the outcome's cost is the data's.

@@ -166,16 +166,7 @@ fn hold_at_prior(
         directions: directions.clone(),
         weight: PRIOR_WEIGHT_FACTOR * strongest.max(1.0),
     };
-    // Start on the prior's plane, reached by moving along the held direction only (so the
-    // determined combinations keep their fitted values): p₀ = p − u (e·p)/(e·u).
-    let dot = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
-    let mut p0 = best.p_deg_per_frame;
-    for (u, e) in weak.iter().zip(&directions) {
-        let t = dot(e, &p0) / dot(e, u);
-        for i in 0..3 {
-            p0[i] -= u[i] * t;
-        }
-    }
+    let p0 = onto_prior_planes(best.p_deg_per_frame, weak, &directions);
     let refit = levenberg_marquardt_prior(problem, p0, &config.lm, &prior, |_, _, _| false)?;
     let held_analysis = analyse(problem, refit.p_deg_per_frame, &config.observability)?;
     let iterations = refit.iterations;
@@ -184,6 +175,23 @@ fn hold_at_prior(
         ..refit
     };
     Ok((held, held_analysis, iterations))
+}
+
+/// `p` moved onto the prior's planes e·p = 0, along each held direction u only (so the
+/// determined combinations keep their fitted values): p ← p − u (e·p)/(e·u).
+pub(super) fn onto_prior_planes(
+    mut p: [f64; 3],
+    weak: &[[f64; 3]],
+    directions: &[[f64; 3]],
+) -> [f64; 3] {
+    let dot = |a: &[f64; 3], b: &[f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
+    for (u, e) in weak.iter().zip(directions) {
+        let t = dot(e, &p) / dot(e, u);
+        for i in 0..3 {
+            p[i] -= u[i] * t;
+        }
+    }
+    p
 }
 
 /// Weight of the prior on unobservable directions, relative to the largest eigenvalue of the
