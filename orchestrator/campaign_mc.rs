@@ -36,7 +36,7 @@ use glint_inversion::chapman_robbins::{chapman_robbins, RateCopy};
 use glint_inversion::lm::normal_equations;
 use glint_inversion::observability::symmetric_eigen;
 use glint_inversion::stage1::{spectral, Stage1Config};
-use glint_inversion::stage3::{distance, mirror};
+use glint_inversion::stage3::{distance, mirror, RateFit};
 use glint_inversion::{
     rate_error_metric, solve_three_stage, InversionConfig, MotionModelConfig, Observation,
     ObservationSet, RateBand, RateProblem, Stage1Band,
@@ -220,17 +220,17 @@ impl Reference {
         motion.sort_by_key(|o| o.frame_index);
         let n_bands = file.set.wavelengths_nm.len();
         let epoch_frame = motion.first().map(|o| o.frame_index);
-        // The bound of the model each fit ends with (with the polish's re-fitted terms).
-        let model_for = |bands: usize| MotionModelConfig {
+        // The bound of the model each fit ends with (with the polish's re-fitted terms, as p₀'s
+        // fit records them).
+        let model_for = |fit: Option<&RateFit>| MotionModelConfig {
             epoch_frame,
-            refit_diffuse: config.model.refit_diffuse || config.stage3.refit_diffuse,
-            refit_widest_lobe: config.stage3.refit_diffuse
-                && config.stage3.refit_widest_lobe.applies(bands),
+            refit_diffuse: config.model.refit_diffuse || fit.is_some_and(|f| f.refit.is_some()),
+            refit_widest_lobe: fit.is_some_and(|f| f.refit.is_some_and(|r| r.widest_lobe)),
             ..config.model.clone()
         };
         // The coefficients each fit used, with their covariance from the stable window's σ
         // (none when the stable window is noise-free: the coefficients are known).
-        let bound = |p0: Option<[f64; 3]>,
+        let bound = |fit: Option<&RateFit>,
                      frames: usize,
                      stage1: &[Stage1Band],
                      bands: &[usize]|
@@ -252,22 +252,18 @@ impl Reference {
                         .flatten()
                 })
                 .collect();
-            let problem = RateProblem::new(&frames, &rate_bands, &model_for(bands.len()))?
+            let problem = RateProblem::new(&frames, &rate_bands, &model_for(fit))?
                 .with_coefficient_covariance(covariance);
-            crb(&problem, p0)
+            crb(&problem, fit.map(|f| f.rate_deg_per_frame))
         };
         let single = bound(
-            result.rate.fit().map(|f| f.rate_deg_per_frame),
+            result.rate.fit(),
             result.fitted_frames,
             result.single_band_stage1(),
             &[result.rate_band_index],
         )?;
         let joint = bound(
-            result
-                .joint_rate
-                .as_ref()
-                .and_then(|r| r.fit())
-                .map(|f| f.rate_deg_per_frame),
+            result.joint_rate.as_ref().and_then(|r| r.fit()),
             result.joint_fitted_frames.unwrap_or(result.fitted_frames),
             &result.stage1,
             &(0..n_bands).collect::<Vec<_>>(),

@@ -178,6 +178,19 @@ pub fn invert(
                         if refit.widest_lobe { " and widest lobe" } else { "" },
                         e[0], e[1], e[2]
                     );
+                    if let Some(t) = refit.lobe_test {
+                        text += &format!(
+                            " (lobe test χ² {:.1} {} {:.2}: stage 1's lobes {})",
+                            t.chi2,
+                            if refit.widest_lobe { ">" } else { "≤" },
+                            t.threshold,
+                            if refit.widest_lobe {
+                                "rejected"
+                            } else {
+                                "kept"
+                            }
+                        );
+                    }
                 }
                 text += "\n";
             }

@@ -5,9 +5,10 @@ use crate::error::InversionError;
 use crate::model::{MotionModelConfig, RateBand, RateProblem};
 use crate::observation::Observation;
 use crate::stage1::Stage1Band;
-use crate::stage3::{self, RateFit, RateSolution, Stage3Config};
+use crate::stage3::{self, LobeRefit, RateFit, RateSolution, Stage3Config};
 
 mod horizon;
+mod lobe;
 use horizon::{horizon_frames, speed, FitSetup};
 
 /// Stage 3 at the first band of stage 2's `ranking` (λ*) and, with `joint`, one p for all
@@ -217,6 +218,10 @@ fn separate_minimum(
 /// model explains worst (the diffuse-heavy ones, whose mismatch exceeds their noise) then stop
 /// pulling the common p. Down-weighting them also weakens the evidence for the sense of
 /// rotation, so the reweighted fit keeps the first fit's sense (`stage3::keep_sense`).
+///
+/// With [`LobeRefit::WhenNeeded`] this runs twice from the same search, once keeping stage 1's
+/// widest lobes and once re-fitting them, and reports the first unless the second lies outside
+/// its confidence region ([`choose_lobes`]).
 pub fn fit_joint(
     motion: &[Observation],
     stage1: &[Stage1Band],
@@ -226,8 +231,62 @@ pub fn fit_joint(
     let bands: Vec<RateBand> = (0..stage1.len()).map(|b| rate_band(stage1, b)).collect();
     let covs: Vec<Option<Vec<f64>>> = stage1.iter().map(|s| s.coeff_covariance.clone()).collect();
     let setup = FitSetup::new(motion, &bands, &covs, None, model);
+    let searched = horizon::search(&setup, config)?;
+    let tested = config.refit_diffuse
+        && config.refit_widest_lobe == LobeRefit::WhenNeeded
+        && config.refit_widest_lobe.applies(bands.len());
+    if !tested {
+        return reweighted_joint(&setup, config, &searched);
+    }
+    let keeping = Stage3Config {
+        refit_widest_lobe: LobeRefit::None,
+        ..config.clone()
+    };
+    let kept = reweighted_joint(&setup, &keeping, &searched)?;
+    let refitted = reweighted_joint(&setup, config, &searched)?;
+    Ok(choose_lobes(kept, refitted, config.lobe_test_confidence))
+}
+
+/// [`LobeRefit::WhenNeeded`]: the fit keeping stage 1's lobes unless the fit re-fitting them
+/// lies outside its confidence region ([`lobe::lobe_test`]); the test goes on the record of
+/// the fit reported. Where only one of the two re-fitted anything or determined a rate, that
+/// one's answer is the re-fit's (as with [`LobeRefit::Joint`]).
+fn choose_lobes(
+    kept: (RateSolution, usize),
+    refitted: (RateSolution, usize),
+    confidence: f64,
+) -> (RateSolution, usize) {
+    let (Some(k), Some(r)) = (kept.0.fit(), refitted.0.fit()) else {
+        return refitted;
+    };
+    let Some(held) = r.refit.filter(|x| x.widest_lobe).map(|x| x.held_direction) else {
+        return refitted;
+    };
+    let test = lobe::lobe_test(k, r, held, confidence);
+    let (mut chosen, frames) = if test.chi2 > test.threshold {
+        refitted
+    } else {
+        kept
+    };
+    if let RateSolution::Determined(fit) = &mut chosen {
+        if let Some(refit) = &mut fit.refit {
+            refit.lobe_test = Some(test);
+        }
+    }
+    (chosen, frames)
+}
+
+/// The joint fit from the search on the stage-1 coefficients: the polish, each band's noise
+/// re-estimated from the polished model's residuals, the search again with those weights
+/// (keeping the first fit's sense), and its polish.
+fn reweighted_joint(
+    setup: &FitSetup,
+    config: &Stage3Config,
+    (searched, searched_problem): &(RateSolution, RateProblem),
+) -> Result<(RateSolution, usize), InversionError> {
     // The bands' mismatch is measured with the model the fit ends with.
-    let (j, problem) = horizon::search_and_polish(&setup, config)?;
+    let (j, problem) = horizon::polish_with_refit(setup, config, searched)?
+        .unwrap_or_else(|| (searched.clone(), searched_problem.clone()));
     let Some(first) = j.fit().map(|f| f.rate_deg_per_frame) else {
         return Ok((j, problem.frame_count()));
     };
@@ -236,11 +295,11 @@ pub fn fit_joint(
     let (reweighted, reweighted_problem) = horizon::search(&reweighted_setup, config)?;
     let (searched, problem, setup) =
         match stage3::keep_sense(reweighted, &reweighted_problem, first, config) {
-            Some(j2) => (j2, reweighted_problem, reweighted_setup),
+            Some(j2) => (j2, reweighted_problem, &reweighted_setup),
             None => (j, problem, setup),
         };
     Ok(
-        match horizon::polish_with_refit(&setup, config, &searched)? {
+        match horizon::polish_with_refit(setup, config, &searched)? {
             Some((polished, problem)) => (polished, problem.frame_count()),
             None => (searched, problem.frame_count()),
         },

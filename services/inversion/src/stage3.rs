@@ -74,8 +74,9 @@ impl Default for StartConfig {
 
 /// Duplicate screened starts closer than this are merged \[deg/frame\].
 const SAME_START_DEG_PER_FRAME: f64 = 1e-2;
-/// A later polish that comes this close to the best solution so far is abandoned \[deg/frame\].
-const REJOIN_DEG_PER_FRAME: f64 = 1e-3;
+/// Two rates this close are the same solution \[deg/frame\]: a later polish that comes this
+/// close to the best solution so far is abandoned.
+pub(crate) const SAME_SOLUTION_DEG_PER_FRAME: f64 = 1e-3;
 
 /// Stage-3 settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -114,8 +115,13 @@ pub struct Stage3Config {
     pub refit_diffuse: bool,
     /// Which fits also re-estimate each facet's widest lobe in that polish: its stage-1
     /// estimate shares the stable window's diffuse column and carries most of stage 1's noise
-    /// (default: the joint fit's, whose bands use their own unpooled stage-1 coefficients).
+    /// (default: the joint fit's when the data ask for it, see [`LobeRefit::WhenNeeded`]; its
+    /// bands use their own unpooled stage-1 coefficients).
     pub refit_widest_lobe: LobeRefit,
+    /// With [`LobeRefit::WhenNeeded`]: the confidence of the region, in the covariance of the
+    /// fit that keeps stage 1's lobes, that the fit re-fitting them must leave for the joint fit
+    /// to report it (in (0, 1); 0.99).
+    pub lobe_test_confidence: f64,
     /// With the joint fit: widen the covariance of the rate kept at λ* (or the band that
     /// replaced it) by the Birge ratio of its distance from the joint solution, so that it
     /// covers that distance ([`widen_to_joint`]). `false`: the band's own covariance.
@@ -133,7 +139,8 @@ impl Default for Stage3Config {
             max_rotation_deg: Some(DEFAULT_MAX_ROTATION_DEG),
             joint_gate_sigma: Some(DEFAULT_JOINT_GATE_SIGMA),
             refit_diffuse: true,
-            refit_widest_lobe: LobeRefit::Joint,
+            refit_widest_lobe: LobeRefit::WhenNeeded,
+            lobe_test_confidence: DEFAULT_LOBE_TEST_CONFIDENCE,
             widen_to_joint: true,
         }
     }
@@ -145,23 +152,32 @@ impl Default for Stage3Config {
 pub enum LobeRefit {
     /// None: every lobe comes from stage 1.
     None,
-    /// The fits of more than one band: the joint fit (default).
+    /// The joint fit polishes twice, keeping stage 1's lobes and re-fitting them, and reports
+    /// the re-fit only when it lies outside the other's confidence region
+    /// ([`Stage3Config::lobe_test_confidence`]; default). Where stage 1's lobes explain the
+    /// motion window (about Y) the re-fit only adds variance; where they do not (about Z, the
+    /// noisy stable window's lobe is off by several of the fit's σ) the re-fit removes the bias.
     #[default]
+    WhenNeeded,
+    /// The fits of more than one band: the joint fit, always.
     Joint,
     /// Every fit.
     All,
 }
 
 impl LobeRefit {
-    /// Whether a fit of `bands` bands re-estimates the widest lobe.
+    /// Whether a fit of `bands` bands may re-estimate the widest lobe.
     pub fn applies(self, bands: usize) -> bool {
         match self {
             LobeRefit::None => false,
-            LobeRefit::Joint => bands > 1,
+            LobeRefit::WhenNeeded | LobeRefit::Joint => bands > 1,
             LobeRefit::All => true,
         }
     }
 }
+
+/// Default [`Stage3Config::lobe_test_confidence`].
+pub const DEFAULT_LOBE_TEST_CONFIDENCE: f64 = 0.99;
 
 /// Default [`Stage3Config::joint_gate_sigma`]: far beyond any scatter of the two fits (they share
 /// data), near nothing a second minimum can hide in.
@@ -221,6 +237,23 @@ pub struct Refit {
     pub widest_lobe: bool,
     /// The direction held at the prior (the body axis nearest the sun–observer bisector).
     pub held_direction: [f64; 3],
+    /// The test that decided `widest_lobe` ([`LobeRefit::WhenNeeded`]); `None` when the
+    /// configuration decided it.
+    #[serde(default)]
+    pub lobe_test: Option<LobeTest>,
+}
+
+/// The joint fit's test of stage 1's lobes ([`LobeRefit::WhenNeeded`]): the fit re-fitting the
+/// widest lobe, seen from the fit keeping it, in the latter's covariance on the plane the
+/// bisector hold leaves (2 dof).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LobeTest {
+    /// d·C⁻¹·d, d the two rates' difference and C the covariance of the fit keeping the lobe,
+    /// both on the plane.
+    pub chi2: f64,
+    /// The χ²(2) quantile at [`Stage3Config::lobe_test_confidence`]; the lobe is re-fitted
+    /// when `chi2` exceeds it.
+    pub threshold: f64,
 }
 
 /// Stage-3 outcome: a rate, or the statement that the data do not determine it.
@@ -292,6 +325,10 @@ fn validate(config: &Stage3Config) -> Result<(), InversionError> {
         .is_some_and(|g| g.is_nan() || g <= 0.0)
     {
         return bad("joint_gate_sigma", "must be > 0 (inf: never set λ* aside)");
+    }
+    let confidence = config.lobe_test_confidence;
+    if !(confidence > 0.0 && confidence < 1.0) {
+        return bad("lobe_test_confidence", "must be in (0, 1)");
     }
     if !(0.0..=1.0).contains(&config.observability.min_lobe_share) {
         return bad("observability.min_lobe_share", "must be in [0, 1]");
@@ -408,7 +445,7 @@ fn polish(
         // A later start is dropped once it rejoins the best solution or stays clearly worse.
         let known = best.map(|(b, _)| (b.p_deg_per_frame, b.cost));
         let abandon = |p: &[f64; 3], cost: f64, _k: usize| match known {
-            Some((q, c)) => weak::distance(*p, q) < REJOIN_DEG_PER_FRAME && cost >= c,
+            Some((q, c)) => weak::distance(*p, q) < SAME_SOLUTION_DEG_PER_FRAME && cost >= c,
             None => false,
         };
         let out = match &hold {
@@ -496,6 +533,7 @@ fn polish(
         refit: hold.as_ref().map(|h| Refit {
             widest_lobe: problem.refits_widest_lobe(),
             held_direction: h.held_direction(),
+            lobe_test: None,
         }),
     }))
 }

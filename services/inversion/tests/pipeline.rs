@@ -91,6 +91,17 @@ fn rejects_invalid_input_and_config() {
             ..
         })
     ));
+    for confidence in [0.0, 1.0, f64::NAN] {
+        config = InversionConfig::default();
+        config.stage3.lobe_test_confidence = confidence;
+        assert!(matches!(
+            config.stage3.validate(),
+            Err(InversionError::InvalidConfig {
+                field: "lobe_test_confidence",
+                ..
+            })
+        ));
+    }
 }
 
 #[test]
@@ -416,4 +427,71 @@ fn the_diffuse_re_fit_recovers_the_rate_under_diffuse_light_that_does_not_turn()
         .find(|&k| obs.eigenvectors[k] == [1.0, 0.0, 0.0])
         .expect("X among the eigen-directions");
     assert!(obs.unobservable[held], "{obs:?}");
+}
+
+/// σ = the window's mean flux / `snr` per band on every sample (no noise added).
+fn attach_sigma(window: &mut [glint_inversion::Observation], snr: f64) {
+    let n = window.len() as f64;
+    let bands = window[0].flux_w.len();
+    let sigma: Vec<f64> = (0..bands)
+        .map(|b| window.iter().map(|o| o.flux_w[b]).sum::<f64>() / n / snr)
+        .collect();
+    for o in window {
+        o.sigma_w = sigma.clone();
+    }
+}
+
+/// The joint fit re-fits the widest lobe only when the fit keeping stage 1's lobes cannot stand
+/// beside the re-fit (`stage3.refit_widest_lobe = "when-needed"`): the test's decision is its
+/// χ² against the 99 % point, and the answer is then the `"joint"` configuration's to the bit,
+/// else the `"none"` one's. About Z, on the noise-free pass and with the stable window at SNR
+/// 10 (two seeds), both decisions occur.
+#[test]
+fn the_joint_fit_re_fits_the_widest_lobe_only_when_the_test_asks() {
+    use glint_inversion::stage3::LobeRefit;
+    let p_true = [0.0, 0.0, 0.25];
+    let config = InversionConfig {
+        joint_fit: true,
+        ..InversionConfig::default()
+    };
+    assert_eq!(config.stage3.refit_widest_lobe, LobeRefit::WhenNeeded);
+    let joint = |set: &ObservationSet, lobe: Option<LobeRefit>| {
+        let mut c = config.clone();
+        if let Some(lobe) = lobe {
+            c.stage3.refit_widest_lobe = lobe;
+        }
+        let r = solve_three_stage(set, &c).expect("solve");
+        r.joint_rate.and_then(|j| j.fit().cloned()).expect("joint")
+    };
+    let mut decisions = [0; 2];
+    for seed in [None, Some(1), Some(2)] {
+        let mut set = scenario(720, 360, p_true);
+        if let Some(seed) = seed {
+            let mut noisy = set.stable.clone();
+            attach_sigma(&mut noisy, 10.0);
+            let mut g = Gauss::new(seed);
+            for (o, n) in set.stable.iter_mut().zip(&noisy) {
+                for (f, s) in o.flux_w.iter_mut().zip(&n.sigma_w) {
+                    *f += s * g.gaussian();
+                }
+            }
+        }
+        let tested = joint(&set, None);
+        let refit = tested.refit.expect("polished");
+        let test = refit.lobe_test.expect("tested");
+        assert_eq!(refit.widest_lobe, test.chi2 > test.threshold, "{test:?}");
+        let (kept, refitted) = (
+            joint(&set, Some(LobeRefit::None)),
+            joint(&set, Some(LobeRefit::Joint)),
+        );
+        let same = if refit.widest_lobe { &refitted } else { &kept };
+        assert_eq!(tested.rate_deg_per_frame, same.rate_deg_per_frame);
+        let err = |f: &glint_inversion::RateFit| rate_error_metric(f.rate_deg_per_frame, p_true);
+        assert!(err(&tested) < 1.0, "{}", err(&tested));
+        decisions[usize::from(refit.widest_lobe)] += 1;
+    }
+    assert!(
+        decisions.iter().all(|&n| n > 0),
+        "kept, re-fitted: {decisions:?}"
+    );
 }
