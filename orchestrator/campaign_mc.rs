@@ -24,6 +24,9 @@
 //!       nearer it than p₀ take d_k = p̂_k − copy
 //! efficiency = sqrt(mean_k Σ_obs (d_k·v_i)²) / sqrt(Σ_obs λ_i)     (1 = efficient)
 //! NEES_k = Σ_obs' (d_k·u_j)²/μ_j        u_j, μ_j: eigen-pairs of the run's reported covariance
+//! lobe test: the joint fit keeps or re-fits stage 1's widest lobes per run; p₀ and the bound
+//!            are then computed for each model and d_k is taken from the p₀ of the model the
+//!            run reported (the table's bound: the model most runs reported)
 //! ```
 //!
 //! This is the bound of the scenario as run, with both windows noisy. The summary also shows
@@ -36,10 +39,10 @@ use glint_inversion::chapman_robbins::{chapman_robbins, RateCopy};
 use glint_inversion::lm::normal_equations;
 use glint_inversion::observability::symmetric_eigen;
 use glint_inversion::stage1::{spectral, Stage1Config};
-use glint_inversion::stage3::{distance, mirror, RateFit};
+use glint_inversion::stage3::{distance, mirror, LobeRefit, RateFit};
 use glint_inversion::{
-    rate_error_metric, solve_three_stage, InversionConfig, MotionModelConfig, Observation,
-    ObservationSet, RateBand, RateProblem, Stage1Band,
+    rate_error_metric, solve_three_stage, InversionConfig, InversionResult, MotionModelConfig,
+    Observation, ObservationSet, RateBand, RateProblem, Stage1Band,
 };
 use serde_json::{json, Value};
 use shared_types::scenario::NoiseWindows;
@@ -111,8 +114,22 @@ pub fn run_value(
     }
     let stable_noisy = sp.noise_windows == NoiseWindows::Both;
     let reference = Reference::solve(&ref_dir.join("observations.csv"), snr, stable_noisy)?;
-    let single = Estimator::from_runs(&runs, &|s3| s3, reference.single.clone());
-    let joint = Estimator::from_runs(&runs, &|s3| &s3["joint"], reference.joint.clone());
+    let single = Estimator::from_runs(&runs, &|s3| s3, reference.single.clone(), None);
+    // The table's bound for the joint fit: that of the model most runs reported.
+    let lobe_refits = runs
+        .iter()
+        .filter(|s3| s3["joint"]["widest_lobe_refit"] == true)
+        .count();
+    let joint_bound = match &reference.joint_models {
+        Some(models) => models[usize::from(2 * lobe_refits > runs.len())].clone(),
+        None => reference.joint.clone(),
+    };
+    let joint = Estimator::from_runs(
+        &runs,
+        &|s3| &s3["joint"],
+        joint_bound,
+        reference.joint_models.as_ref(),
+    );
     let median = |key: &dyn Fn(&Value) -> Option<[f64; 3]>| {
         median(
             runs.iter()
@@ -129,6 +146,7 @@ pub fn run_value(
         "lambda_rejected_by_joint": runs.iter().filter(|s3| s3["lambda_rejected_by_joint"] == true).count(),
         "single": single.json(),
         "joint": joint.json(),
+        "joint_widest_lobe_refits": lobe_refits,
     });
     Ok((stats, all_ok))
 }
@@ -195,6 +213,12 @@ fn observable(variances: &[f64; 3]) -> [bool; 3] {
 struct Reference {
     single: Bound,
     joint: Bound,
+    /// With the joint fit's lobe test ([`LobeRefit::WhenNeeded`]): the noise-free solution and
+    /// bound of each of its two models, keeping stage 1's widest lobes (0) and re-fitting them
+    /// (1). A run's deviation is taken from the solution of the model it reported: the noisy
+    /// stable window is what moves stage 1's lobe, so the noise-free reference mostly keeps it
+    /// while the noisy runs about Z mostly re-fit it.
+    joint_models: Option<[Bound; 2]>,
 }
 
 impl Reference {
@@ -262,13 +286,34 @@ impl Reference {
             result.single_band_stage1(),
             &[result.rate_band_index],
         )?;
-        let joint = bound(
-            result.joint_rate.as_ref().and_then(|r| r.fit()),
-            result.joint_fitted_frames.unwrap_or(result.fitted_frames),
-            &result.stage1,
-            &(0..n_bands).collect::<Vec<_>>(),
-        )?;
-        Ok(Reference { single, joint })
+        let joint_of = |result: &InversionResult| {
+            bound(
+                result.joint_rate.as_ref().and_then(|r| r.fit()),
+                result.joint_fitted_frames.unwrap_or(result.fitted_frames),
+                &result.stage1,
+                &(0..n_bands).collect::<Vec<_>>(),
+            )
+        };
+        let joint = joint_of(&result)?;
+        let tested =
+            config.stage3.refit_diffuse && config.stage3.refit_widest_lobe == LobeRefit::WhenNeeded;
+        let joint_models = if tested {
+            let model = |lobe: LobeRefit| -> Result<Bound> {
+                let mut forced = config.clone();
+                forced.stage3.refit_widest_lobe = lobe;
+                let result = solve_three_stage(&file.set, &forced)
+                    .map_err(|e| anyhow!("{}: {e}", observations.display()))?;
+                joint_of(&result)
+            };
+            Some([model(LobeRefit::None)?, model(LobeRefit::Joint)?])
+        } else {
+            None
+        };
+        Ok(Reference {
+            single,
+            joint,
+            joint_models,
+        })
     }
 }
 
@@ -408,7 +453,14 @@ struct Estimator {
 }
 
 impl Estimator {
-    fn from_runs(runs: &[Value], pick: &dyn Fn(&Value) -> &Value, bound: Bound) -> Self {
+    /// `models`: the noise-free solutions of the fit's two lobe models ([`Reference`]); a run
+    /// is then measured from that of the model it reported.
+    fn from_runs(
+        runs: &[Value],
+        pick: &dyn Fn(&Value) -> &Value,
+        bound: Bound,
+        models: Option<&[Bound; 2]>,
+    ) -> Self {
         let observable = bound.observable();
         let mut out = Estimator {
             dev2_observable: vec![],
@@ -419,7 +471,7 @@ impl Estimator {
             on_copy: 0,
             bound,
         };
-        let Some(p0) = out.bound.p0 else {
+        let Some(table_p0) = out.bound.p0 else {
             out.undetermined = runs.len();
             return out;
         };
@@ -429,6 +481,13 @@ impl Estimator {
                 out.undetermined += 1;
                 continue;
             };
+            let own = models.map(|m| &m[usize::from(fit["widest_lobe_refit"] == true)]);
+            let (p0, copy) = match own {
+                Some(Bound {
+                    p0: Some(p0), copy, ..
+                }) => (*p0, *copy),
+                _ => (table_p0, out.bound.copy),
+            };
             let m0 = mirror(p0);
             // A rate mostly about Y is nearly its own mirror and has no sense to lose: only
             // when the mirror is at least |p₀| away (w_x, w_z carry ≥ half the rate) is it one.
@@ -437,7 +496,7 @@ impl Estimator {
                 continue;
             }
             // The data cannot tell p₀ from its copy: scatter is measured from the nearer.
-            let centre = match out.bound.copy.map(|c| c.point_deg_per_frame) {
+            let centre = match copy.map(|c| c.point_deg_per_frame) {
                 Some(c) if distance(p, c) < distance(p, p0) => {
                     out.on_copy += 1;
                     c

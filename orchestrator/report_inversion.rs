@@ -107,6 +107,8 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 "p_deg_per_frame": if joint_ok { json!(pj) } else { Value::Null },
                 "err_paper_metric": if joint_ok { finite(rate_error_metric(pj, truth)) } else { Value::Null },
                 "covariance": r.p_joint_covariance.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
+                "widest_lobe_refit": r.stage3_flags & SolveResponse::JOINT_LOBE_REFIT != 0,
+                "lobe_test_chi2": finite(r.stage3_joint_lobe_test_chi2),
             },
             "fisher": {
                 "eigenvalues": r.fisher_eigenvalues.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
@@ -214,11 +216,12 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
         if pj.iter().all(|v| v.is_finite()) {
             let _ = writeln!(
                 s,
-                "Joint fit over all bands: p = [{:.5}, {:.5}, {:.5}], error {:.3}.",
+                "Joint fit over all bands: p = [{:.5}, {:.5}, {:.5}], error {:.3}.{}",
                 pj[0],
                 pj[1],
                 pj[2],
-                rate_error_metric(pj, truth)
+                rate_error_metric(pj, truth),
+                lobe_test_text(r)
             );
         }
         let b = r.bound_1sigma_deg_per_frame;
@@ -364,6 +367,23 @@ fn widened_phrase(r: &SolveResponse) -> String {
         )
     } else {
         String::new()
+    }
+}
+
+/// The joint fit's test of stage 1's widest lobes, as a sentence (empty when not tested).
+fn lobe_test_text(r: &SolveResponse) -> String {
+    let chi2 = r.stage3_joint_lobe_test_chi2;
+    if !chi2.is_finite() {
+        return String::new();
+    }
+    if r.stage3_flags & SolveResponse::JOINT_LOBE_REFIT != 0 {
+        format!(
+            " Each facet's widest lobe re-fitted from the motion window: the fit keeping stage 1's lies outside its confidence region from it (χ² = {chi2:.1}, 2 dof; `stage3.lobe_test_confidence`)."
+        )
+    } else {
+        format!(
+            " Stage 1's widest lobes kept: the fit re-fitting them lies within this one's confidence region (χ² = {chi2:.1}, 2 dof; `stage3.lobe_test_confidence`)."
+        )
     }
 }
 

@@ -76,6 +76,18 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
             "service {p_service} vs offline {p_offline}"
         );
     }
+    // The joint fit's test of stage 1's widest lobes travels with the answer: the service's
+    // decision and χ² are the offline solve's (none when the joint fit kept its search's rate).
+    let refit = &off["joint_rate"]["refit"];
+    assert_eq!(
+        s3["joint"]["widest_lobe_refit"].as_bool(),
+        Some(refit["widest_lobe"].as_bool().unwrap_or(false)),
+        "{refit}"
+    );
+    assert_eq!(
+        s3["joint"]["lobe_test_chi2"].as_f64(),
+        refit["lobe_test"]["chi2"].as_f64()
+    );
     for pic in [
         "inversion-sigma.svg",
         "light-curve.svg",
@@ -246,7 +258,13 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
         let run = read_json(&root.join(format!("00/s{k:03}/report.json")));
         assert_eq!(run["inversion"]["windows"]["snr"], 20.0);
         assert_eq!(run["seed"], 1000 + k);
+        assert!(run["inversion"]["stage3"]["joint"]["widest_lobe_refit"].is_boolean());
     }
+    // Each run is measured from the noise-free solution of the lobe model it reported.
+    assert!(
+        mc["joint_widest_lobe_refits"].as_u64().unwrap() <= 3,
+        "{mc}"
+    );
     // p₀ comes from the offline solve of the reference's observations with the runs' σ
     // attached. At one band σ = mean/SNR scales the whole cost by a constant, so the minimum
     // is the service's noise-free answer (to rounding); so is the joint one here, where the

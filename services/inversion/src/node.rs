@@ -99,6 +99,14 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
         out.joint_unobservable_reason = reason.code();
     }
     if let Some(RateSolution::Determined(fit)) = joint {
+        if let Some(refit) = fit.refit {
+            if refit.widest_lobe {
+                out.stage3_flags |= SolveResponse::JOINT_LOBE_REFIT;
+            }
+            if let Some(test) = refit.lobe_test {
+                out.stage3_joint_lobe_test_chi2 = test.chi2;
+            }
+        }
         out.p_joint_deg_per_frame = fit.rate_deg_per_frame;
         for r in 0..3 {
             for c in 0..3 {

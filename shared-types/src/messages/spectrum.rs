@@ -243,7 +243,8 @@ pub struct SolveResponse {
     /// Stage 2: index of argmax σ(λ), the paper's choice (λ* may differ, see the inversion's
     /// band-selection rule).
     pub separation_band: u32,
-    /// Stage 3 flags: [`SolveResponse::SENSE_FROM_JOINT`], [`SolveResponse::LAMBDA_REJECTED`].
+    /// Stage 3 flags: [`SolveResponse::SENSE_FROM_JOINT`], [`SolveResponse::LAMBDA_REJECTED`],
+    /// [`SolveResponse::JOINT_LOBE_REFIT`].
     pub stage3_flags: u32,
     /// Stage 2: the lobes' share of the stage-1 coefficients per band.
     pub specular_share: [f64; MAX_BANDS],
@@ -272,6 +273,10 @@ pub struct SolveResponse {
     /// Stage 3: the factor `p_covariance` was widened by to cover the rate's distance from the
     /// joint solution (1: they agree within their errors); NaN without both.
     pub stage3_covariance_scale: f64,
+    /// Stage 3: the joint fit's test of stage 1's widest lobes, χ² of the fit re-fitting them
+    /// in the covariance of the fit keeping them (re-fitted when above its 99 % point, see
+    /// [`SolveResponse::JOINT_LOBE_REFIT`]); NaN when not tested.
+    pub stage3_joint_lobe_test_chi2: f64,
 }
 
 impl Default for SolveResponse {
@@ -316,6 +321,7 @@ impl Default for SolveResponse {
             stage1_spectral_bias_to_noise: f64::NAN,
             stage3_joint_disagreement_sigma: f64::NAN,
             stage3_covariance_scale: f64::NAN,
+            stage3_joint_lobe_test_chi2: f64::NAN,
         }
     }
 }
@@ -325,6 +331,8 @@ impl SolveResponse {
     pub const SENSE_FROM_JOINT: u32 = 1;
     /// The joint fit rejected the solution at λ* as another minimum of that band's cost.
     pub const LAMBDA_REJECTED: u32 = 2;
+    /// The joint fit re-fitted each facet's widest lobe from the motion window.
+    pub const JOINT_LOBE_REFIT: u32 = 4;
 
     /// Names of the `unobservable_reason` codes (index = code).
     pub const REASON_NAMES: [&'static str; 6] = [
