@@ -144,8 +144,8 @@ pub(super) fn search_and_polish(
 ///
 /// The sense of rotation stays the search's. A model that re-fits the diffuse light has little
 /// left to tell a rate from its mirror (ADR 0007): a polish that ends on the mirror's side is
-/// re-polished from the mirror of where it ended. A searched rate that is its own mirror (within
-/// [`stage3::SAME_SOLUTION_DEG_PER_FRAME`]) has no side. `None` (keep the search's solution) when the
+/// re-polished from the mirror of where it ended. A searched rate mostly about Y is nearly its
+/// own mirror and has no side: the polish then goes where its model leads. `None` (keep the search's solution) when the
 /// model does not re-fit, the search found no rate, or the polish has no minimum on the search's
 /// side.
 pub(super) fn polish_with_refit(
@@ -157,10 +157,10 @@ pub(super) fn polish_with_refit(
         return Ok(None);
     };
     let sense = first.rate_deg_per_frame;
-    // A rate within the multi-start's same-solution distance of its own mirror (a turn about
-    // Y alone) has no side to keep.
-    let sided =
-        stage3::distance(sense, stage3::mirror(sense)) > stage3::SAME_SOLUTION_DEG_PER_FRAME;
+    // A rate mostly about Y is nearly its own mirror and has no side to keep: only when the
+    // mirror is at least |p| away (w_x, w_z carry at least half the rate) is it another sense
+    // of rotation. Otherwise the two are copies the data hardly tell apart (ADR 0010).
+    let sided = stage3::distance(sense, stage3::mirror(sense)) >= speed(sense);
     let wrong_side = |p: [f64; 3]| {
         sided && stage3::distance(p, stage3::mirror(sense)) < stage3::distance(p, sense)
     };
