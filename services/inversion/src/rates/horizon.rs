@@ -14,6 +14,10 @@ pub(super) struct FitSetup<'a> {
     coefficient_covariance: &'a [Option<Vec<f64>>],
     band_scales: Option<&'a [f64]>,
     model: MotionModelConfig,
+    /// A rate fitted elsewhere (the joint fit's speed) that the windows may not grow past the
+    /// horizon of, as the search never grows past the fastest rate it fitted itself
+    /// \[deg/frame\]; 0 for none.
+    speed_floor_deg_per_frame: f64,
 }
 
 impl<'a> FitSetup<'a> {
@@ -36,7 +40,24 @@ impl<'a> FitSetup<'a> {
                 epoch_frame: Some(epoch),
                 ..model.clone()
             },
+            speed_floor_deg_per_frame: 0.0,
         }
+    }
+
+    /// The same fit, its windows no longer than the horizon of `speed_deg_per_frame`.
+    pub(super) fn with_speed_floor(self, speed_deg_per_frame: f64) -> Self {
+        FitSetup {
+            speed_floor_deg_per_frame: speed_deg_per_frame,
+            ..self
+        }
+    }
+
+    /// The horizon of a rate of `speed_deg_per_frame`, or of the floor when that is faster.
+    fn horizon_of(&self, config: &Stage3Config, speed_deg_per_frame: f64) -> f64 {
+        horizon_frames(
+            config,
+            speed_deg_per_frame.max(self.speed_floor_deg_per_frame),
+        )
     }
 
     /// The same fit with the bands weighted by `scales` (the joint fit's reweighting).
@@ -116,7 +137,7 @@ pub(super) fn search(
         let Some(fit) = rate.fit() else { break };
         let p = fit.rate_deg_per_frame;
         fastest_fitted_deg_per_frame = fastest_fitted_deg_per_frame.max(speed(p));
-        let next = setup.frames_within(horizon_frames(config, fastest_fitted_deg_per_frame));
+        let next = setup.frames_within(setup.horizon_of(config, fastest_fitted_deg_per_frame));
         if next.len() == frames.len() {
             break;
         }
@@ -168,7 +189,7 @@ pub(super) fn polish_with_refit(
     let mut frames: Vec<Observation> = Vec::new();
     let mut last = None;
     for _ in 0..=HORIZON_ROUNDS {
-        let next = setup.frames_within(horizon_frames(config, speed(p)));
+        let next = setup.frames_within(setup.horizon_of(config, speed(p)));
         if next.len() == frames.len() {
             break;
         }
