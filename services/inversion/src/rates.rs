@@ -119,24 +119,21 @@ pub fn fit_band(
     let covariance = vec![stage1[b].coeff_covariance.clone()];
     let bands = [rate_band(stage1, b)];
     let joint = joint.zip(joint.and_then(RateSolution::fit));
-    // The band's windows never grow past the joint rate's horizon: a rate found slow on the
-    // search's first window would otherwise be judged on frames beyond a faster rate's
-    // horizon, where the model no longer holds for it, and stay slow (Z at phase 30°: 0.09
-    // deg/frame over 279 frames, against the joint fit's 0.25 over 100).
+    let mut setup = FitSetup::new(motion, &bands, &covariance, None, model);
+    let (mut rate, mut problem, mut sense_from_joint) =
+        search_and_polish_band(&setup, config, joint)?;
+    // A rate found slow on the search's first window is judged on frames far beyond a faster
+    // rate's horizon, where the model no longer holds for that rate, and stays slow (Z at phase
+    // 30°: 0.09 deg/frame over 279 frames, against the joint fit's 0.25 over 100). When the
+    // band's rate ends below half the joint's, it is fitted again with its windows no longer
+    // than the joint rate's horizon.
     let joint_speed = joint.map_or(0.0, |(_, j)| speed(j.rate_deg_per_frame));
-    let setup =
-        FitSetup::new(motion, &bands, &covariance, None, model).with_speed_floor(joint_speed);
-    let (mut rate, mut problem) = horizon::search(&setup, config)?;
-    // The sense is decided on the stage-1 coefficients, before any diffuse re-fit.
-    let mut sense_from_joint = false;
-    if let Some((joint, joint_fit)) = joint {
-        if let Some(flipped) = flip_to_joint(&problem, &rate, joint, joint_fit, config) {
-            rate = RateSolution::Determined(flipped);
-            sense_from_joint = true;
-        }
-    }
-    if let Some((polished, refit_problem)) = horizon::polish_with_refit(&setup, config, &rate)? {
-        (rate, problem) = (polished, refit_problem);
+    if rate
+        .fit()
+        .is_some_and(|f| speed(f.rate_deg_per_frame) < SLOW_FRACTION * joint_speed)
+    {
+        setup = setup.with_speed_floor(joint_speed);
+        (rate, problem, sense_from_joint) = search_and_polish_band(&setup, config, joint)?;
     }
     let mut out = BandFit {
         rate,
@@ -169,6 +166,31 @@ pub fn fit_band(
     };
     Ok(out)
 }
+
+/// The band's search, its sense from the joint fit when the band cannot tell (decided on the
+/// stage-1 coefficients, before any diffuse re-fit), and the polish.
+fn search_and_polish_band(
+    setup: &FitSetup,
+    config: &Stage3Config,
+    joint: Option<(&RateSolution, &RateFit)>,
+) -> Result<(RateSolution, RateProblem, bool), InversionError> {
+    let (mut rate, mut problem) = horizon::search(setup, config)?;
+    let mut sense_from_joint = false;
+    if let Some((joint, joint_fit)) = joint {
+        if let Some(flipped) = flip_to_joint(&problem, &rate, joint, joint_fit, config) {
+            rate = RateSolution::Determined(flipped);
+            sense_from_joint = true;
+        }
+    }
+    if let Some((polished, refit_problem)) = horizon::polish_with_refit(setup, config, &rate)? {
+        (rate, problem) = (polished, refit_problem);
+    }
+    Ok((rate, problem, sense_from_joint))
+}
+
+/// A band's rate below this fraction of the joint rate is fitted again within the joint
+/// rate's horizon ([`fit_band`]).
+const SLOW_FRACTION: f64 = 0.5;
 
 /// When p̂ and its mirror fit equally well, the fit re-polished from the mirror on the joint
 /// fit's side (if it does end there).
