@@ -277,8 +277,8 @@ pub fn fit_joint(
 
 /// [`LobeRefit::WhenNeeded`]: the fit keeping stage 1's lobes unless the fit re-fitting them
 /// lies outside its confidence region ([`lobe::lobe_test`]); the test goes on the record of
-/// the fit reported. Where only one of the two re-fitted anything or determined a rate, that
-/// one's answer is the re-fit's (as with [`LobeRefit::Joint`]).
+/// the fit reported. When either has no rate, or the re-fit's polish was not taken (so it
+/// re-fitted nothing), the re-fit's answer stands, as with [`LobeRefit::Joint`].
 fn choose_lobes(
     kept: (RateSolution, usize),
     refitted: (RateSolution, usize),
