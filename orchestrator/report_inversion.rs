@@ -109,6 +109,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 "covariance": r.p_joint_covariance.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
                 "widest_lobe_refit": r.stage3_flags & SolveResponse::JOINT_LOBE_REFIT != 0,
                 "lobe_test_chi2": finite(r.stage3_joint_lobe_test_chi2),
+                "lobe_rate_traded": r.stage3_flags & SolveResponse::JOINT_LOBE_RATE_TRADED != 0,
             },
             "fisher": {
                 "eigenvalues": r.fisher_eigenvalues.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
@@ -375,6 +376,11 @@ fn lobe_test_text(r: &SolveResponse) -> String {
     let chi2 = r.stage3_joint_lobe_test_chi2;
     if !chi2.is_finite() {
         return String::new();
+    }
+    if r.stage3_flags & SolveResponse::JOINT_LOBE_RATE_TRADED != 0 {
+        return format!(
+            " Stage 1's widest lobes kept: the fit re-fitting them ended below half this rate, trading the rate for the lobe (χ² = {chi2:.1}, 2 dof, not used)."
+        );
     }
     if r.stage3_flags & SolveResponse::JOINT_LOBE_REFIT != 0 {
         format!(

@@ -231,6 +231,33 @@ fn phase_thirty_degrees_meets_its_target_at_lambda_star_and_jointly() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Paper-like materials (only narrow lobes) at phase 20° about Z: re-fitting the widest lobe
+/// trades the rate for it (a brighter lobe lengthens the glint as a slower rate does) and ends
+/// at 0.10 deg/frame, far outside the kept fit's region (χ² ≈ 10⁷). The joint fit keeps stage
+/// 1's lobes and says why, instead of reporting the slow rate (error 14.8).
+#[test]
+fn the_joint_fit_keeps_stage_one_s_lobes_when_the_re_fit_trades_the_rate_for_them() {
+    let dir = temp_dir("traded");
+    let file = scenario_variant(
+        "geo-hover-zspin.toml",
+        &[
+            ("materials = \"physical\"", "materials = \"paper-like\""),
+            ("start_phase_deg = 15.0", "start_phase_deg = 20.0"),
+        ],
+        &dir,
+    );
+    let r = run_ok(Some(&file), &dir.join("out"), &[]);
+    let joint = &r.report["inversion"]["stage3"]["joint"];
+    assert_eq!(joint["widest_lobe_refit"], false, "{joint}");
+    assert_eq!(joint["lobe_rate_traded"], true, "{joint}");
+    assert!(joint["lobe_test_chi2"].as_f64().unwrap() > 9.21, "{joint}");
+    let err = joint["err_paper_metric"].as_f64().unwrap();
+    assert!(err < 0.5, "joint error {err}: {joint}");
+    let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
+    assert!(summary.contains("trading the rate for the lobe"), "{summary}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn without_a_glint_the_chain_answers_unobservable_with_its_reason() {
     // Paper-like materials (no diffuse or broad lobes on body and panel) at phase 40°: the paper

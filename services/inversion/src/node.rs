@@ -105,6 +105,9 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
             }
             if let Some(test) = refit.lobe_test {
                 out.stage3_joint_lobe_test_chi2 = test.chi2;
+                if test.rate_traded {
+                    out.stage3_flags |= SolveResponse::JOINT_LOBE_RATE_TRADED;
+                }
             }
         }
         out.p_joint_deg_per_frame = fit.rate_deg_per_frame;

@@ -252,8 +252,12 @@ pub struct LobeTest {
     /// both on the plane.
     pub chi2: f64,
     /// The χ²(2) quantile at [`Stage3Config::lobe_test_confidence`]; the lobe is re-fitted
-    /// when `chi2` exceeds it.
+    /// when `chi2` exceeds it, unless `rate_traded`.
     pub threshold: f64,
+    /// The re-fit ended below half the kept rate: it traded the rate for the lobe and is not
+    /// identifiable, so stage 1's lobes are kept whatever `chi2` says.
+    #[serde(default)]
+    pub rate_traded: bool,
 }
 
 /// Stage-3 outcome: a rate, or the statement that the data do not determine it.

@@ -244,7 +244,7 @@ pub struct SolveResponse {
     /// band-selection rule).
     pub separation_band: u32,
     /// Stage 3 flags: [`SolveResponse::SENSE_FROM_JOINT`], [`SolveResponse::LAMBDA_REJECTED`],
-    /// [`SolveResponse::JOINT_LOBE_REFIT`].
+    /// [`SolveResponse::JOINT_LOBE_REFIT`], [`SolveResponse::JOINT_LOBE_RATE_TRADED`].
     pub stage3_flags: u32,
     /// Stage 2: the lobes' share of the stage-1 coefficients per band.
     pub specular_share: [f64; MAX_BANDS],
@@ -333,6 +333,9 @@ impl SolveResponse {
     pub const LAMBDA_REJECTED: u32 = 2;
     /// The joint fit re-fitted each facet's widest lobe from the motion window.
     pub const JOINT_LOBE_REFIT: u32 = 4;
+    /// The joint fit kept stage 1's lobes because the re-fit traded the rate for the lobe (it
+    /// ended below half the kept rate).
+    pub const JOINT_LOBE_RATE_TRADED: u32 = 8;
 
     /// Names of the `unobservable_reason` codes (index = code).
     pub const REASON_NAMES: [&'static str; 6] = [

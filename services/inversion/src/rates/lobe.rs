@@ -50,6 +50,7 @@ pub(crate) fn lobe_test(
     LobeTest {
         chi2,
         threshold: chi2_2dof_quantile(confidence),
+        rate_traded: false,
     }
 }
 
