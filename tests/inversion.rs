@@ -254,7 +254,10 @@ fn the_joint_fit_keeps_stage_one_s_lobes_when_the_re_fit_trades_the_rate_for_the
     let err = joint["err_paper_metric"].as_f64().unwrap();
     assert!(err < 0.5, "joint error {err}: {joint}");
     let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
-    assert!(summary.contains("trading the rate for the lobe"), "{summary}");
+    assert!(
+        summary.contains("trading the rate for the lobe"),
+        "{summary}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
