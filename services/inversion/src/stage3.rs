@@ -34,6 +34,8 @@ use crate::observability::{
 use serde::{Deserialize, Serialize};
 
 mod bisector;
+#[cfg(test)]
+pub(crate) mod fixtures;
 mod weak;
 pub use weak::{disagreement, disagreement_sigma, distance, mirror, widen_to_joint, WeakPrior};
 pub(crate) use weak::{keep_sense, sense_from};

@@ -81,36 +81,7 @@ fn plane_basis(e: [f64; 3]) -> [[f64; 3]; 2] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lm::StopReason;
-    use crate::observability::{CovarianceSource, Observability};
-
-    fn fit(p: [f64; 3], c: [[f64; 3]; 3]) -> RateFit {
-        RateFit {
-            wavelengths_nm: vec![500.0],
-            rate_deg_per_frame: p,
-            covariance_deg2_per_frame2: c,
-            covariance_source: CovarianceSource::GivenSigma,
-            cost: 0.0,
-            iterations: 0,
-            total_iterations: 0,
-            stop: StopReason::SmallStep,
-            grid_points: 0,
-            starts_screened: 0,
-            starts_polished: 1,
-            start_deg_per_frame: p,
-            observability: Observability {
-                information_eigenvalues: [1.0; 3],
-                eigenvectors: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-                bounds_1sigma_deg_per_frame: [1.0; 3],
-                unobservable: [false; 3],
-                threshold_deg_per_frame: 0.25,
-                condition_number: 1.0,
-                rms_sensitivity_per_deg_per_frame: 1.0,
-            },
-            mirror_deg_per_frame: None,
-            refit: None,
-        }
-    }
+    use crate::stage3::fixtures::with_covariance as fit;
 
     #[test]
     fn quantile_is_the_closed_form() {

@@ -352,37 +352,7 @@ pub(crate) fn sense_from(rate: &RateSolution, joint: &RateSolution) -> Option<[f
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lm::StopReason;
-    use crate::observability::{CovarianceSource, Observability};
-    use crate::stage3::RateFit;
-
-    fn fit(p: [f64; 3], mirror: Option<[f64; 3]>) -> RateSolution {
-        RateSolution::Determined(RateFit {
-            wavelengths_nm: vec![400.0],
-            rate_deg_per_frame: p,
-            covariance_deg2_per_frame2: [[0.0; 3]; 3],
-            covariance_source: CovarianceSource::GivenSigma,
-            cost: 1.0,
-            iterations: 1,
-            total_iterations: 1,
-            stop: StopReason::SmallStep,
-            grid_points: 0,
-            starts_screened: 0,
-            starts_polished: 1,
-            start_deg_per_frame: p,
-            observability: Observability {
-                information_eigenvalues: [1.0; 3],
-                eigenvectors: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-                bounds_1sigma_deg_per_frame: [1.0; 3],
-                unobservable: [false; 3],
-                threshold_deg_per_frame: 0.25,
-                condition_number: 1.0,
-                rms_sensitivity_per_deg_per_frame: 1.0,
-            },
-            mirror_deg_per_frame: mirror,
-            refit: None,
-        })
-    }
+    use crate::stage3::fixtures::{solution as fit, with_covariance};
 
     #[test]
     fn the_joint_fit_decides_the_sense_when_lambda_star_cannot() {
@@ -406,14 +376,6 @@ mod tests {
         // No sense to flip: p̂ is its own mirror.
         let flat = [0.0, 0.25, 0.001];
         assert_eq!(sense_from(&fit(flat, Some(flat)), &joint), None);
-    }
-
-    fn with_covariance(p: [f64; 3], cov: [[f64; 3]; 3]) -> RateFit {
-        let RateSolution::Determined(mut f) = fit(p, None) else {
-            unreachable!()
-        };
-        f.covariance_deg2_per_frame2 = cov;
-        f
     }
 
     #[test]
