@@ -39,7 +39,7 @@ use glint_inversion::chapman_robbins::{chapman_robbins, RateCopy};
 use glint_inversion::lm::normal_equations;
 use glint_inversion::observability::symmetric_eigen;
 use glint_inversion::stage1::{spectral, Stage1Config};
-use glint_inversion::stage3::{distance, mirror, LobeRefit, RateFit};
+use glint_inversion::stage3::{distance, has_sense, mirror, LobeRefit, RateFit};
 use glint_inversion::{
     rate_error_metric, solve_three_stage, InversionConfig, InversionResult, MotionModelConfig,
     Observation, ObservationSet, RateBand, RateProblem, Stage1Band,
@@ -405,7 +405,7 @@ fn chapman_robbins_variances(
     let observable = observable(variances);
     let m0 = mirror(p0);
     let mut reach = observable_bound();
-    if distance(m0, p0) >= distance(p0, [0.0; 3]) {
+    if has_sense(p0) {
         reach = reach.min(0.5 * distance(m0, p0));
     }
     let mut out = [f64::NAN; 3];
@@ -489,9 +489,8 @@ impl Estimator {
                 _ => (table_p0, out.bound.copy),
             };
             let m0 = mirror(p0);
-            // A rate mostly about Y is nearly its own mirror and has no sense to lose: only
-            // when the mirror is at least |p₀| away (w_x, w_z carry ≥ half the rate) is it one.
-            if distance(m0, p0) >= distance(p0, [0.0; 3]) && distance(p, m0) < distance(p, p0) {
+            // A rate mostly about Y is nearly its own mirror and has no sense to lose.
+            if has_sense(p0) && distance(p, m0) < distance(p, p0) {
                 out.other_sense += 1;
                 continue;
             }

@@ -37,7 +37,9 @@ mod bisector;
 #[cfg(test)]
 pub(crate) mod fixtures;
 mod weak;
-pub use weak::{disagreement, disagreement_sigma, distance, mirror, widen_to_joint, WeakPrior};
+pub use weak::{
+    disagreement, disagreement_sigma, distance, has_sense, mirror, widen_to_joint, WeakPrior,
+};
 pub(crate) use weak::{keep_sense, sense_from};
 
 /// Multi-start settings.

@@ -178,10 +178,8 @@ pub(super) fn polish_with_refit(
         return Ok(None);
     };
     let sense = first.rate_deg_per_frame;
-    // A rate mostly about Y is nearly its own mirror and has no side to keep: only when the
-    // mirror is at least |p| away (w_x, w_z carry at least half the rate) is it another sense
-    // of rotation. Otherwise the two are copies the data hardly tell apart (ADR 0010).
-    let sided = stage3::distance(sense, stage3::mirror(sense)) >= speed(sense);
+    // A rate mostly about Y has no side to keep (ADR 0011).
+    let sided = stage3::has_sense(sense);
     let wrong_side = |p: [f64; 3]| {
         sided && stage3::distance(p, stage3::mirror(sense)) < stage3::distance(p, sense)
     };

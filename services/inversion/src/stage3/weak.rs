@@ -24,6 +24,13 @@ pub fn mirror(p: [f64; 3]) -> [f64; 3] {
     [-p[0], p[1], -p[2]]
 }
 
+/// Whether `p` has a sense of rotation its mirror reverses: the mirror is at least |p| away
+/// (w_x, w_z carry at least half the rate). A rate mostly about Y is nearly its own mirror;
+/// the two are copies the data hardly tell apart, not two senses.
+pub fn has_sense(p: [f64; 3]) -> bool {
+    distance(mirror(p), p) >= distance(p, [0.0; 3])
+}
+
 /// ‖a − b‖ \[deg/frame\].
 pub fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
