@@ -448,6 +448,9 @@ struct Estimator {
     /// Runs nearer the mirror of p₀ than p₀ (the other sense of rotation): a global ambiguity,
     /// outside what a local bound describes, counted and kept out of RMS and NEES.
     other_sense: usize,
+    /// Of those, the runs whose answer named the mirror as fitting as well (the sense reported
+    /// as not determined, rather than the other sense claimed).
+    other_sense_flagged: usize,
     /// Runs nearer p₀'s copy than p₀: their deviation is taken from the copy.
     on_copy: usize,
 }
@@ -468,6 +471,7 @@ impl Estimator {
             nees: vec![],
             undetermined: 0,
             other_sense: 0,
+            other_sense_flagged: 0,
             on_copy: 0,
             bound,
         };
@@ -492,6 +496,8 @@ impl Estimator {
             // A rate mostly about Y is nearly its own mirror and has no sense to lose.
             if has_sense(p0) && distance(p, m0) < distance(p, p0) {
                 out.other_sense += 1;
+                out.other_sense_flagged +=
+                    usize::from(vec3(&fit["mirror_deg_per_frame"]).is_some());
                 continue;
             }
             // The data cannot tell p₀ from its copy: scatter is measured from the nearer.
@@ -558,6 +564,7 @@ impl Estimator {
             "determined": n + self.other_sense,
             "undetermined": self.undetermined,
             "other_sense": self.other_sense,
+            "other_sense_flagged": self.other_sense_flagged,
             "copy_deg_per_frame": self.bound.copy.map(|c| c.point_deg_per_frame),
             "copy_divergence": self.bound.copy.map(|c| c.divergence),
             "on_copy": self.on_copy,
@@ -590,3 +597,7 @@ fn nees(cov: &[[f64; 3]; 3], d: &[f64; 3]) -> Option<(f64, usize)> {
     }
     (dof > 0).then_some((sum, dof))
 }
+
+#[cfg(test)]
+#[path = "campaign_mc/tests.rs"]
+mod tests;

@@ -85,6 +85,8 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
         let pj = r.p_joint_deg_per_frame;
         let joint_ok = pj.iter().all(|v| v.is_finite());
         let mirror_ok = r.p_mirror_deg_per_frame.iter().all(|v| v.is_finite());
+        let joint_mirror = r.p_joint_mirror_deg_per_frame;
+        let joint_mirror_ok = joint_ok && joint_mirror.iter().all(|v| v.is_finite());
         json!({
             "status": status(r),
             "unobservable_reason": reason(r.unobservable_reason),
@@ -110,6 +112,8 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 "widest_lobe_refit": r.stage3_flags & SolveResponse::JOINT_LOBE_REFIT != 0,
                 "lobe_test_chi2": finite(r.stage3_joint_lobe_test_chi2),
                 "lobe_rate_traded": r.stage3_flags & SolveResponse::JOINT_LOBE_RATE_TRADED != 0,
+                "mirror_deg_per_frame": if joint_mirror_ok { json!(joint_mirror) } else { Value::Null },
+                "err_paper_metric_mirror": if joint_mirror_ok { finite(rate_error_metric(joint_mirror, truth)) } else { Value::Null },
             },
             "fisher": {
                 "eigenvalues": r.fisher_eigenvalues.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
@@ -224,6 +228,14 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                 rate_error_metric(pj, truth),
                 lobe_test_text(r)
             );
+            let m = r.p_joint_mirror_deg_per_frame;
+            if m.iter().all(|v| v.is_finite()) {
+                let _ = writeln!(
+                    s,
+                    "\n**The joint fit's mirror [{:.5}, {:.5}, {:.5}] fits all bands equally well** (error {:.3}): the data cannot tell the two apart (for a rate with components about X or Z, its sense of rotation), and the covariance describes the scatter about the one reported.",
+                    m[0], m[1], m[2], rate_error_metric(m, truth)
+                );
+            }
         }
         let b = r.bound_1sigma_deg_per_frame;
         let _ = writeln!(s, "\nFisher information eigen-directions (columns) and 1σ bounds [deg/frame]:\n\n| direction | x | y | z | 1σ | observable |\n|---|---|---|---|---|---|");

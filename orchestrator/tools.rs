@@ -197,6 +197,22 @@ pub fn invert(
                         );
                     }
                 }
+                if let Some(m) = fit.mirror_deg_per_frame {
+                    let sense = if label == "stage 3" && result.sense_from_joint {
+                        "at this band alone; the sense of rotation is the joint fit's"
+                    } else {
+                        "the sense of rotation is not determined"
+                    };
+                    text += &format!(
+                        "; its mirror [{:.5}, {:.5}, {:.5}] fits as well ({sense}",
+                        m[0], m[1], m[2]
+                    );
+                    if let Some(t) = file.truth_rate_deg_per_frame {
+                        let e = glint_inversion::rate_error_metric(m, t);
+                        text += &format!(", error {e:.3}");
+                    }
+                    text += ")";
+                }
                 text += "\n";
             }
             None => {

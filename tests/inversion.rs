@@ -88,6 +88,13 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
         s3["joint"]["lobe_test_chi2"].as_f64(),
         refit["lobe_test"]["chi2"].as_f64()
     );
+    // So does its mirror: a rate about Y is nearly its own mirror (−w_x, w_y, −w_z), which fits
+    // all bands as well, and the answer names it; both meet the target.
+    let mirror = &s3["joint"]["mirror_deg_per_frame"];
+    assert_eq!(mirror, &off["joint_rate"]["mirror_deg_per_frame"]);
+    assert!(mirror.is_array(), "{s3}");
+    let err = s3["joint"]["err_paper_metric_mirror"].as_f64().unwrap();
+    assert!(err <= 0.5, "mirror error {err}: {s3}");
     for pic in [
         "inversion-sigma.svg",
         "light-curve.svg",

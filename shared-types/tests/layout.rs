@@ -219,7 +219,7 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, flags), 44);
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (2560, 8)
+        (2584, 8)
     );
     assert_eq!(offset_of!(SolveResponse, status), 44);
     assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
@@ -254,4 +254,8 @@ fn solve_layout() {
     );
     assert_eq!(offset_of!(SolveResponse, stage3_covariance_scale), 2544);
     assert_eq!(offset_of!(SolveResponse, stage3_joint_lobe_test_chi2), 2552);
+    assert_eq!(
+        offset_of!(SolveResponse, p_joint_mirror_deg_per_frame),
+        2560
+    );
 }

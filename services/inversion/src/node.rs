@@ -111,6 +111,9 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
             }
         }
         out.p_joint_deg_per_frame = fit.rate_deg_per_frame;
+        if let Some(m) = fit.mirror_deg_per_frame {
+            out.p_joint_mirror_deg_per_frame = m;
+        }
         for r in 0..3 {
             for c in 0..3 {
                 out.p_joint_covariance[3 * r + c] = fit.covariance_deg2_per_frame2[r][c];

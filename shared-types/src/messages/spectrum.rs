@@ -277,6 +277,10 @@ pub struct SolveResponse {
     /// in the covariance of the fit keeping them (re-fitted when above its 99 % point, see
     /// [`SolveResponse::JOINT_LOBE_REFIT`]); NaN when not tested.
     pub stage3_joint_lobe_test_chi2: f64,
+    /// Stage 3: the joint fit's mirror solution (−w_x, w_y, −w_z) when it fits all bands as
+    /// well as `p_joint_deg_per_frame` (the joint fit cannot tell the sense of rotation); NaN
+    /// when the data tell them apart or without a joint rate.
+    pub p_joint_mirror_deg_per_frame: [f64; 3],
 }
 
 impl Default for SolveResponse {
@@ -322,6 +326,7 @@ impl Default for SolveResponse {
             stage3_joint_disagreement_sigma: f64::NAN,
             stage3_covariance_scale: f64::NAN,
             stage3_joint_lobe_test_chi2: f64::NAN,
+            p_joint_mirror_deg_per_frame: [f64::NAN; 3],
         }
     }
 }
