@@ -192,6 +192,11 @@ struct Bound {
     directions: [[f64; 3]; 3],
     /// The bound with the coefficients known, (JᵀWJ)⁻¹: its variances along `directions`.
     known_variances: [f64; 3],
+    /// The two-stage bound along `directions`: F⁺ + F⁺ C F⁺ with C the stage-1 coefficients'
+    /// covariance propagated (`RateProblem::coefficient_term`), the variance of an efficient
+    /// estimator that takes the coefficients from the stable window alone, as this one does
+    /// (the CRB lets the motion window inform them too).
+    two_stage_variances: [f64; 3],
     /// The Hammersley–Chapman–Robbins bound along each observable direction (coefficients
     /// known; NaN elsewhere) \[(deg/frame)²\].
     hcr_variances: [f64; 3],
@@ -351,6 +356,7 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
             variances: [f64::NAN; 3],
             directions: [[f64::NAN; 3]; 3],
             known_variances: [f64::NAN; 3],
+            two_stage_variances: [f64::NAN; 3],
             hcr_variances: [f64::NAN; 3],
             copy: None,
         });
@@ -379,6 +385,23 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
             .map(|(l, u)| (0..3).map(|i| v[i] * u[i]).sum::<f64>().powi(2) / l)
             .sum()
     });
+    // F⁺v, and v·F⁺v + (F⁺v)ᵀ C (F⁺v) for the two-stage bound.
+    let coefficients = problem.coefficient_term(p, &jac).unwrap_or([[0.0; 3]; 3]);
+    let two_stage_variances = vecs.map(|v| {
+        let w: [f64; 3] = std::array::from_fn(|i| {
+            known_info
+                .iter()
+                .zip(&known_vecs)
+                .filter(|(l, _)| determined(**l))
+                .map(|(l, u)| (0..3).map(|k| v[k] * u[k]).sum::<f64>() / l * u[i])
+                .sum()
+        });
+        let quad: f64 = (0..3)
+            .flat_map(|i| (0..3).map(move |j| (i, j)))
+            .map(|(i, j)| w[i] * coefficients[i][j] * w[j])
+            .sum();
+        (0..3).map(|i| v[i] * w[i]).sum::<f64>() + quad
+    });
     let variances = info.map(|l| if l > 0.0 { 1.0 / l } else { f64::INFINITY });
     let (hcr_variances, copy) = chapman_robbins_variances(problem, p, &variances, &vecs)?;
     Ok(Bound {
@@ -386,6 +409,7 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
         variances,
         directions: vecs,
         known_variances,
+        two_stage_variances,
         hcr_variances,
         copy,
     })
@@ -537,6 +561,10 @@ impl Estimator {
             .filter(|&i| observable[i])
             .map(|i| self.bound.known_variances[i])
             .sum();
+        let two_stage_obs: f64 = (0..3)
+            .filter(|&i| observable[i])
+            .map(|i| self.bound.two_stage_variances[i])
+            .sum();
         let hcr_obs: f64 = (0..3)
             .filter(|&i| observable[i])
             .map(|i| self.bound.hcr_variances[i])
@@ -549,6 +577,7 @@ impl Estimator {
                 json!({
                     "direction": self.bound.directions[i],
                     "crb_1sigma_deg_per_frame": finite(self.bound.variances[i].sqrt()),
+                    "two_stage_1sigma_deg_per_frame": finite(self.bound.two_stage_variances[i].sqrt()),
                     "hcr_1sigma_deg_per_frame": finite(self.bound.hcr_variances[i].sqrt()),
                     "rms_deg_per_frame": rms,
                     "observable": observable[i],
@@ -573,6 +602,8 @@ impl Estimator {
             "crb_known_coefficients_observable_deg_per_frame": finite(known_obs.sqrt()),
             "rms_observable_deg_per_frame": rms_obs,
             "efficiency": rms_obs.map(|r| r / crb_obs.sqrt()).filter(|e| e.is_finite()),
+            "two_stage_observable_deg_per_frame": finite(two_stage_obs.sqrt()),
+            "efficiency_two_stage": rms_obs.map(|r| r / two_stage_obs.sqrt()).filter(|e| e.is_finite()),
             "hcr_observable_deg_per_frame": finite(hcr_obs.sqrt()),
             "directions": per_direction,
             "nees_mean": mean_nees,

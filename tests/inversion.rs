@@ -355,6 +355,20 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
         ]
         .map(|k| e[k].as_f64().unwrap());
         assert!(hcr >= 0.95 * crb, "{e}");
+        // The stable window is exact here: no coefficient uncertainty to plug in, so the
+        // two-stage bound is the bound with the coefficients known, and efficiency against it
+        // is the column beside.
+        let two_stage = e["two_stage_observable_deg_per_frame"].as_f64().unwrap();
+        assert!((two_stage / crb - 1.0).abs() < 1e-9, "{e}");
+        let (eff, eff2) = (
+            e["efficiency"].as_f64().unwrap(),
+            e["efficiency_two_stage"].as_f64().unwrap(),
+        );
+        let scenario_crb = e["crb_observable_deg_per_frame"].as_f64().unwrap();
+        assert!(
+            (eff2 * two_stage - eff * scenario_crb).abs() < 1e-9 * eff * scenario_crb,
+            "{e}"
+        );
     }
     // The two-facet body leaves no mismatch for the polish's re-fitted diffuse terms: the
     // joint p₀ is the true rate, which is its own mirror (−w_x, w_y, −w_z). The near-mirror

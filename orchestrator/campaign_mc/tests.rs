@@ -9,6 +9,7 @@ fn bound(p0: [f64; 3]) -> Bound {
         variances: [1e-6; 3],
         directions: eye,
         known_variances: [1e-6; 3],
+        two_stage_variances: [1e-6; 3],
         hcr_variances: [1e-6; 3],
         copy: None,
     }

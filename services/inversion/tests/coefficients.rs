@@ -168,4 +168,17 @@ fn coefficient_information_loss_is_the_schur_complement_of_the_full_fisher() {
             known[(i, i)]
         );
     }
+    // The two-stage covariance F⁻¹ + F⁻¹CF⁻¹ (coefficients from the stable window alone,
+    // plugged in: the campaigns' two-stage bound) cannot beat the bound: its excess over the
+    // CRB is positive semi-definite, and not zero, since the motion window informs the
+    // coefficients too.
+    let c = problem.coefficient_term(p, &jac).expect("term");
+    let c = DMatrix::from_fn(3, 3, |i, j| c[i][j]);
+    let two_stage = &known + &known * c * &known;
+    let excess = (&two_stage - &crb).symmetric_eigen();
+    let largest = excess.eigenvalues.amax();
+    for e in excess.eigenvalues.iter() {
+        assert!(*e >= -1e-9 * largest, "two-stage − CRB eigenvalue {e:e}");
+    }
+    assert!(largest > 1e-3 * crb.trace(), "{excess:?}");
 }
