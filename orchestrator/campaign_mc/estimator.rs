@@ -1,0 +1,179 @@
+//! Scatter and consistency of one estimator over a Monte-Carlo value's noisy runs: RMS about
+//! p₀ (or its copy) on the bound's observable directions, efficiency against the CRB and the
+//! two-stage bound, NEES, and the runs counted apart (other sense, no rate).
+
+use super::{distance, finite, has_sense, mat3, mirror, observable_bound, vec3, Bound};
+use crate::score_debris::chi2_mean_bounds;
+use glint_inversion::observability::symmetric_eigen;
+use serde_json::{json, Value};
+
+/// Scatter and consistency of one estimator over the noisy runs.
+pub(super) struct Estimator {
+    bound: Bound,
+    /// Σ_obs (d·v_i)² per determined run.
+    dev2_observable: Vec<f64>,
+    /// (d·v_i)² per run, per CRB direction.
+    dev2_along: Vec<[f64; 3]>,
+    /// (NEES, dof) per run with a reported covariance.
+    nees: Vec<(f64, usize)>,
+    /// Runs without a determined rate.
+    undetermined: usize,
+    /// Runs nearer the mirror of p₀ than p₀ (the other sense of rotation): a global ambiguity,
+    /// outside what a local bound describes, counted and kept out of RMS and NEES.
+    other_sense: usize,
+    /// Of those, the runs whose answer named the mirror as fitting as well (the sense reported
+    /// as not determined, rather than the other sense claimed).
+    other_sense_flagged: usize,
+    /// Runs nearer p₀'s copy than p₀: their deviation is taken from the copy.
+    on_copy: usize,
+}
+
+impl Estimator {
+    /// `models`: the noise-free solutions of the fit's two lobe models ([`Reference`]); a run
+    /// is then measured from that of the model it reported.
+    pub(super) fn from_runs(
+        runs: &[Value],
+        pick: &dyn Fn(&Value) -> &Value,
+        bound: Bound,
+        models: Option<&[Bound; 2]>,
+    ) -> Self {
+        let observable = bound.observable();
+        let mut out = Estimator {
+            dev2_observable: vec![],
+            dev2_along: vec![],
+            nees: vec![],
+            undetermined: 0,
+            other_sense: 0,
+            other_sense_flagged: 0,
+            on_copy: 0,
+            bound,
+        };
+        let Some(table_p0) = out.bound.p0 else {
+            out.undetermined = runs.len();
+            return out;
+        };
+        for s3 in runs {
+            let fit = pick(s3);
+            let Some(p) = vec3(&fit["p_deg_per_frame"]) else {
+                out.undetermined += 1;
+                continue;
+            };
+            let own = models.map(|m| &m[usize::from(fit["widest_lobe_refit"] == true)]);
+            let (p0, copy) = match own {
+                Some(Bound {
+                    p0: Some(p0), copy, ..
+                }) => (*p0, *copy),
+                _ => (table_p0, out.bound.copy),
+            };
+            let m0 = mirror(p0);
+            // A rate mostly about Y is nearly its own mirror and has no sense to lose.
+            if has_sense(p0) && distance(p, m0) < distance(p, p0) {
+                out.other_sense += 1;
+                out.other_sense_flagged +=
+                    usize::from(vec3(&fit["mirror_deg_per_frame"]).is_some());
+                continue;
+            }
+            // The data cannot tell p₀ from its copy: scatter is measured from the nearer.
+            let centre = match copy.map(|c| c.point_deg_per_frame) {
+                Some(c) if distance(p, c) < distance(p, p0) => {
+                    out.on_copy += 1;
+                    c
+                }
+                _ => p0,
+            };
+            let d = [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
+            let along = out
+                .bound
+                .directions
+                .map(|v| (0..3).map(|i| v[i] * d[i]).sum::<f64>());
+            let along2 = along.map(|x| x * x);
+            out.dev2_along.push(along2);
+            out.dev2_observable
+                .push((0..3).filter(|&i| observable[i]).map(|i| along2[i]).sum());
+            if let Some(cov) = mat3(&fit["covariance"]) {
+                if let Some(n) = nees(&cov, &d) {
+                    out.nees.push(n);
+                }
+            }
+        }
+        out
+    }
+
+    pub(super) fn json(&self) -> Value {
+        let observable = self.bound.observable();
+        let n = self.dev2_observable.len();
+        let crb_obs: f64 = (0..3)
+            .filter(|&i| observable[i])
+            .map(|i| self.bound.variances[i])
+            .sum();
+        let known_obs: f64 = (0..3)
+            .filter(|&i| observable[i])
+            .map(|i| self.bound.known_variances[i])
+            .sum();
+        let two_stage_obs: f64 = (0..3)
+            .filter(|&i| observable[i])
+            .map(|i| self.bound.two_stage_variances[i])
+            .sum();
+        let hcr_obs: f64 = (0..3)
+            .filter(|&i| observable[i])
+            .map(|i| self.bound.hcr_variances[i])
+            .sum();
+        let rms_obs = (n > 0).then(|| (self.dev2_observable.iter().sum::<f64>() / n as f64).sqrt());
+        let per_direction: Vec<Value> = (0..3)
+            .map(|i| {
+                let rms = (n > 0)
+                    .then(|| (self.dev2_along.iter().map(|a| a[i]).sum::<f64>() / n as f64).sqrt());
+                json!({
+                    "direction": self.bound.directions[i],
+                    "crb_1sigma_deg_per_frame": finite(self.bound.variances[i].sqrt()),
+                    "two_stage_1sigma_deg_per_frame": finite(self.bound.two_stage_variances[i].sqrt()),
+                    "hcr_1sigma_deg_per_frame": finite(self.bound.hcr_variances[i].sqrt()),
+                    "rms_deg_per_frame": rms,
+                    "observable": observable[i],
+                })
+            })
+            .collect();
+        let total_dof: usize = self.nees.iter().map(|(_, k)| k).sum();
+        let mean_nees = (!self.nees.is_empty())
+            .then(|| self.nees.iter().map(|(e, _)| e).sum::<f64>() / self.nees.len() as f64);
+        let [lo, hi] = chi2_mean_bounds(total_dof, self.nees.len());
+        json!({
+            "p0_deg_per_frame": self.bound.p0,
+            "determined": n + self.other_sense,
+            "undetermined": self.undetermined,
+            "other_sense": self.other_sense,
+            "other_sense_flagged": self.other_sense_flagged,
+            "copy_deg_per_frame": self.bound.copy.map(|c| c.point_deg_per_frame),
+            "copy_divergence": self.bound.copy.map(|c| c.divergence),
+            "on_copy": self.on_copy,
+            "observable_directions": observable.iter().filter(|o| **o).count(),
+            "crb_observable_deg_per_frame": finite(crb_obs.sqrt()),
+            "crb_known_coefficients_observable_deg_per_frame": finite(known_obs.sqrt()),
+            "rms_observable_deg_per_frame": rms_obs,
+            "efficiency": rms_obs.map(|r| r / crb_obs.sqrt()).filter(|e| e.is_finite()),
+            "two_stage_observable_deg_per_frame": finite(two_stage_obs.sqrt()),
+            "efficiency_two_stage": rms_obs.map(|r| r / two_stage_obs.sqrt()).filter(|e| e.is_finite()),
+            "hcr_observable_deg_per_frame": finite(hcr_obs.sqrt()),
+            "directions": per_direction,
+            "nees_mean": mean_nees,
+            "nees_dof_mean": (!self.nees.is_empty()).then(|| total_dof as f64 / self.nees.len() as f64),
+            "nees_bounds_95": [finite(lo), finite(hi)],
+        })
+    }
+}
+
+/// NEES of deviation d under a reported covariance, over its observable eigen-directions.
+fn nees(cov: &[[f64; 3]; 3], d: &[f64; 3]) -> Option<(f64, usize)> {
+    let (vals, vecs) = symmetric_eigen(cov).ok()?;
+    let mut sum = 0.0;
+    let mut dof = 0;
+    for (var, v) in vals.iter().zip(&vecs) {
+        if !(*var > 0.0 && var.sqrt() <= observable_bound()) {
+            continue;
+        }
+        let x: f64 = (0..3).map(|i| v[i] * d[i]).sum();
+        sum += x * x / var;
+        dof += 1;
+    }
+    (dof > 0).then_some((sum, dof))
+}
