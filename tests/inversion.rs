@@ -272,24 +272,39 @@ fn the_joint_fit_keeps_stage_one_s_lobes_when_the_re_fit_trades_the_rate_for_the
 fn without_a_glint_the_chain_answers_unobservable_with_its_reason() {
     // Paper-like materials (no diffuse or broad lobes on body and panel) at phase 40°: the paper
     // finds "no body or panel glint" and no solution; the inversion says so instead of a number.
-    let dir = temp_dir("no-glint");
-    let file = scenario_variant(
-        "geo-hover-zspin.toml",
-        &[
-            ("materials = \"physical\"", "materials = \"paper-like\""),
-            ("start_phase_deg = 15.0", "start_phase_deg = 40.0"),
-        ],
-        &dir,
-    );
-    let r = run_ok(Some(&file), &dir.join("out"), &[]);
-    let s3 = &r.report["inversion"]["stage3"];
-    assert_eq!(s3["status"], "unobservable", "{s3}");
-    let why = s3["unobservable_reason"].as_str().unwrap_or("");
-    assert!(why.starts_with("no glint"), "{s3}");
-    assert!(s3["p_deg_per_frame"].is_null(), "{s3}");
-    let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
-    assert!(summary.contains("no rate is reported"), "{summary}");
-    let _ = std::fs::remove_dir_all(&dir);
+    // At 30° the motion window is as flat (0.15 % over the first frames, README): the joint fit
+    // says so too, where re-fitting the widest lobe made a glint of that drift (24.2).
+    for phase in ["30.0", "40.0"] {
+        let dir = temp_dir(&format!("no-glint-{phase}"));
+        let file = scenario_variant(
+            "geo-hover-zspin.toml",
+            &[
+                ("materials = \"physical\"", "materials = \"paper-like\""),
+                (
+                    "start_phase_deg = 15.0",
+                    &format!("start_phase_deg = {phase}"),
+                ),
+            ],
+            &dir,
+        );
+        let r = run_ok(Some(&file), &dir.join("out"), &[]);
+        let s3 = &r.report["inversion"]["stage3"];
+        assert_eq!(s3["status"], "unobservable", "{phase}: {s3}");
+        for why in [
+            &s3["unobservable_reason"],
+            &s3["joint"]["unobservable_reason"],
+        ] {
+            assert!(
+                why.as_str().unwrap_or("").starts_with("no glint"),
+                "{phase}: {s3}"
+            );
+        }
+        assert!(s3["p_deg_per_frame"].is_null(), "{s3}");
+        assert!(s3["joint"]["p_deg_per_frame"].is_null(), "{s3}");
+        let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
+        assert!(summary.contains("no rate is reported"), "{summary}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
 
 #[test]

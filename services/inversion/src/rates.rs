@@ -3,6 +3,7 @@
 
 use crate::error::InversionError;
 use crate::model::{MotionModelConfig, RateBand, RateProblem};
+use crate::observability::UnobservableReason;
 use crate::observation::Observation;
 use crate::stage1::Stage1Band;
 use crate::stage3::{self, LobeRefit, RateFit, RateSolution, Stage3Config};
@@ -284,6 +285,19 @@ fn choose_lobes(
     refitted: (RateSolution, usize),
     confidence: f64,
 ) -> (RateSolution, usize) {
+    // Stage 1's lobes show no glint in the motion window: a re-fitted widest lobe cannot
+    // supply one. Its amplitude trades against the rate (ADR 0011), and with the paper-like
+    // materials at phase 30° the re-fit made a glint of a 0.15 % drift (24.2, confidently).
+    let no_glint = matches!(
+        kept.0,
+        RateSolution::Unobservable {
+            reason: UnobservableReason::NoGlint { .. },
+            ..
+        }
+    );
+    if no_glint {
+        return kept;
+    }
     let (Some(k), Some(r)) = (kept.0.fit(), refitted.0.fit()) else {
         return refitted;
     };
@@ -389,4 +403,50 @@ pub struct RateFits {
     /// solution ([`Stage3Config::widen_to_joint`]; 1 when the two agree within their errors);
     /// `None` without a determined joint solution or with the widening off.
     pub covariance_scale: Option<f64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stage3::fixtures::{no_glint, with_covariance};
+    use crate::stage3::Refit;
+
+    /// A slow re-fitted rate, as the paper-like phase-30° joint fit found.
+    fn refitted() -> (RateSolution, usize) {
+        let mut fit = with_covariance([0.0, 0.034, 0.011], [[1e-8; 3]; 3]);
+        fit.refit = Some(Refit {
+            widest_lobe: true,
+            held_direction: [1.0, 0.0, 0.0],
+            lobe_test: None,
+        });
+        (RateSolution::Determined(fit), 711)
+    }
+
+    #[test]
+    fn a_re_fitted_lobe_cannot_make_a_glint_stage_one_s_lobes_do_not_show() {
+        // Keeping stage 1's lobes: no glint. The joint fit says so, whatever the re-fit found.
+        let (chosen, frames) = choose_lobes((no_glint(4e-4), 29), refitted(), 0.99);
+        assert!(chosen.fit().is_none() && frames == 29, "{chosen:?}");
+        // Unobservable for another reason (its best start left the search box): the re-fit
+        // answers, as before.
+        let RateSolution::Unobservable {
+            bounds_deg_per_frame,
+            observability,
+            wavelengths_nm,
+            ..
+        } = no_glint(4e-4)
+        else {
+            unreachable!()
+        };
+        let outside = RateSolution::Unobservable {
+            reason: crate::observability::UnobservableReason::OutsideSearchBox {
+                rate_deg_per_frame: [0.0, 1.2, 0.0],
+            },
+            bounds_deg_per_frame,
+            observability,
+            wavelengths_nm,
+        };
+        let (chosen, frames) = choose_lobes((outside, 29), refitted(), 0.99);
+        assert!(chosen.fit().is_some() && frames == 711, "{chosen:?}");
+    }
 }

@@ -42,3 +42,18 @@ pub(crate) fn with_covariance(p: [f64; 3], cov: [[f64; 3]; 3]) -> RateFit {
     f.covariance_deg2_per_frame2 = cov;
     f
 }
+
+/// "Unobservable: no glint" with the lobes carrying `share` of the sensitivity.
+pub(crate) fn no_glint(share: f64) -> RateSolution {
+    let RateSolution::Determined(f) = solution([0.0; 3], None) else {
+        unreachable!()
+    };
+    RateSolution::Unobservable {
+        reason: crate::observability::UnobservableReason::NoGlint {
+            lobe_sensitivity_share: share,
+        },
+        bounds_deg_per_frame: f.observability.bounds_1sigma_deg_per_frame,
+        observability: f.observability,
+        wavelengths_nm: f.wavelengths_nm,
+    }
+}
