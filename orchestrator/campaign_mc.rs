@@ -376,30 +376,28 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
     // so its variance does not leak into the others (the full inverse would add (v·u₁)²/λ₁
     // with λ₁ ≈ 0).
     let determined = |l: f64| l > 0.0 && l.sqrt().recip() <= observable_bound();
-    let known_variances = vecs.map(|v| {
-        known_info
-            .iter()
-            .zip(&known_vecs)
-            .filter(|(l, _)| determined(**l))
-            .map(|(l, u)| (0..3).map(|i| v[i] * u[i]).sum::<f64>().powi(2) / l)
-            .sum()
-    });
-    // F⁺v, and v·F⁺v + (F⁺v)ᵀ C (F⁺v) for the two-stage bound.
-    let coefficients = problem.coefficient_term(p, &jac).unwrap_or([[0.0; 3]; 3]);
-    let two_stage_variances = vecs.map(|v| {
-        let w: [f64; 3] = std::array::from_fn(|i| {
+    // F⁺v over the determined eigen-pairs of F = JᵀWJ: v·F⁺v is the bound with the
+    // coefficients known, v·F⁺v + (F⁺v)ᵀC(F⁺v) the two-stage bound.
+    let pinv_v = vecs.map(|v| -> [f64; 3] {
+        std::array::from_fn(|i| {
             known_info
                 .iter()
                 .zip(&known_vecs)
                 .filter(|(l, _)| determined(**l))
                 .map(|(l, u)| (0..3).map(|k| v[k] * u[k]).sum::<f64>() / l * u[i])
                 .sum()
-        });
+        })
+    });
+    let known_variances: [f64; 3] =
+        std::array::from_fn(|d| (0..3).map(|i| vecs[d][i] * pinv_v[d][i]).sum());
+    let coefficients = problem.coefficient_term(p, &jac).unwrap_or([[0.0; 3]; 3]);
+    let two_stage_variances: [f64; 3] = std::array::from_fn(|d| {
+        let w = pinv_v[d];
         let quad: f64 = (0..3)
             .flat_map(|i| (0..3).map(move |j| (i, j)))
             .map(|(i, j)| w[i] * coefficients[i][j] * w[j])
             .sum();
-        (0..3).map(|i| v[i] * w[i]).sum::<f64>() + quad
+        known_variances[d] + quad
     });
     let variances = info.map(|l| if l > 0.0 { 1.0 / l } else { f64::INFINITY });
     let (hcr_variances, copy) = chapman_robbins_variances(problem, p, &variances, &vecs)?;

@@ -102,22 +102,13 @@ impl Estimator {
     pub(super) fn json(&self) -> Value {
         let observable = self.bound.observable();
         let n = self.dev2_observable.len();
-        let crb_obs: f64 = (0..3)
-            .filter(|&i| observable[i])
-            .map(|i| self.bound.variances[i])
-            .sum();
-        let known_obs: f64 = (0..3)
-            .filter(|&i| observable[i])
-            .map(|i| self.bound.known_variances[i])
-            .sum();
-        let two_stage_obs: f64 = (0..3)
-            .filter(|&i| observable[i])
-            .map(|i| self.bound.two_stage_variances[i])
-            .sum();
-        let hcr_obs: f64 = (0..3)
-            .filter(|&i| observable[i])
-            .map(|i| self.bound.hcr_variances[i])
-            .sum();
+        // A bound's variance summed over the observable directions.
+        let over_observable =
+            |v: &[f64; 3]| -> f64 { (0..3).filter(|&i| observable[i]).map(|i| v[i]).sum() };
+        let crb_obs = over_observable(&self.bound.variances);
+        let known_obs = over_observable(&self.bound.known_variances);
+        let two_stage_obs = over_observable(&self.bound.two_stage_variances);
+        let hcr_obs = over_observable(&self.bound.hcr_variances);
         let rms_obs = (n > 0).then(|| (self.dev2_observable.iter().sum::<f64>() / n as f64).sqrt());
         let per_direction: Vec<Value> = (0..3)
             .map(|i| {
