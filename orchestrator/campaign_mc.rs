@@ -17,11 +17,12 @@
 //!              |p₀| away, counted apart (a global ambiguity the local bound does not describe)
 //!              and left out of RMS and NEES
 //! HCR_i = sup_h (v_i·h)²/(exp Δ(h) − 1)  Hammersley–Chapman–Robbins, Δ(h) = ‖r(p₀+h) − r(p₀)‖²
-//!                                      profiled over the other observable directions
-//!                                      (glint_inversion::chapman_robbins), coefficients known
-//! copy: a test point ≥ 2 CRB from p₀ with Δ < min(1, ¼(c/CRB)²): the data cannot tell it
-//!       from p₀ (a Y rotation's mirror, moved off p₀ by the out-of-plane geometry); runs
-//!       nearer it than p₀ take d_k = p̂_k − copy
+//!                                      profiled over the other observable directions and,
+//!                                      like the CRB, the stage-1 coefficients
+//!                                      (glint_inversion::chapman_robbins)
+//! copy: a test point ≥ 2 CRB from p₀ with Δ < min(1, ¼(c/CRB)²), coefficients fixed: the
+//!       model cannot tell it from p₀ (a Y rotation's mirror, moved off p₀ by the
+//!       out-of-plane geometry); runs nearer it than p₀ take d_k = p̂_k − copy
 //! efficiency = sqrt(mean_k Σ_obs (d_k·v_i)²) / sqrt(Σ_obs λ_i)     (1 = efficient)
 //! NEES_k = Σ_obs' (d_k·u_j)²/μ_j        u_j, μ_j: eigen-pairs of the run's reported covariance
 //! lobe test: the joint fit keeps or re-fits stage 1's widest lobes per run; p₀ and the bound
@@ -412,11 +413,11 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
     })
 }
 
-/// The HCR bound along each observable direction, profiled over the other observable ones,
-/// searching offsets from a tenth of the CRB out to the observability threshold (and, when
-/// the mirror of p₀ is another sense of rotation, to half-way there: runs beyond it are
-/// counted apart, not as scatter); and the copy of p₀ with the smallest Δ among the test
-/// points that attain it, if any.
+/// The HCR bound along each observable direction, profiled over the other observable ones (and
+/// over the stage-1 coefficients when `problem` carries their covariance), searching offsets
+/// from a tenth of the CRB out to the observability threshold (and, when the mirror of p₀ is
+/// another sense of rotation, to half-way there: runs beyond it are counted apart, not as
+/// scatter); and the copy of p₀ with the smallest Δ, the coefficients fixed, if any.
 fn chapman_robbins_variances(
     problem: &RateProblem,
     p0: [f64; 3],
@@ -429,6 +430,9 @@ fn chapman_robbins_variances(
     if has_sense(p0) {
         reach = reach.min(0.5 * distance(m0, p0));
     }
+    // A copy is a second rate of the model itself (the mirror, ADR 0005): judged with the
+    // coefficients fixed. The bound lets the stage-1 coefficients move too, as the CRB does.
+    let fixed = problem.clone().with_coefficient_covariance(vec![]);
     let mut out = [f64::NAN; 3];
     let mut copy: Option<RateCopy> = None;
     for i in (0..3).filter(|&i| observable[i]) {
@@ -436,16 +440,18 @@ fn chapman_robbins_variances(
             .filter(|&k| k != i && observable[k])
             .map(|k| directions[k])
             .collect();
-        let cr = chapman_robbins(
-            problem,
-            p0,
-            directions[i],
-            &free,
-            variances[i].sqrt(),
-            reach,
-        )?;
-        out[i] = cr.variance;
-        if let Some(c) = cr
+        let search = |problem: &RateProblem| {
+            chapman_robbins(
+                problem,
+                p0,
+                directions[i],
+                &free,
+                variances[i].sqrt(),
+                reach,
+            )
+        };
+        out[i] = search(problem)?.variance;
+        if let Some(c) = search(&fixed)?
             .copy
             .filter(|c| copy.is_none_or(|b| c.divergence < b.divergence))
         {

@@ -15,11 +15,25 @@
 //! Var(v·p̂) ≥ sup_h (v·h)² / (exp(Δ(h)) − 1)
 //! ```
 //!
+//! The stage-1 coefficients are parameters too when the problem carries their covariance
+//! ([`RateProblem::with_coefficient_covariance`]): a test point then moves them as well, to
+//! where p₀ + h fits p₀'s light curve best at the price the stable window charges, and
+//!
+//! ```text
+//! Δ(h) = dᵀ M d,   d = r(p₀ + h) − r(p₀),   M = I − Σ_b B_b (S_b + B_bᵀB_b)⁻¹ B_bᵀ
+//! ```
+//!
+//! (S_b the stable window's information about band b's coefficients, B_b the motion residuals'
+//! sensitivity to them, as in `model::coefficients`). Two rates whose light curves differ by
+//! what the stable window's noise could have put into the coefficients are then as hard to
+//! tell apart as that noise makes them.
+//!
 //! As h → 0 the ratio tends to the CRB along v of the sub-problem the searched directions span
-//! (v and the `free` ones, the rest held), so a bound well above the CRB means the light curve
-//! is not linear over the offsets that matter. [`chapman_robbins`] evaluates the supremum on the profile:
-//! for offsets `c` along v on a geometric grid, Δ is minimised over the `free` directions by
-//! Gauss–Newton (continued from the previous offset), and the largest `c²/expm1(Δ)` is kept.
+//! (v and the `free` ones, the rest held; with the coefficients unknown, (JᵀJ − L)⁻¹), so a
+//! bound well above the CRB means the light curve is not linear over the offsets that matter.
+//! [`chapman_robbins`] evaluates the supremum on the profile: for offsets `c` along v on a
+//! geometric grid, Δ is minimised over the `free` directions by Gauss–Newton (continued from
+//! the previous offset), and the largest `c²/expm1(Δ)` is kept.
 
 use crate::error::InversionError;
 use crate::model::RateProblem;
@@ -217,7 +231,8 @@ pub fn chapman_robbins(
     Ok(best)
 }
 
-/// Δ(c v + Σ a_k u_k) minimised over a, with scratch buffers.
+/// Δ(c v + Σ a_k u_k) minimised over a (and over the stage-1 coefficients when the problem
+/// carries their covariance), with scratch buffers.
 struct Profile<'a> {
     problem: &'a RateProblem,
     p0: [f64; 3],
@@ -225,9 +240,17 @@ struct Profile<'a> {
     free: &'a [[f64; 3]],
     r: Vec<f64>,
     jac: Vec<[f64; 3]>,
-    /// Scratch for Gauss–Newton trials, swapped with `r`/`jac` on acceptance.
-    r_try: Vec<f64>,
-    jac_try: Vec<[f64; 3]>,
+    /// Per residual: J u_1, J u_2 (0 where there is no such free direction) and r − r₀.
+    columns: Vec<[f64; 3]>,
+}
+
+/// Δ at one test point and the Gauss–Newton system of its profile over the free directions.
+struct Evaluation {
+    delta: f64,
+    /// UᵀJᵀMJU.
+    normal: [[f64; 2]; 2],
+    /// UᵀJᵀM(r − r₀).
+    gradient: [f64; 2],
 }
 
 impl<'a> Profile<'a> {
@@ -240,8 +263,7 @@ impl<'a> Profile<'a> {
             free: &free[..free.len().min(2)],
             r: vec![0.0; n],
             jac: vec![[0.0; 3]; n],
-            r_try: vec![0.0; n],
-            jac_try: vec![[0.0; 3]; n],
+            columns: vec![[0.0; 3]; n],
         }
     }
 
@@ -258,55 +280,76 @@ impl<'a> Profile<'a> {
         })
     }
 
-    /// Δ at offset c, with a (the free coordinates, updated in place) minimising it.
-    fn minimise(&mut self, c: f64, v: [f64; 3], a: &mut [f64; 2]) -> f64 {
-        let divergence =
-            |r: &[f64], r0: &[f64]| -> f64 { r.iter().zip(r0).map(|(x, y)| (x - y).powi(2)).sum() };
-        let k = self.free.len();
-        let p = self.point(c, v, a);
+    /// Δ(p) = (r − r₀)ᵀ M (r − r₀) with M = I − Σ_b B_b (S_b + B_bᵀB_b)⁻¹ B_bᵀ: the divergence
+    /// with each band's stage-1 coefficients moved to fit p₀'s light curve best, at the price
+    /// δxᵀS_bδx the stable window charges for the move (S_b its information about them, B_b the
+    /// motion residuals' sensitivity to them; the light curve is linear in the coefficients, so
+    /// the minimum over δx is exact). M = I when the coefficients are known (no covariance).
+    /// As h → 0 the ratio then tends to the Cramér–Rao bound with the coefficients unknown,
+    /// (JᵀJ − L)⁻¹ (`RateProblem::coefficient_information_loss`).
+    fn evaluate(&mut self, p: [f64; 3]) -> Evaluation {
         self.problem
             .residuals_and_jacobian(p, &mut self.r, &mut self.jac);
-        let mut delta = divergence(&self.r, self.r0);
-        if k == 0 {
-            return delta;
+        for ((col, row), (ri, r0i)) in self
+            .columns
+            .iter_mut()
+            .zip(&self.jac)
+            .zip(self.r.iter().zip(self.r0))
+        {
+            let along = |q: usize| {
+                self.free
+                    .get(q)
+                    .map_or(0.0, |u| (0..3).map(|i| row[i] * u[i]).sum())
+            };
+            *col = [along(0), along(1), ri - r0i];
         }
-        for _ in 0..PROFILE_ITERATIONS {
-            // d = r − r₀, ∂d/∂a_k = −J u_k: the step solves (UᵀJᵀJU) δa = UᵀJᵀ d.
-            let mut m = [[0.0; 2]; 2];
-            let mut g = [0.0; 2];
-            for (row, (ri, r0i)) in self.jac.iter().zip(self.r.iter().zip(self.r0)) {
-                let b: [f64; 2] = std::array::from_fn(|q| {
-                    self.free
-                        .get(q)
-                        .map_or(0.0, |u| (0..3).map(|i| row[i] * u[i]).sum())
-                });
-                for q in 0..k {
-                    g[q] += b[q] * (ri - r0i);
-                    for s in 0..k {
-                        m[q][s] += b[q] * b[s];
-                    }
+        let mut gram = [[0.0; 3]; 3];
+        for col in &self.columns {
+            for i in 0..3 {
+                for j in 0..3 {
+                    gram[i][j] += col[i] * col[j];
                 }
             }
-            let step = solve2(&m, &g, k);
-            let Some(step) = step else { break };
+        }
+        if let Some(loss) = self.problem.coefficient_information_loss(p, &self.columns) {
+            for i in 0..3 {
+                for j in 0..3 {
+                    gram[i][j] -= loss[i][j];
+                }
+            }
+        }
+        Evaluation {
+            delta: gram[2][2].max(0.0),
+            normal: [[gram[0][0], gram[0][1]], [gram[1][0], gram[1][1]]],
+            gradient: [gram[0][2], gram[1][2]],
+        }
+    }
+
+    /// Δ at offset c, with a (the free coordinates, updated in place) minimising it.
+    fn minimise(&mut self, c: f64, v: [f64; 3], a: &mut [f64; 2]) -> f64 {
+        let k = self.free.len();
+        let mut at = self.evaluate(self.point(c, v, a));
+        if k == 0 {
+            return at.delta;
+        }
+        for _ in 0..PROFILE_ITERATIONS {
+            // d = r − r₀, ∂d/∂a_k = −J u_k: the step solves (UᵀJᵀMJU) δa = UᵀJᵀM d.
+            let Some(step) = solve2(&at.normal, &at.gradient, k) else {
+                break;
+            };
             let trial = [a[0] + step[0], a[1] + step[1]];
-            let p = self.point(c, v, &trial);
-            self.problem
-                .residuals_and_jacobian(p, &mut self.r_try, &mut self.jac_try);
-            let d_try = divergence(&self.r_try, self.r0);
-            if d_try.is_nan() || d_try >= delta {
+            let next = self.evaluate(self.point(c, v, &trial));
+            if next.delta.is_nan() || next.delta >= at.delta {
                 break;
             }
-            let gain = delta - d_try;
+            let gain = at.delta - next.delta;
             *a = trial;
-            std::mem::swap(&mut self.r, &mut self.r_try);
-            std::mem::swap(&mut self.jac, &mut self.jac_try);
-            delta = d_try;
-            if gain <= 1e-9 * (1.0 + delta) {
+            at = next;
+            if gain <= 1e-9 * (1.0 + at.delta) {
                 break;
             }
         }
-        delta
+        at.delta
     }
 }
 

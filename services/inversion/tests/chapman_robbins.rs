@@ -113,3 +113,54 @@ fn finds_a_copy_whose_well_is_narrower_than_the_offset_grid() {
         hcr.variance
     );
 }
+
+#[test]
+fn with_the_coefficients_unknown_tends_to_their_cramer_rao_bound() {
+    // A stage-1 covariance (3 % 1σ on every active coefficient) makes the coefficients
+    // parameters of the test points too: where the light curve is linear the bound is then the
+    // Cramér–Rao bound with them unknown, (JᵀJ − L)⁻¹, not (JᵀJ)⁻¹.
+    let obs = with_noise(y_window(100), 1e4, None);
+    let p = [0.0, 0.25, 0.0];
+    let b = band();
+    let x = glint_inversion::stage1::coefficients_to_array(&b.coeffs);
+    let n = x.len();
+    let mut cov = vec![0.0; n * n];
+    for m in (0..n).filter(|&m| x[m] > 0.0) {
+        cov[m * n + m] = (0.03 * x[m]).powi(2);
+    }
+    let problem = RateProblem::new(&obs, &[b], &MotionModelConfig::default())
+        .expect("p")
+        .with_coefficient_covariance(vec![Some(cov)]);
+    let rows = problem.residual_count();
+    let (mut r, mut jac) = (vec![0.0; rows], vec![[0.0; 3]; rows]);
+    problem.residuals_and_jacobian(p, &mut r, &mut jac);
+    let (fisher, _) = normal_equations(&jac, &r);
+    let loss = problem.coefficient_information_loss(p, &jac).expect("loss");
+    let reduced: [[f64; 3]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|j| fisher[i][j] - loss[i][j]));
+    let (info, dirs) = symmetric_eigen(&reduced).expect("eigen");
+    let known_along = |v: [f64; 3]| -> f64 {
+        (0..3)
+            .map(|i| (0..3).map(|j| v[i] * fisher[i][j] * v[j]).sum::<f64>())
+            .sum()
+    };
+    for i in 1..3 {
+        let crb = info[i].recip();
+        // The coefficients matter along this direction: the bound with them known is tighter.
+        assert!(
+            known_along(dirs[i]) > 1.1 * info[i],
+            "direction {:?}: information {:.3e} known vs {:.3e} unknown",
+            dirs[i],
+            known_along(dirs[i]),
+            info[i]
+        );
+        let free: Vec<[f64; 3]> = (1..3).filter(|&k| k != i).map(|k| dirs[k]).collect();
+        let hcr = chapman_robbins(&problem, p, dirs[i], &free, crb.sqrt(), 0.25).expect("b");
+        let ratio = hcr.variance / crb;
+        assert!(
+            (0.98..=1.02).contains(&ratio),
+            "direction {:?}: HCR/CRB = {ratio} ({hcr:?})",
+            dirs[i]
+        );
+    }
+}
