@@ -120,6 +120,8 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 "eigenvectors_columns": r.fisher_eigenvectors.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
                 "bound_1sigma_deg_per_frame": r.bound_1sigma_deg_per_frame.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
                 "observable": (0..3).map(|i| r.observable_mask & (1 << i) != 0).collect::<Vec<_>>(),
+                "held_at_prior": held_names(r.stage3_held_axes),
+                "covariance_source": SolveResponse::COVARIANCE_SOURCE_NAMES.get(r.stage3_covariance_source as usize).copied(),
             },
             "cost": finite(r.cost),
             "iterations": r.iterations,
@@ -255,30 +257,69 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                 }
             );
         }
-        // The rates the service's default prior held: the body axis nearest each weak direction.
-        let weak: Vec<[f64; 3]> = (0..3)
-            .filter(|i| r.observable_mask & (1 << i) == 0)
-            .map(|i| [0, 3, 6].map(|row| r.fisher_eigenvectors[row + i]))
-            .collect();
-        let held: Vec<&str> = glint_inversion::WeakPrior::BodyAxis
-            .directions(&weak)
-            .iter()
-            .map(|e| match e {
-                [1.0, 0.0, 0.0] => "w_x",
-                [0.0, 1.0, 0.0] => "w_y",
-                [0.0, 0.0, 1.0] => "w_z",
-                _ => "the weak direction itself",
-            })
-            .collect();
-        if !held.is_empty() && r.status == SolveStatus::Ok as u32 {
-            let _ = writeln!(
-                s,
-                "\nThe data do not determine the direction(s) marked **no**. p is reported under the stated prior that the rate about the body axis nearest each is zero ({} = 0); only the determined combinations come from the light curve. Without σ in the data, the bounds use the residual variance inflated for the residuals' serial correlation (model mismatch is smooth in time).",
-                held.join(", ")
-            );
+        if r.status == SolveStatus::Ok as u32 {
+            s.push_str(&held_sentences(r));
         }
     }
     s
+}
+
+const AXES: [&str; 3] = ["w_x", "w_y", "w_z"];
+
+/// The rates `SolveResponse::stage3_held_axes` says the prior held at zero.
+fn held_names(bits: u32) -> Vec<&'static str> {
+    let mut held: Vec<&str> = (0..3)
+        .filter(|k| bits & (1 << k) != 0)
+        .map(|k| AXES[k])
+        .collect();
+    if bits & SolveResponse::HELD_OTHER != 0 {
+        held.push("the weak direction itself");
+    }
+    held
+}
+
+/// What the stated prior held at λ*, which undetermined directions it did not hold, and where
+/// the bounds' noise level came from.
+fn held_sentences(r: &SolveResponse) -> String {
+    let mut parts: Vec<String> = vec![];
+    let weak: Vec<[f64; 3]> = (0..3)
+        .filter(|i| r.observable_mask & (1 << i) == 0)
+        .map(|i| [0, 3, 6].map(|row| r.fisher_eigenvectors[row + i]))
+        .collect();
+    let held = held_names(r.stage3_held_axes);
+    if !weak.is_empty() {
+        parts.push("The data do not determine the direction(s) marked **no**.".into());
+        if !held.is_empty() {
+            parts.push(format!(
+                "p is reported under the stated prior {} = 0 (the rate about the body axis nearest a direction the data could not determine is zero); only the determined combinations come from the light curve.",
+                held.join(", ")
+            ));
+        }
+        // A weak direction whose nearest body axis the prior did not hold.
+        let free: Vec<&str> = weak
+            .iter()
+            .filter_map(|u| {
+                let k = (0..3).max_by(|&a, &b| u[a].abs().total_cmp(&u[b].abs()))?;
+                (r.stage3_held_axes & (1 << k) == 0).then_some(AXES[k])
+            })
+            .collect();
+        if !free.is_empty() {
+            parts.push(format!(
+                "Along {} the fit held nothing: the light curve is flat there to first order at this p (as at the centre between a rate and its near-mirror (−w_x, w_y, −w_z), where it rises only quadratically), and p sits where the fit ended.",
+                free.join(", ")
+            ));
+        }
+    }
+    if let Some(source) = SolveResponse::COVARIANCE_SOURCE_NAMES
+        .get(r.stage3_covariance_source as usize)
+        .filter(|_| r.stage3_covariance_source > 0)
+    {
+        parts.push(format!("The bounds use {source}."));
+    }
+    if parts.is_empty() {
+        return String::new();
+    }
+    format!("\n{}\n", parts.join(" "))
 }
 
 pub fn plots(dir: &Path, responses: &[SolveResponse]) -> Result<()> {
@@ -455,5 +496,44 @@ mod tests {
         assert!(widened_phrase(&response(1.2, 0)).is_empty());
         assert!(disagreement_phrase(&response(gate - 0.5, 0)).is_none());
         assert!(disagreement_phrase(&response(f64::NAN, 0)).is_none());
+    }
+
+    /// Eigen-directions Z, X, Y (ascending), only Y determined; `held` axes held by the prior.
+    fn weak_response(held: u32, source: u32) -> SolveResponse {
+        let mut r = SolveResponse {
+            observable_mask: 0b100,
+            stage3_held_axes: held,
+            stage3_covariance_source: source,
+            fisher_eigenvectors: [0.0; 9],
+            ..SolveResponse::default()
+        };
+        for (i, axis) in [2, 0, 1].into_iter().enumerate() {
+            r.fisher_eigenvectors[3 * axis + i] = 1.0;
+        }
+        r
+    }
+
+    #[test]
+    fn the_summary_says_which_undetermined_directions_the_prior_held() {
+        // The bisector hold held w_x; Z is flat to first order at p̂ but was not held.
+        let text = held_sentences(&weak_response(1, 1));
+        assert!(text.contains("stated prior w_x = 0"), "{text}");
+        assert!(!text.contains("w_z = 0"), "{text}");
+        assert!(text.contains("Along w_z the fit held nothing"), "{text}");
+        assert!(
+            text.contains("The bounds use the observations' σ."),
+            "{text}"
+        );
+        // Both held: nothing is left where the fit ended.
+        let text = held_sentences(&weak_response(1 | 4, 3));
+        assert!(text.contains("stated prior w_x, w_z = 0"), "{text}");
+        assert!(!text.contains("held nothing"), "{text}");
+        assert!(text.contains("residual variance"), "{text}");
+        // Every direction determined: only the noise level's source.
+        let mut all = weak_response(0, 2);
+        all.observable_mask = 0b111;
+        let text = held_sentences(&all);
+        assert!(!text.contains("do not determine"), "{text}");
+        assert!(text.contains("Birge ratio"), "{text}");
     }
 }

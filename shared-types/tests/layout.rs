@@ -219,7 +219,7 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, flags), 44);
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (2584, 8)
+        (2592, 8)
     );
     assert_eq!(offset_of!(SolveResponse, status), 44);
     assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
@@ -258,4 +258,6 @@ fn solve_layout() {
         offset_of!(SolveResponse, p_joint_mirror_deg_per_frame),
         2560
     );
+    assert_eq!(offset_of!(SolveResponse, stage3_held_axes), 2584);
+    assert_eq!(offset_of!(SolveResponse, stage3_covariance_source), 2588);
 }

@@ -17,6 +17,7 @@ use shared_types::{
 };
 
 use crate::model::MotionModelConfig;
+use crate::observability::CovarianceSource;
 use crate::rotation::AttitudeModel;
 use crate::session::{Session, StageOutcome};
 use crate::stage3::{RateSolution, Stage3Config};
@@ -53,6 +54,19 @@ pub fn observation(sp: &Spectrum) -> Observation {
     }
 }
 
+/// `SolveResponse::stage3_held_axes` of the directions a prior held.
+fn held_axes(directions: &[[f64; 3]]) -> u32 {
+    directions
+        .iter()
+        .map(|e| match e {
+            [1.0, 0.0, 0.0] => 1,
+            [0.0, 1.0, 0.0] => 2,
+            [0.0, 0.0, 1.0] => 4,
+            _ => SolveResponse::HELD_OTHER,
+        })
+        .fold(0, |bits, b| bits | b)
+}
+
 fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSolution>) {
     let obs = match rate {
         RateSolution::Determined(fit) => {
@@ -69,6 +83,12 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
             }
             out.iterations = fit.total_iterations as u32;
             out.starts = fit.starts_polished as u32;
+            out.stage3_held_axes = held_axes(&fit.held_directions);
+            out.stage3_covariance_source = match fit.covariance_source {
+                CovarianceSource::GivenSigma => 1,
+                CovarianceSource::GivenSigmaScaled { .. } => 2,
+                CovarianceSource::ResidualVariance { .. } => 3,
+            };
             &fit.observability
         }
         RateSolution::Unobservable {

@@ -222,6 +222,12 @@ pub struct RateFit {
     pub start_deg_per_frame: [f64; 3],
     /// Eigen-analysis of the information matrix.
     pub observability: Observability,
+    /// The directions e the stated prior held (e·p = 0; [`Stage3Config::weak_prior`]): the body
+    /// axis nearest each direction the data could not determine where the fit was made. A
+    /// direction `observability` marks unobservable at p̂ but not held here (near the centre of
+    /// a mirror pair the light curve is flat to first order) sits where the fit ended.
+    #[serde(default)]
+    pub held_directions: Vec<[f64; 3]>,
     /// The mirror solution (−w_x, w_y, −w_z) when it fits the data as well as p̂: with every
     /// geometry vector in the body XZ plane the light curve cannot tell a rotation from its
     /// mirror image, so the sense of rotation about X and Z is not observable. `None` when the
@@ -484,11 +490,14 @@ fn polish(
     let wavelengths_nm = problem.wavelengths_nm().to_vec();
     let mut best = best;
     // Directions the data cannot determine are held under the stated prior.
+    let mut held_directions = vec![];
     if let Some(hold) = &hold {
         hold.restate(&mut analysis, config)?;
+        held_directions = vec![hold.held_direction()];
     } else if analysis.unobservable.is_none() && config.hold_unobservable_at_prior {
         let iterations;
-        (best, analysis, iterations) = weak::hold_weak_direction(problem, best, analysis, config)?;
+        (best, analysis, iterations, held_directions) =
+            weak::hold_weak_direction(problem, best, analysis, config)?;
         total_iterations += iterations;
     }
     if analysis.unobservable.is_none() && !near_box(&best.p_deg_per_frame, &config.start) {
@@ -537,6 +546,7 @@ fn polish(
         starts_polished: starts.len(),
         start_deg_per_frame: start,
         observability: analysis.observability,
+        held_directions,
         mirror_deg_per_frame,
         refit: hold.as_ref().map(|h| Refit {
             widest_lobe: problem.refits_widest_lobe(),

@@ -281,6 +281,13 @@ pub struct SolveResponse {
     /// well as `p_joint_deg_per_frame` (the joint fit cannot tell the sense of rotation); NaN
     /// when the data tell them apart or without a joint rate.
     pub p_joint_mirror_deg_per_frame: [f64; 3],
+    /// Stage 3 at λ*: the directions the stated prior held at zero, bit k for body axis k
+    /// (x, y, z) and [`SolveResponse::HELD_OTHER`] for one that is not a body axis. A direction
+    /// `observable_mask` leaves out but not held here sits where the fit ended.
+    pub stage3_held_axes: u32,
+    /// Stage 3 at λ*: where the covariance's noise level came from, see
+    /// [`SolveResponse::COVARIANCE_SOURCE_NAMES`] (0 without a rate).
+    pub stage3_covariance_source: u32,
 }
 
 impl Default for SolveResponse {
@@ -327,6 +334,8 @@ impl Default for SolveResponse {
             stage3_covariance_scale: f64::NAN,
             stage3_joint_lobe_test_chi2: f64::NAN,
             p_joint_mirror_deg_per_frame: [f64::NAN; 3],
+            stage3_held_axes: 0,
+            stage3_covariance_source: 0,
         }
     }
 }
@@ -341,6 +350,17 @@ impl SolveResponse {
     /// The joint fit kept stage 1's lobes because the re-fit traded the rate for the lobe (it
     /// ended below half the kept rate).
     pub const JOINT_LOBE_RATE_TRADED: u32 = 8;
+
+    /// `stage3_held_axes`: a held direction that is not a body axis (bits 0–2 are x, y, z).
+    pub const HELD_OTHER: u32 = 8;
+
+    /// Names of the `stage3_covariance_source` codes (index = code).
+    pub const COVARIANCE_SOURCE_NAMES: [&'static str; 4] = [
+        "none",
+        "the observations' σ",
+        "the observations' σ, scaled by the Birge ratio (the residuals reject the model)",
+        "the residual variance, inflated for the residuals' serial correlation",
+    ];
 
     /// Names of the `unobservable_reason` codes (index = code).
     pub const REASON_NAMES: [&'static str; 6] = [
@@ -364,6 +384,18 @@ impl SolveResponse {
         self.meta.validate()?;
         if SolveStatus::from_u32(self.status).is_none() {
             return Err(Reject::new("solve_response.status", "unknown status"));
+        }
+        if self.stage3_held_axes > 0xF {
+            return Err(Reject::new(
+                "solve_response.stage3_held_axes",
+                "unknown bits",
+            ));
+        }
+        if self.stage3_covariance_source as usize >= Self::COVARIANCE_SOURCE_NAMES.len() {
+            return Err(Reject::new(
+                "solve_response.stage3_covariance_source",
+                "unknown code",
+            ));
         }
         let codes = Self::REASON_NAMES.len() as u32;
         if self.unobservable_reason >= codes || self.joint_unobservable_reason >= codes {

@@ -29,6 +29,7 @@ pub(crate) fn solution(p: [f64; 3], mirror: Option<[f64; 3]>) -> RateSolution {
             condition_number: 1.0,
             rms_sensitivity_per_deg_per_frame: 1.0,
         },
+        held_directions: vec![],
         mirror_deg_per_frame: mirror,
         refit: None,
     })

@@ -205,16 +205,19 @@ pub(super) fn onto_prior_planes(
 /// information matrix: large enough that the prior decides those components.
 pub(super) const PRIOR_WEIGHT_FACTOR: f64 = 1e6;
 
+/// What [`hold_weak_direction`] returns: the (possibly held) outcome, its analysis, the LM
+/// iterations spent and the prior's directions e it held (e·p = 0; empty when none).
+pub(super) type Held = (LmOutcome, Analysis, usize, Vec<[f64; 3]>);
+
 /// Holds the directions the data cannot determine (math.md §1.6: the sun–observer bisector)
 /// under the stated prior ([`WeakPrior`]) and re-fits the rest, instead of reporting wherever
-/// LM drifted along them. Returns the (possibly held) outcome, its analysis and the LM
-/// iterations spent; the returned observability still marks held directions unobservable.
+/// LM drifted along them. The returned observability still marks held directions unobservable.
 pub(super) fn hold_weak_direction(
     problem: &RateProblem,
     best: LmOutcome,
     analysis: Analysis,
     config: &Stage3Config,
-) -> Result<(LmOutcome, Analysis, usize), InversionError> {
+) -> Result<Held, InversionError> {
     let weak: Vec<[f64; 3]> = (0..3)
         .filter(|&i| analysis.observability.unobservable[i])
         .map(|i| analysis.observability.eigenvectors[i])
@@ -228,18 +231,20 @@ pub(super) fn hold_weak_direction(
         // directions are held instead, once.
         let at_held: Vec<[f64; 3]> =
             held_analysis.observability.eigenvectors[..weak.len()].to_vec();
+        let mut directions = config.weak_prior.directions(&weak);
         if config.weak_prior == WeakPrior::BodyAxis
-            && config.weak_prior.directions(&at_held) != config.weak_prior.directions(&weak)
+            && config.weak_prior.directions(&at_held) != directions
         {
             let again;
             (held, held_analysis, again) =
                 hold_at_prior(problem, &best, &at_held, &held_analysis, config)?;
             iterations += again;
+            directions = config.weak_prior.directions(&at_held);
         }
         // The classification stays the one at the unconstrained optimum.
         held_analysis.observability.unobservable = analysis.observability.unobservable;
         held_analysis.unobservable = None;
-        return Ok((held, held_analysis, iterations));
+        return Ok((held, held_analysis, iterations, directions));
     }
     // The bisector is invisible to first order only near the prior (the light curve depends
     // on it about quadratically there); a fit that drifted along it sees curvature that is not
@@ -254,9 +259,10 @@ pub(super) fn hold_weak_direction(
         && held_analysis.unobservable.is_none()
         && held_analysis.observability.unobservable[0]
     {
-        Ok((held, held_analysis, iterations))
+        let directions = config.weak_prior.directions(&[u]);
+        Ok((held, held_analysis, iterations, directions))
     } else {
-        Ok((best, analysis, iterations))
+        Ok((best, analysis, iterations, vec![]))
     }
 }
 
