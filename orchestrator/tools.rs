@@ -214,6 +214,7 @@ pub fn invert(
                     text += ")";
                 }
                 text += "\n";
+                text += &bounds_line(label, &fit.observability, &fit.held_directions);
             }
             None => {
                 let why = match sol {
@@ -323,6 +324,47 @@ fn sweep_bands(
 
 /// A TOML error as `FILE:LINE: message (in `the line`)`, so that errors whose message does not
 /// name the key (an unknown enum variant, a wrong type) still point at the field.
+/// One fit's uncertainty, per eigen-direction of its information: the 1σ of each determined
+/// one, and for each undetermined one whether the stated prior held it or p sits where the
+/// fit ended along it.
+fn bounds_line(
+    label: &str,
+    obs: &glint_inversion::observability::Observability,
+    held: &[[f64; 3]],
+) -> String {
+    let fmt_v = |v: &[f64; 3]| format!("[{:.3}, {:.3}, {:.3}]", v[0], v[1], v[2]);
+    let parts: Vec<String> = (0..3)
+        .rev()
+        .map(|k| {
+            let v = &obs.eigenvectors[k];
+            let sigma = obs.bounds_1sigma_deg_per_frame[k];
+            if !obs.unobservable[k] {
+                return format!("{sigma:.2e} along {}", fmt_v(v));
+            }
+            // Held: the prior's direction is v itself or the body axis nearest v.
+            let axis = (0..3)
+                .max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()))
+                .unwrap_or(0);
+            let is_held = held
+                .iter()
+                .any(|e| e[axis] == 1.0 || (0..3).map(|i| e[i] * v[i]).sum::<f64>().abs() > 0.99);
+            if is_held {
+                format!(
+                    "{} held by the prior ({} = 0)",
+                    fmt_v(v),
+                    ["w_x", "w_y", "w_z"][axis]
+                )
+            } else {
+                format!(
+                    "{} not determined (1σ {sigma:.2e}; p sits where the fit ended)",
+                    fmt_v(v)
+                )
+            }
+        })
+        .collect();
+    format!("{label}: 1σ [deg/frame]: {}\n", parts.join("; "))
+}
+
 fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> anyhow::Error {
     let Some(span) = e.span() else {
         return anyhow!("{}: {}", path.display(), e.message());
@@ -369,4 +411,41 @@ fn read_inversion_config(path: &Path) -> Result<glint_inversion::InversionConfig
         .validate()
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     Ok(config)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glint_inversion::observability::Observability;
+
+    #[test]
+    fn the_bounds_line_names_what_was_held_and_what_was_not() {
+        // Eigen-directions ≈ Z (undetermined), X (held), Y (determined), ascending.
+        let obs = Observability {
+            information_eigenvalues: [0.14, 4.0, 4.7e7],
+            eigenvectors: [[0.0, 0.008, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, -0.008]],
+            bounds_1sigma_deg_per_frame: [2.7, 0.5, 1.455e-4],
+            unobservable: [true, true, false],
+            threshold_deg_per_frame: 0.25,
+            condition_number: 1e9,
+            rms_sensitivity_per_deg_per_frame: 1.0,
+        };
+        let line = bounds_line("stage 3", &obs, &[[1.0, 0.0, 0.0]]);
+        assert!(
+            line.starts_with("stage 3: 1σ [deg/frame]: 1.46e-4 along [0.000, 1.000, -0.008]"),
+            "{line}"
+        );
+        assert!(
+            line.contains("[1.000, 0.000, 0.000] held by the prior (w_x = 0)"),
+            "{line}"
+        );
+        assert!(
+            line.contains("[0.000, 0.008, 1.000] not determined (1σ 2.70e0"),
+            "{line}"
+        );
+        // Both held: nothing is left where the fit ended.
+        let both = bounds_line("joint", &obs, &[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]);
+        assert!(!both.contains("not determined"), "{both}");
+        assert!(both.contains("(w_z = 0)"), "{both}");
+    }
 }
