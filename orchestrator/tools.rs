@@ -223,7 +223,21 @@ pub fn invert(
                     }
                     _ => "unknown",
                 };
-                text += &format!("{label}: unobservable ({why}) — no rate reported\n");
+                text += &format!("{label}: unobservable ({why}) — no rate reported");
+                if let glint_inversion::RateSolution::Unobservable {
+                    reason:
+                        glint_inversion::observability::UnobservableReason::NotConfirmedByJoint {
+                            rate_deg_per_frame: p,
+                        },
+                    ..
+                } = sol
+                {
+                    text += &format!(
+                        " (the band alone fits [{:.5}, {:.5}, {:.5}])",
+                        p[0], p[1], p[2]
+                    );
+                }
+                text += "\n";
             }
         }
     }

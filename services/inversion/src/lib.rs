@@ -43,7 +43,9 @@ pub mod stage3;
 pub use error::{InversionError, NnlsError};
 pub use model::{MotionModelConfig, PanelNormalMode, RateBand, RateProblem};
 pub use observation::{Observation, ObservationSet};
-pub use rates::{fit_band, fit_joint, fit_rates, fit_within_horizon, BandFit, RateFits};
+pub use rates::{
+    confirmed_by_joint, fit_band, fit_joint, fit_rates, fit_within_horizon, BandFit, RateFits,
+};
 pub use rotation::AttitudeModel;
 pub use stage1::{BasisChoice, SpectralPooling, Stage1Band, Stage1Config, Stage1Output};
 pub use stage2::{BandSelection, Stage2Config, Stage2Result};

@@ -118,6 +118,15 @@ pub enum UnobservableReason {
         /// Where the best start ended \[deg/frame\].
         rate_deg_per_frame: [f64; 3],
     },
+    /// A single band's rate that the joint fit does not confirm: over all bands the joint fit
+    /// determines no rate, and polished from this band's rate it ends more than the joint gate
+    /// away (or determines none). One band of the data does not determine what all of them
+    /// together do not; at SNR 1 such answers lay 17–88 (paper metric) from the truth with
+    /// bounds of 1e-3 deg/frame (ADR 0014).
+    NotConfirmedByJoint {
+        /// The band's rate, not reported \[deg/frame\].
+        rate_deg_per_frame: [f64; 3],
+    },
 }
 
 impl UnobservableReason {
@@ -129,6 +138,7 @@ impl UnobservableReason {
             Self::AllDirectionsAboveThreshold => 3,
             Self::NoGlint { .. } => 4,
             Self::OutsideSearchBox { .. } => 5,
+            Self::NotConfirmedByJoint { .. } => 6,
         }
     }
 }

@@ -55,9 +55,11 @@ pub fn fit_rates(
             set_aside = vec![chosen];
         }
     }
+    let mut rate = unless_unconfirmed(fit.rate, joint_fit, |kept| {
+        confirmed_by_joint(motion, stage1, model, config, kept)
+    })?;
     // The kept rate's covariance covers its distance from the joint fit (measured before the
     // widening, and reported as such).
-    let mut rate = fit.rate;
     let covariance_scale = match (&mut rate, joint_fit.and_then(RateSolution::fit)) {
         (RateSolution::Determined(kept), Some(joint)) if config.widen_to_joint => {
             Some(stage3::widen_to_joint(kept, joint, &config.observability))
@@ -75,6 +77,62 @@ pub fn fit_rates(
         sense_from_joint: fit.sense_from_joint,
         joint_disagreement_sigma: fit.joint_disagreement_sigma,
     })
+}
+
+/// A joint fit with no rate confirms none: `rate` stands only if `confirmed` (the joint cost
+/// has a determined minimum near it), else it is unobservable, not confirmed. A joint fit with
+/// a rate (or none asked for) leaves `rate` as it is.
+fn unless_unconfirmed(
+    rate: RateSolution,
+    joint: Option<&RateSolution>,
+    confirmed: impl FnOnce(&RateFit) -> Result<bool, InversionError>,
+) -> Result<RateSolution, InversionError> {
+    let (Some(RateSolution::Unobservable { .. }), RateSolution::Determined(kept)) = (joint, &rate)
+    else {
+        return Ok(rate);
+    };
+    if confirmed(kept)? {
+        return Ok(rate);
+    }
+    Ok(RateSolution::Unobservable {
+        reason: UnobservableReason::NotConfirmedByJoint {
+            rate_deg_per_frame: kept.rate_deg_per_frame,
+        },
+        bounds_deg_per_frame: kept.observability.bounds_1sigma_deg_per_frame,
+        observability: kept.observability.clone(),
+        wavelengths_nm: kept.wavelengths_nm.clone(),
+    })
+}
+
+/// Whether the joint cost (every band, each with its own stage-1 coefficients) has a
+/// determined minimum near `fit`'s rate: the joint model polished from that rate (with the
+/// diffuse terms re-fitted when [`Stage3Config::refit_diffuse`]) ends within
+/// [`Stage3Config::joint_gate_sigma`] of it. Always true with the gate off.
+pub fn confirmed_by_joint(
+    motion: &[Observation],
+    stage1: &[Stage1Band],
+    model: &MotionModelConfig,
+    config: &Stage3Config,
+    fit: &RateFit,
+) -> Result<bool, InversionError> {
+    let Some(gate) = config.joint_gate_sigma else {
+        return Ok(true);
+    };
+    let bands: Vec<RateBand> = (0..stage1.len()).map(|b| rate_band(stage1, b)).collect();
+    let covs: Vec<Option<Vec<f64>>> = stage1.iter().map(|s| s.coeff_covariance.clone()).collect();
+    let setup = FitSetup::new(motion, &bands, &covs, None, model);
+    let polished = if config.refit_diffuse {
+        let start = RateSolution::Determined(fit.clone());
+        match horizon::polish_with_refit(&setup, config, &start)? {
+            Some((polished, _)) => polished,
+            None => return Ok(false),
+        }
+    } else {
+        horizon::polish_at(&setup, config, fit.rate_deg_per_frame)?
+    };
+    Ok(polished
+        .fit()
+        .is_some_and(|j| stage3::disagreement_sigma(fit, j, &config.observability) <= gate))
 }
 
 fn rate_band(stage1: &[Stage1Band], b: usize) -> RateBand {
@@ -420,6 +478,32 @@ mod tests {
             lobe_test: None,
         });
         (RateSolution::Determined(fit), 711)
+    }
+
+    #[test]
+    fn a_rate_the_joint_fit_does_not_confirm_is_not_reported() {
+        let slow = [0.0, -0.0116, 0.0098];
+        let band = || RateSolution::Determined(with_covariance(slow, [[1e-6; 3]; 3]));
+        // The joint fit found no rate and its cost has no minimum near this one.
+        let out = unless_unconfirmed(band(), Some(&no_glint(4e-4)), |_| Ok(false)).unwrap();
+        let RateSolution::Unobservable { reason, .. } = out else {
+            panic!("{out:?}")
+        };
+        assert_eq!(
+            reason,
+            UnobservableReason::NotConfirmedByJoint {
+                rate_deg_per_frame: slow
+            }
+        );
+        // It has one near: the rate stands.
+        let out = unless_unconfirmed(band(), Some(&no_glint(4e-4)), |_| Ok(true)).unwrap();
+        assert_eq!(out, band());
+        // A joint fit with a rate (or none run) asks nothing here.
+        let joint = band();
+        for j in [Some(&joint), None] {
+            let out = unless_unconfirmed(band(), j, |_| panic!("not asked")).unwrap();
+            assert_eq!(out, band());
+        }
     }
 
     #[test]

@@ -363,13 +363,14 @@ impl SolveResponse {
     ];
 
     /// Names of the `unobservable_reason` codes (index = code).
-    pub const REASON_NAMES: [&'static str; 6] = [
+    pub const REASON_NAMES: [&'static str; 7] = [
         "none",
         "flat light curve",
         "rank deficient",
         "every direction above the threshold",
         "no glint: only the diffuse terms move the light curve",
         "no solution within twice the search box",
+        "not confirmed: the joint fit over all bands finds no rate near it",
     ];
 
     /// The name of a reason code ("unknown" outside the table).

@@ -159,6 +159,17 @@ pub(super) fn search_and_polish(
     Ok(polish_with_refit(setup, config, &rate)?.unwrap_or((rate, problem)))
 }
 
+/// LM from `p` on the search's model (stage 1's coefficients) over `p`'s horizon.
+pub(super) fn polish_at(
+    setup: &FitSetup,
+    config: &Stage3Config,
+    p: [f64; 3],
+) -> Result<RateSolution, InversionError> {
+    let frames = setup.frames_within(setup.horizon_of(config, speed(p)));
+    let problem = setup.problem(&frames, None)?;
+    stage3::fit_from_starts(&problem, &[p], config)
+}
+
 /// Polishes `searched` with the diffuse terms re-estimated ([`Stage3Config::refit_diffuse`]; the
 /// bisector held, see `stage3`) on the horizon of the polished rate, until the fitted frames stop
 /// changing.
