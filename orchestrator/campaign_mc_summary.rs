@@ -81,8 +81,8 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
     s.push_str(
         "\n## Efficiency and honesty (scatter about the noise-free solution)\n\n\
          p₀, the noise-free solution, is the estimator's answer on the noise-free run's observations carrying the noisy runs' σ: σ sets the bands' weights, the stage-1 basis test and the joint fit's reweighting, so the reference deployment's own answer, solved without σ, is another estimator's (the *noise-free p₀* column above is p₀ at λ*; with σ, stage 1 also takes the spectral-pooling decision the noisy runs take on average). The CRB is the scenario's: the stage-1 coefficients are unknown and informed by both windows when both are noisy; the next column is the bound if they were known. The *two-stage* column is the variance of an efficient estimator that takes the coefficients from the stable window alone and plugs them in, as glint does: F⁺ + F⁺CF⁺, F = JᵀWJ and C the stage-1 coefficients' covariance propagated. The CRB lets the motion window inform the coefficients too; an estimator that does so takes the motion window's model mismatch into them (docs/adr/0012). The CRB sees only the light curve's slope at p₀. The Hammersley–Chapman–Robbins bound sup_h (v·h)²/(exp Δ(h) − 1) (Δ = the noise-free χ² between p₀ + h and p₀, with the stage-1 coefficients moved as the stable window allows, as in the CRB) sees the whole light curve: where it is far above the CRB, a rate h away fits nearly as well and no unbiased estimator reaches the CRB. When a rate fits within one noise variance (Δ < 1, the coefficients fixed) it is a *copy* of p₀: a Y rotation is nearly its own mirror (−w_x, w_y, −w_z), and the Sun's fraction of a degree off the body XZ plane moves the mirror a few 10⁻³ deg/frame off p₀. The data cannot tell p₀ from its copy at any SNR a campaign runs; runs nearer the copy are counted in its column and their deviation is taken from the copy. The joint fit tests stage 1's widest lobes in every run and re-fits them only when the data ask (`stage3.refit_widest_lobe = \"when-needed\"`): it has a noise-free solution per model, keeping the lobes and re-fitting them. Each run is measured from that of the model it reported (*joint, lobe re-fitted in k*: k runs re-fitted it), and the table's bound is that of the model most runs reported.\n\n\
-         RMS = sqrt(mean ‖(p̂ − p₀ or its copy) projected on the observable CRB directions‖²) over the runs with p₀'s sense of rotation (those nearer the mirror of a rate that has a sense, |mirror(p₀) − p₀| ≥ |p₀|, are counted apart, with how many of them reported the sense as not determined: their answer named the mirror as fitting as well); efficiency = RMS / CRB (1 is efficient). NEES uses each run's reported covariance over its observable directions, about the same centre; its 95 % interval is for the mean over the runs.\n\n\
-         | value | fit | runs determined | other sense | on p₀'s copy (Δ) | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | two-stage 1σ | HCR 1σ | RMS [deg/frame] | efficiency (RMS / CRB) | RMS / two-stage | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         RMS = sqrt(mean ‖(p̂ − p₀ or its copy) projected on the observable CRB directions‖²) over the runs with p₀'s sense of rotation (those nearer the mirror of a rate that has a sense, |mirror(p₀) − p₀| ≥ |p₀|, are counted apart, with how many of them reported the sense as not determined: their answer named the mirror as fitting as well); efficiency = RMS / CRB (1 is efficient). *HCR / CRB* above 1.25 means the target RMS ≤ 1.25 × CRB is out of reach of every unbiased estimator (the light curve is not linear over the scatter the noise allows); *RMS / HCR* is then the efficiency against the bound that applies. NEES uses each run's reported covariance over its observable directions, about the same centre; its 95 % interval is for the mean over the runs.\n\n\
+         | value | fit | runs determined | other sense | on p₀'s copy (Δ) | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | two-stage 1σ | HCR 1σ | HCR / CRB | RMS [deg/frame] | efficiency (RMS / CRB) | RMS / two-stage | RMS / HCR | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         for (label, key) in [("λ*", "single"), ("joint", "joint")] {
@@ -94,7 +94,7 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
             };
             let _ = writeln!(
                 s,
-                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {}–{} |",
+                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {}–{} |",
                 r["value"].as_str().unwrap_or("?"),
                 e["determined"],
                 r["monte_carlo"]["runs"],
@@ -105,9 +105,11 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
                 fmt_e(&e["crb_known_coefficients_observable_deg_per_frame"]),
                 fmt_e(&e["two_stage_observable_deg_per_frame"]),
                 fmt_e(&e["hcr_observable_deg_per_frame"]),
+                fmt(&e["hcr_over_crb"], 2),
                 fmt_e(&e["rms_observable_deg_per_frame"]),
                 fmt(&e["efficiency"], 2),
                 fmt(&e["efficiency_two_stage"], 2),
+                fmt(&e["efficiency_hcr"], 2),
                 fmt(&e["nees_mean"], 2),
                 fmt(&e["nees_dof_mean"], 1),
                 fmt(&e["nees_bounds_95"][0], 2),

@@ -384,6 +384,16 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
             (eff2 * two_stage - eff * scenario_crb).abs() < 1e-9 * eff * scenario_crb,
             "{e}"
         );
+        // The target's reach (HCR / CRB) and the efficiency against the HCR, on the same RMS.
+        let (ratio, eff_hcr) = (
+            e["hcr_over_crb"].as_f64().unwrap(),
+            e["efficiency_hcr"].as_f64().unwrap(),
+        );
+        assert!((ratio * scenario_crb - hcr).abs() < 1e-9 * hcr, "{e}");
+        assert!(
+            (eff_hcr * hcr - eff * scenario_crb).abs() < 1e-9 * eff * scenario_crb,
+            "{e}"
+        );
     }
     // The two-facet body leaves no mismatch for the polish's re-fitted diffuse terms: the
     // joint p₀ is the true rate, which is its own mirror (−w_x, w_y, −w_z). The near-mirror

@@ -145,6 +145,11 @@ impl Estimator {
             "two_stage_observable_deg_per_frame": finite(two_stage_obs.sqrt()),
             "efficiency_two_stage": rms_obs.map(|r| r / two_stage_obs.sqrt()).filter(|e| e.is_finite()),
             "hcr_observable_deg_per_frame": finite(hcr_obs.sqrt()),
+            // The bound a campaign can check the target against: above 1.25 × CRB, no unbiased
+            // estimator meets "RMS ≤ 1.25 × CRB" (the issue: where the bound says the target is
+            // impossible, show the bound).
+            "hcr_over_crb": finite((hcr_obs / crb_obs).sqrt()),
+            "efficiency_hcr": rms_obs.map(|r| r / hcr_obs.sqrt()).filter(|e| e.is_finite()),
             "directions": per_direction,
             "nees_mean": mean_nees,
             "nees_dof_mean": (!self.nees.is_empty()).then(|| total_dof as f64 / self.nees.len() as f64),
