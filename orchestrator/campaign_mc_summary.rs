@@ -124,7 +124,8 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
 }
 
 /// `campaign-nees.svg` and `campaign-efficiency.svg`: each fit's NEES mean beside the joint
-/// fit's 95 % interval, and its RMS / CRB beside the 1.25 target, against the parameter, on
+/// fit's 95 % interval, and its RMS / CRB beside the 1.25 target and its HCR / CRB (markers:
+/// above the target, no unbiased estimator reaches it), against the parameter, on
 /// log10 axes (the values span 0.1 to 10⁴). Nothing is drawn for a non-numeric parameter.
 pub fn plot_honesty(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
     let Some(x) = crate::campaign::numeric_values(rows) else {
@@ -172,13 +173,30 @@ pub fn plot_honesty(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
     let target: Vec<(f64, f64)> = x.iter().map(|&v| (v, 1.25f64.log10())).collect();
     line_chart(
         &dir.join("campaign-efficiency.svg"),
-        &format!("Efficiency against {parameter}: RMS about p₀ / CRB (log10)"),
+        &format!("Efficiency against {parameter}: RMS about p₀ / CRB, and HCR / CRB (log10)"),
         parameter,
         "log10 (RMS / CRB)",
         &[
             line("λ*", series("single", "efficiency", None), BLUE),
             line("joint", series("joint", "efficiency", None), GREEN),
             line("target 1.25", target, ORANGE),
+            // Where the HCR lies above the target, no unbiased estimator reaches it.
+            Series {
+                markers: true,
+                ..line(
+                    "λ*: HCR / CRB (above the target: out of reach)",
+                    series("single", "hcr_over_crb", None),
+                    BLUE,
+                )
+            },
+            Series {
+                markers: true,
+                ..line(
+                    "joint: HCR / CRB",
+                    series("joint", "hcr_over_crb", None),
+                    GREEN,
+                )
+            },
         ],
     )
 }
