@@ -119,10 +119,10 @@ pub enum UnobservableReason {
         rate_deg_per_frame: [f64; 3],
     },
     /// A single band's rate that the joint fit does not confirm: over all bands the joint fit
-    /// determines no rate, and polished from this band's rate it ends more than the joint gate
-    /// away (or determines none). One band of the data does not determine what all of them
-    /// together do not; at SNR 1 such answers lay 17–88 (paper metric) from the truth with
-    /// bounds of 1e-3 deg/frame (ADR 0014).
+    /// determines no rate, and neither the joint model polished from this band's rate nor the
+    /// joint search on the same frames ends within the joint gate of it. One band of the data
+    /// does not determine what all of them together do not; at SNR 1 such answers lay 5–88
+    /// (paper metric) from the truth, some with bounds of 1e-3 deg/frame (ADR 0014).
     NotConfirmedByJoint {
         /// The band's rate, not reported \[deg/frame\].
         rate_deg_per_frame: [f64; 3],

@@ -104,10 +104,12 @@ fn unless_unconfirmed(
     })
 }
 
-/// Whether the joint cost (every band, each with its own stage-1 coefficients) has a
-/// determined minimum near `fit`'s rate: the joint model polished from that rate (with the
-/// diffuse terms re-fitted when [`Stage3Config::refit_diffuse`]) ends within
-/// [`Stage3Config::joint_gate_sigma`] of it. Always true with the gate off.
+/// Whether the joint cost (every band, each with its own stage-1 coefficients) finds `fit`'s
+/// rate: the joint model polished from that rate (with the diffuse terms re-fitted when
+/// [`Stage3Config::refit_diffuse`]) ends within [`Stage3Config::joint_gate_sigma`] of it, and
+/// so does the joint search (grid, screen, polish) on the frames of that rate's horizon with
+/// the rate among its starts: the joint data hold the rate and prefer it. Always true with the
+/// gate off.
 pub fn confirmed_by_joint(
     motion: &[Observation],
     stage1: &[Stage1Band],
@@ -130,9 +132,17 @@ pub fn confirmed_by_joint(
     } else {
         horizon::polish_at(&setup, config, fit.rate_deg_per_frame)?
     };
-    Ok(polished
-        .fit()
-        .is_some_and(|j| stage3::disagreement_sigma(fit, j, &config.observability) <= gate))
+    let near = |sol: &RateSolution| {
+        sol.fit()
+            .is_some_and(|j| stage3::disagreement_sigma(fit, j, &config.observability) <= gate)
+    };
+    if !near(&polished) {
+        return Ok(false);
+    }
+    // A minimum the joint cost holds but does not prefer is not confirmed either: the joint
+    // search on the same frames, with the band's rate among its starts, must end near it.
+    let searched = horizon::search_at(&setup, config, fit.rate_deg_per_frame)?;
+    Ok(near(&searched))
 }
 
 fn rate_band(stage1: &[Stage1Band], b: usize) -> RateBand {

@@ -26,6 +26,10 @@ fn the_joint_cost_confirms_the_band_s_rate_and_not_a_slow_one_far_from_its_minim
     slow.rate_deg_per_frame = [0.0, -0.0116, 0.0098];
     slow.covariance_deg2_per_frame2 = [[0.25, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 1e-6]];
     assert!(!confirmed(&slow, &config.stage3));
+    // The other sense of rotation: the joint model polished from it does not stay there.
+    let mut mirror = fit.clone();
+    mirror.rate_deg_per_frame = glint_inversion::stage3::mirror(fit.rate_deg_per_frame);
+    assert!(!confirmed(&mirror, &config.stage3));
     // With the gate off nothing is checked.
     let mut off = config.stage3.clone();
     off.joint_gate_sigma = None;

@@ -170,6 +170,22 @@ pub(super) fn polish_at(
     stage3::fit_from_starts(&problem, &[p], config)
 }
 
+/// The search (grid, screen, polish; `p` as an extra start) on the search's model over `p`'s
+/// horizon, then [`polish_with_refit`] as the joint fit polishes its search.
+pub(super) fn search_at(
+    setup: &FitSetup,
+    config: &Stage3Config,
+    p: [f64; 3],
+) -> Result<RateSolution, InversionError> {
+    let frames = setup.frames_within(setup.horizon_of(config, speed(p)));
+    let problem = setup.problem(&frames, None)?;
+    let searched = stage3::fit_multistart_with(&problem, config, &[p])?;
+    Ok(match polish_with_refit(setup, config, &searched)? {
+        Some((polished, _)) => polished,
+        None => searched,
+    })
+}
+
 /// Polishes `searched` with the diffuse terms re-estimated ([`Stage3Config::refit_diffuse`]; the
 /// bisector held, see `stage3`) on the horizon of the polished rate, until the fitted frames stop
 /// changing.
