@@ -159,15 +159,25 @@ pub(super) fn search_and_polish(
     Ok(polish_with_refit(setup, config, &rate)?.unwrap_or((rate, problem)))
 }
 
-/// LM from `p` on the search's model (stage 1's coefficients) over `p`'s horizon.
+/// The search's model (stage 1's coefficients) over the frames of `p`'s horizon.
+fn problem_at(
+    setup: &FitSetup,
+    config: &Stage3Config,
+    p: [f64; 3],
+) -> Result<RateProblem, InversionError> {
+    setup.problem(
+        &setup.frames_within(setup.horizon_of(config, speed(p))),
+        None,
+    )
+}
+
+/// LM from `p` on the search's model over `p`'s horizon.
 pub(super) fn polish_at(
     setup: &FitSetup,
     config: &Stage3Config,
     p: [f64; 3],
 ) -> Result<RateSolution, InversionError> {
-    let frames = setup.frames_within(setup.horizon_of(config, speed(p)));
-    let problem = setup.problem(&frames, None)?;
-    stage3::fit_from_starts(&problem, &[p], config)
+    stage3::fit_from_starts(&problem_at(setup, config, p)?, &[p], config)
 }
 
 /// The search (grid, screen, polish; `p` as an extra start) on the search's model over `p`'s
@@ -177,9 +187,7 @@ pub(super) fn search_at(
     config: &Stage3Config,
     p: [f64; 3],
 ) -> Result<RateSolution, InversionError> {
-    let frames = setup.frames_within(setup.horizon_of(config, speed(p)));
-    let problem = setup.problem(&frames, None)?;
-    let searched = stage3::fit_multistart_with(&problem, config, &[p])?;
+    let searched = stage3::fit_multistart_with(&problem_at(setup, config, p)?, config, &[p])?;
     Ok(match polish_with_refit(setup, config, &searched)? {
         Some((polished, _)) => polished,
         None => searched,
