@@ -7,6 +7,7 @@ use std::path::Path;
 
 use anyhow::Result;
 use glint_inversion::rate_error_metric;
+use glint_inversion::stage3::{nearest_body_axis, RATE_NAMES};
 use serde_json::{json, Value};
 use shared_types::scenario::SpectraScenario;
 use shared_types::{SolveResponse, SolveStatus};
@@ -264,13 +265,11 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
     s
 }
 
-const AXES: [&str; 3] = ["w_x", "w_y", "w_z"];
-
 /// The rates `SolveResponse::stage3_held_axes` says the prior held at zero.
 fn held_names(bits: u32) -> Vec<&'static str> {
     let mut held: Vec<&str> = (0..3)
         .filter(|k| bits & (1 << k) != 0)
-        .map(|k| AXES[k])
+        .map(|k| RATE_NAMES[k])
         .collect();
     if bits & SolveResponse::HELD_OTHER != 0 {
         held.push("the weak direction itself");
@@ -298,10 +297,9 @@ fn held_sentences(r: &SolveResponse) -> String {
         // A weak direction whose nearest body axis the prior did not hold.
         let free: Vec<&str> = weak
             .iter()
-            .filter_map(|u| {
-                let k = (0..3).max_by(|&a, &b| u[a].abs().total_cmp(&u[b].abs()))?;
-                (r.stage3_held_axes & (1 << k) == 0).then_some(AXES[k])
-            })
+            .map(nearest_body_axis)
+            .filter(|&k| r.stage3_held_axes & (1 << k) == 0)
+            .map(|k| RATE_NAMES[k])
             .collect();
         if !free.is_empty() {
             parts.push(format!(

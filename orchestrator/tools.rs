@@ -356,9 +356,7 @@ fn bounds_line(
                 return format!("{sigma:.2e} along {}", fmt_v(v));
             }
             // Held: the prior's direction is v itself or the body axis nearest v.
-            let axis = (0..3)
-                .max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()))
-                .unwrap_or(0);
+            let axis = glint_inversion::stage3::nearest_body_axis(v);
             let is_held = held
                 .iter()
                 .any(|e| e[axis] == 1.0 || (0..3).map(|i| e[i] * v[i]).sum::<f64>().abs() > 0.99);
@@ -366,7 +364,7 @@ fn bounds_line(
                 format!(
                     "{} held by the prior ({} = 0)",
                     fmt_v(v),
-                    ["w_x", "w_y", "w_z"][axis]
+                    glint_inversion::stage3::RATE_NAMES[axis]
                 )
             } else {
                 format!(

@@ -38,7 +38,8 @@ mod bisector;
 pub(crate) mod fixtures;
 mod weak;
 pub use weak::{
-    disagreement, disagreement_sigma, distance, has_sense, mirror, widen_to_joint, WeakPrior,
+    disagreement, disagreement_sigma, distance, has_sense, mirror, nearest_body_axis,
+    widen_to_joint, WeakPrior, RATE_NAMES,
 };
 pub(crate) use weak::{keep_sense, sense_from};
 

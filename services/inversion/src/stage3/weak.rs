@@ -107,6 +107,16 @@ pub enum WeakPrior {
     EigenDirection,
 }
 
+/// The rates about the body axes, by index.
+pub const RATE_NAMES: [&str; 3] = ["w_x", "w_y", "w_z"];
+
+/// The index of the body axis nearest the direction `u` (its largest component).
+pub fn nearest_body_axis(u: &[f64; 3]) -> usize {
+    (0..3)
+        .max_by(|&a, &b| u[a].abs().total_cmp(&u[b].abs()))
+        .unwrap_or(0)
+}
+
 impl WeakPrior {
     /// The constraint direction for each held u: u itself, or the body axis nearest u (falling
     /// back to u when two held directions share that axis).
@@ -116,11 +126,8 @@ impl WeakPrior {
             let d = match self {
                 WeakPrior::EigenDirection => *u,
                 WeakPrior::BodyAxis => {
-                    let k = (0..3)
-                        .max_by(|&a, &b| u[a].abs().total_cmp(&u[b].abs()))
-                        .unwrap_or(0);
                     let mut e = [0.0; 3];
-                    e[k] = 1.0;
+                    e[nearest_body_axis(u)] = 1.0;
                     if out.contains(&e) {
                         *u
                     } else {
@@ -232,14 +239,13 @@ pub(super) fn hold_weak_direction(
         let at_held: Vec<[f64; 3]> =
             held_analysis.observability.eigenvectors[..weak.len()].to_vec();
         let mut directions = config.weak_prior.directions(&weak);
-        if config.weak_prior == WeakPrior::BodyAxis
-            && config.weak_prior.directions(&at_held) != directions
-        {
+        let at_held_directions = config.weak_prior.directions(&at_held);
+        if config.weak_prior == WeakPrior::BodyAxis && at_held_directions != directions {
             let again;
             (held, held_analysis, again) =
                 hold_at_prior(problem, &best, &at_held, &held_analysis, config)?;
             iterations += again;
-            directions = config.weak_prior.directions(&at_held);
+            directions = at_held_directions;
         }
         // The classification stays the one at the unconstrained optimum.
         held_analysis.observability.unobservable = analysis.observability.unobservable;
