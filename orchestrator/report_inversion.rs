@@ -113,6 +113,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 "widest_lobe_refit": r.stage3_flags & SolveResponse::JOINT_LOBE_REFIT != 0,
                 "lobe_test_chi2": finite(r.stage3_joint_lobe_test_chi2),
                 "lobe_rate_traded": r.stage3_flags & SolveResponse::JOINT_LOBE_RATE_TRADED != 0,
+                "glint_lobes_only": r.stage3_flags & SolveResponse::JOINT_GLINT_LOBES_ONLY != 0,
                 "mirror_deg_per_frame": if joint_mirror_ok { json!(joint_mirror) } else { Value::Null },
                 "err_paper_metric_mirror": if joint_mirror_ok { finite(rate_error_metric(joint_mirror, truth)) } else { Value::Null },
             },
@@ -425,6 +426,12 @@ fn widened_phrase(r: &SolveResponse) -> String {
 /// The joint fit's test of stage 1's widest lobes, as a sentence (empty when not tested).
 fn lobe_test_text(r: &SolveResponse) -> String {
     let chi2 = r.stage3_joint_lobe_test_chi2;
+    if r.stage3_flags & SolveResponse::JOINT_GLINT_LOBES_ONLY != 0 {
+        return format!(
+            " Stage 1's lobes kept, untested: each facet's widest lobe in use is a glint lobe (μ < {}), whose amplitude sets the glint's height and width and so trades against the rate; only broad lobes are re-fitted (docs/adr/0015).",
+            glint_inversion::model::refit::BROAD_LOBE_MIN_MU
+        );
+    }
     if !chi2.is_finite() {
         return String::new();
     }

@@ -178,7 +178,9 @@ pub fn invert(
                         if refit.widest_lobe { " and widest lobe" } else { "" },
                         e[0], e[1], e[2]
                     );
-                    if let Some(t) = refit.lobe_test.filter(|t| t.rate_traded) {
+                    if refit.glint_lobes_only {
+                        text += " (no broad lobe to re-fit: each facet's widest lobe in use is a glint lobe, kept from stage 1)";
+                    } else if let Some(t) = refit.lobe_test.filter(|t| t.rate_traded) {
                         text += &format!(
                             " (lobe test: the re-fit traded the rate for the lobe, ending below half this rate; stage 1's lobes kept, χ² {:.1} not used)",
                             t.chi2

@@ -33,7 +33,7 @@ use std::f64::consts::FRAC_1_PI;
 
 mod coefficients;
 mod diagnostics;
-mod refit;
+pub mod refit;
 
 use refit::{lobe_slope_of, nuisance_columns, take_widest_lobes};
 
@@ -127,6 +127,9 @@ pub struct RateProblem {
     refit_diffuse: bool,
     /// Per facet: the lobe re-fitted with the diffuse terms (0: none).
     refit_lobes: [usize; 2],
+    /// The widest-lobe re-fit was asked for, and every facet's widest lobe in use is a glint
+    /// lobe, which stays stage 1's ([`refit::BROAD_LOBE_MIN_MU`]).
+    glint_lobes_only: bool,
     /// Per band: Cov(x̃) of the stage-1 coefficients, normalised like `x` (22 × 22), if known.
     coeff_cov: Vec<Option<Vec<f64>>>,
 }
@@ -257,6 +260,9 @@ impl RateProblem {
             }
         }
         Ok(Self {
+            glint_lobes_only: config.refit_diffuse
+                && config.refit_widest_lobe
+                && refit_lobes == [0; 2],
             refit_lobes,
             frames,
             bands: data,

@@ -123,6 +123,9 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
             if refit.widest_lobe {
                 out.stage3_flags |= SolveResponse::JOINT_LOBE_REFIT;
             }
+            if refit.glint_lobes_only {
+                out.stage3_flags |= SolveResponse::JOINT_GLINT_LOBES_ONLY;
+            }
             if let Some(test) = refit.lobe_test {
                 out.stage3_joint_lobe_test_chi2 = test.chi2;
                 if test.rate_traded {

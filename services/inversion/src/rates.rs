@@ -486,6 +486,7 @@ mod tests {
             widest_lobe: true,
             held_direction: [1.0, 0.0, 0.0],
             lobe_test: None,
+            glint_lobes_only: false,
         });
         (RateSolution::Determined(fit), 711)
     }
@@ -514,6 +515,36 @@ mod tests {
             let out = unless_unconfirmed(band(), j, |_| panic!("not asked")).unwrap();
             assert_eq!(out, band());
         }
+    }
+
+    #[test]
+    fn a_re_fit_that_ends_below_half_the_kept_rate_traded_the_rate_for_the_lobe() {
+        // χ² alone would take the re-fit: it lies 10⁴ of the kept fit's σ away.
+        let kept = || {
+            let mut fit = with_covariance([0.0, 0.0, 0.25], [[1e-8; 3]; 3]);
+            fit.refit = Some(Refit {
+                widest_lobe: false,
+                held_direction: [1.0, 0.0, 0.0],
+                lobe_test: None,
+                glint_lobes_only: false,
+            });
+            (RateSolution::Determined(fit), 101)
+        };
+        let (chosen, frames) = choose_lobes(kept(), refitted(), 0.99);
+        let fit = chosen.fit().expect("a rate");
+        assert_eq!((fit.rate_deg_per_frame, frames), ([0.0, 0.0, 0.25], 101));
+        let test = fit
+            .refit
+            .and_then(|r| r.lobe_test)
+            .expect("the test is recorded");
+        assert!(test.rate_traded && test.chi2 > test.threshold, "{test:?}");
+        // A re-fit at the kept rate's pace is judged by χ² alone.
+        let mut fast = refitted();
+        if let RateSolution::Determined(f) = &mut fast.0 {
+            f.rate_deg_per_frame = [0.0, 0.01, 0.25];
+        }
+        let (chosen, frames) = choose_lobes(kept(), fast, 0.99);
+        assert_eq!(frames, 711, "{chosen:?}");
     }
 
     #[test]

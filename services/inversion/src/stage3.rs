@@ -252,6 +252,11 @@ pub struct Refit {
     /// configuration decided it.
     #[serde(default)]
     pub lobe_test: Option<LobeTest>,
+    /// The widest-lobe re-fit was asked for, but each facet's widest lobe in use is a glint
+    /// lobe ([`crate::model::refit::BROAD_LOBE_MIN_MU`]): its amplitude trades against the
+    /// rate, so it stays stage 1's and only the diffuse terms are re-fitted.
+    #[serde(default)]
+    pub glint_lobes_only: bool,
 }
 
 /// The joint fit's test of stage 1's lobes ([`LobeRefit::WhenNeeded`]): the fit re-fitting the
@@ -553,6 +558,7 @@ fn polish(
             widest_lobe: problem.refits_widest_lobe(),
             held_direction: h.held_direction(),
             lobe_test: None,
+            glint_lobes_only: problem.keeps_glint_lobes(),
         }),
     }))
 }

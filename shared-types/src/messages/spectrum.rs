@@ -350,6 +350,9 @@ impl SolveResponse {
     /// The joint fit kept stage 1's lobes because the re-fit traded the rate for the lobe (it
     /// ended below half the kept rate).
     pub const JOINT_LOBE_RATE_TRADED: u32 = 8;
+    /// The joint fit re-fitted no lobe: each facet's widest lobe in use is a glint lobe
+    /// (μ < 0.2), whose amplitude trades against the rate, so it stays stage 1's.
+    pub const JOINT_GLINT_LOBES_ONLY: u32 = 16;
 
     /// `stage3_held_axes`: a held direction that is not a body axis (bits 0–2 are x, y, z).
     pub const HELD_OTHER: u32 = 8;

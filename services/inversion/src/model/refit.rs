@@ -5,6 +5,7 @@
 use super::{BandData, Basis, FacetSlopes, RateProblem};
 use crate::facet::TERMS;
 use crate::nuisance::{project_band, Row, NUISANCE};
+use glint_physics::brdf::LOBE_WIDTHS_TABLE4;
 
 impl RateProblem {
     /// Whether the diffuse terms are re-estimated at every p ([`super::MotionModelConfig::refit_diffuse`]).
@@ -15,6 +16,12 @@ impl RateProblem {
     /// Whether each facet's widest lobe is re-estimated too ([`super::MotionModelConfig::refit_widest_lobe`]).
     pub fn refits_widest_lobe(&self) -> bool {
         self.refit_lobes.iter().any(|&k| k > 0)
+    }
+
+    /// Whether the widest-lobe re-fit was asked for but every facet's widest lobe in use is a
+    /// glint lobe (narrower than [`BROAD_LOBE_MIN_MU`]), so only the diffuse terms are re-fitted.
+    pub fn keeps_glint_lobes(&self) -> bool {
+        self.glint_lobes_only
     }
 
     /// The sun–observer bisector in the body frame at the epoch (unit; the earliest frame's
@@ -72,12 +79,22 @@ impl RateProblem {
     }
 }
 
-/// The widest lobe any band uses, per facet: zeroed in every band's stage-1 coefficients (the
-/// problem re-fits it) and returned as that facet's re-fitted lobe (0: none).
+/// Lobes at least this wide \[rms facet slope μ\] are broad: light spread over tens of degrees
+/// (wrinkled film, a cell's grid), which the two-facet model places as poorly as the diffuse
+/// light and which the stable window may weigh differently from the motion window
+/// (../shared/docs/materials.md §2 draws the line at μ = 0.2). A narrower lobe is the glint
+/// itself: its amplitude sets the glint's height and apparent width, so re-fitting it trades
+/// against the rate (ADR 0015).
+pub const BROAD_LOBE_MIN_MU: f64 = 0.2;
+
+/// The widest lobe any band uses, per facet, when it is broad ([`BROAD_LOBE_MIN_MU`]): zeroed
+/// in every band's stage-1 coefficients (the problem re-fits it) and returned as that facet's
+/// re-fitted lobe (0: none, also when the facet's widest lobe is a glint lobe).
 pub(super) fn take_widest_lobes(data: &mut [BandData], active: &[[bool; TERMS]; 2]) -> [usize; 2] {
     let mut lobes = [0usize; 2];
     for f in 0..2 {
-        if let Some(k) = (1..TERMS).rev().find(|&k| active[f][k]) {
+        let widest = (1..TERMS).rev().find(|&k| active[f][k]);
+        if let Some(k) = widest.filter(|&k| LOBE_WIDTHS_TABLE4[k - 1] >= BROAD_LOBE_MIN_MU) {
             lobes[f] = k;
             for band in data.iter_mut() {
                 band.x[f][k] = 0.0;
@@ -106,4 +123,45 @@ pub(super) fn lobe_slope_of(sl: &FacetSlopes, k: usize, scale: f64) -> [f64; 3] 
         return [0.0; 3];
     }
     sl.dc.map(|dc| scale * sl.lobe[k - 1] * dc)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn band(x: Basis) -> BandData {
+        BandData {
+            x,
+            y: vec![],
+            w: vec![],
+            mean_flux_w: 1.0,
+        }
+    }
+
+    /// Index of the lobe of width `mu` in the basis (the diffuse term is index 0).
+    fn lobe(mu: f64) -> usize {
+        1 + LOBE_WIDTHS_TABLE4.iter().position(|&m| m == mu).unwrap()
+    }
+
+    #[test]
+    fn only_a_broad_widest_lobe_is_taken_for_the_re_fit() {
+        // Physical-like panel (glint lobe μ = 0.07 and broad μ = 0.2) and paper-like body
+        // (glint lobes μ = 0.01 and 0.05 only).
+        let mut x: Basis = [[0.0; TERMS]; 2];
+        x[0][0] = 0.3;
+        x[0][lobe(0.07)] = 0.6;
+        x[0][lobe(0.2)] = 0.08;
+        x[1][lobe(0.01)] = 0.04;
+        x[1][lobe(0.05)] = 0.2;
+        let active = x.map(|f| f.map(|v| v != 0.0));
+        let mut data = vec![band(x), band(x)];
+        let lobes = take_widest_lobes(&mut data, &active);
+        assert_eq!(lobes, [lobe(0.2), 0]);
+        for d in &data {
+            // The broad lobe is the problem's to estimate; the glint lobes stay stage 1's.
+            assert_eq!(d.x[0][lobe(0.2)], 0.0);
+            assert_eq!(d.x[0][lobe(0.07)], 0.6);
+            assert_eq!(d.x[1], x[1]);
+        }
+    }
 }
