@@ -32,6 +32,15 @@ fn codes_outside_their_tables_are_rejected_with_the_field_named() {
         r.validate().unwrap_err().field,
         "solve_response.stage3_held_axes"
     );
+    // The stage-3 flags: the five defined bits, no others.
+    let mut r = ok();
+    r.stage3_flags = 0b1_1111;
+    assert!(r.validate().is_ok());
+    r.stage3_flags = 0b10_0000;
+    assert_eq!(
+        r.validate().unwrap_err().field,
+        "solve_response.stage3_flags"
+    );
     // The covariance's noise source.
     let mut r = ok();
     r.stage3_covariance_source = SolveResponse::COVARIANCE_SOURCE_NAMES.len() as u32 - 1;

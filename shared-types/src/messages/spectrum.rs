@@ -244,7 +244,8 @@ pub struct SolveResponse {
     /// band-selection rule).
     pub separation_band: u32,
     /// Stage 3 flags: [`SolveResponse::SENSE_FROM_JOINT`], [`SolveResponse::LAMBDA_REJECTED`],
-    /// [`SolveResponse::JOINT_LOBE_REFIT`], [`SolveResponse::JOINT_LOBE_RATE_TRADED`].
+    /// [`SolveResponse::JOINT_LOBE_REFIT`], [`SolveResponse::JOINT_LOBE_RATE_TRADED`],
+    /// [`SolveResponse::JOINT_GLINT_LOBES_ONLY`].
     pub stage3_flags: u32,
     /// Stage 2: the lobes' share of the stage-1 coefficients per band.
     pub specular_share: [f64; MAX_BANDS],
@@ -353,6 +354,12 @@ impl SolveResponse {
     /// The joint fit re-fitted no lobe: each facet's widest lobe in use is a glint lobe
     /// (μ < 0.2), whose amplitude trades against the rate, so it stays stage 1's.
     pub const JOINT_GLINT_LOBES_ONLY: u32 = 16;
+    /// Every `stage3_flags` bit defined above.
+    pub const STAGE3_FLAGS_KNOWN: u32 = Self::SENSE_FROM_JOINT
+        | Self::LAMBDA_REJECTED
+        | Self::JOINT_LOBE_REFIT
+        | Self::JOINT_LOBE_RATE_TRADED
+        | Self::JOINT_GLINT_LOBES_ONLY;
 
     /// `stage3_held_axes`: a held direction that is not a body axis (bits 0–2 are x, y, z).
     pub const HELD_OTHER: u32 = 8;
@@ -388,6 +395,9 @@ impl SolveResponse {
         self.meta.validate()?;
         if SolveStatus::from_u32(self.status).is_none() {
             return Err(Reject::new("solve_response.status", "unknown status"));
+        }
+        if self.stage3_flags & !Self::STAGE3_FLAGS_KNOWN != 0 {
+            return Err(Reject::new("solve_response.stage3_flags", "unknown bits"));
         }
         if self.stage3_held_axes > 0xF {
             return Err(Reject::new(
