@@ -2,6 +2,7 @@
 //! and its check against the joint fit (the fallback along stage 2's ranking).
 
 use crate::error::InversionError;
+use crate::model::refit::broad_lobe_in_use;
 use crate::model::{MotionModelConfig, RateBand, RateProblem};
 use crate::observability::UnobservableReason;
 use crate::observation::Observation;
@@ -329,9 +330,11 @@ pub fn fit_joint(
     let covs: Vec<Option<Vec<f64>>> = stage1.iter().map(|s| s.coeff_covariance.clone()).collect();
     let setup = FitSetup::new(motion, &bands, &covs, None, model);
     let searched = horizon::search(&setup, config)?;
+    // With glint lobes only, the fit "re-fitting" them is the fit keeping them: run it once.
     let tested = config.refit_diffuse
         && config.refit_widest_lobe == LobeRefit::WhenNeeded
-        && config.refit_widest_lobe.applies(bands.len());
+        && config.refit_widest_lobe.applies(bands.len())
+        && broad_lobe_in_use(&bands);
     if !tested {
         return reweighted_joint(&setup, config, &searched);
     }

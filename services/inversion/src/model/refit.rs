@@ -2,7 +2,7 @@
 //! at every p, their nuisance columns and their projection ([`crate::nuisance`]), and the
 //! bisector the polish holds.
 
-use super::{BandData, Basis, FacetSlopes, RateProblem};
+use super::{BandData, Basis, FacetSlopes, RateBand, RateProblem};
 use crate::facet::TERMS;
 use crate::nuisance::{project_band, Row, NUISANCE};
 use glint_physics::brdf::LOBE_WIDTHS_TABLE4;
@@ -93,8 +93,7 @@ pub const BROAD_LOBE_MIN_MU: f64 = 0.2;
 pub(super) fn take_widest_lobes(data: &mut [BandData], active: &[[bool; TERMS]; 2]) -> [usize; 2] {
     let mut lobes = [0usize; 2];
     for f in 0..2 {
-        let widest = (1..TERMS).rev().find(|&k| active[f][k]);
-        if let Some(k) = widest.filter(|&k| LOBE_WIDTHS_TABLE4[k - 1] >= BROAD_LOBE_MIN_MU) {
+        if let Some(k) = broad_widest_lobe(&active[f]) {
             lobes[f] = k;
             for band in data.iter_mut() {
                 band.x[f][k] = 0.0;
@@ -102,6 +101,31 @@ pub(super) fn take_widest_lobes(data: &mut [BandData], active: &[[bool; TERMS]; 
         }
     }
     lobes
+}
+
+/// A facet's widest lobe in use (`active`: its terms any band uses), when it is broad.
+fn broad_widest_lobe(active: &[bool; TERMS]) -> Option<usize> {
+    (1..TERMS)
+        .rev()
+        .find(|&k| active[k])
+        .filter(|&k| LOBE_WIDTHS_TABLE4[k - 1] >= BROAD_LOBE_MIN_MU)
+}
+
+/// Whether a widest-lobe re-fit of `bands` would re-fit anything: some facet's widest lobe in
+/// use, over the bands' stage-1 coefficients, is broad.
+pub fn broad_lobe_in_use(bands: &[RateBand]) -> bool {
+    let mut active = [[false; TERMS]; 2];
+    for band in bands {
+        for (act, c) in active
+            .iter_mut()
+            .zip([&band.coeffs.panel, &band.coeffs.body])
+        {
+            for (a, v) in act.iter_mut().zip(c) {
+                *a |= *v != 0.0;
+            }
+        }
+    }
+    active.iter().any(|a| broad_widest_lobe(a).is_some())
 }
 
 /// The nuisance column row `scale·[G_0(panel), G_0(body), 1, G_k(panel), G_k(body)]`, k the
