@@ -38,6 +38,9 @@ use crate::model::RateProblem;
 use faer::{Mat, Side};
 use serde::{Deserialize, Serialize};
 
+mod profile;
+pub use profile::profiled_bounds;
+
 /// Where the covariance scale comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -419,13 +422,7 @@ fn total_information(
 /// than its curvature at p̂ says, and the linearised covariance would be overconfident. The
 /// covariance is rebuilt as V diag(δ²) Vᵀ; the classification is left as it is.
 pub fn widen_to_likelihood_intervals(problem: &RateProblem, p: [f64; 3], analysis: &mut Analysis) {
-    let s2 = match analysis.source {
-        CovarianceSource::GivenSigma => 1.0,
-        CovarianceSource::GivenSigmaScaled { variance_scale, .. } => variance_scale,
-        CovarianceSource::ResidualVariance {
-            sigma_normalised, ..
-        } => sigma_normalised.powi(2),
-    };
+    let s2 = noise_variance(&analysis.source);
     let obs = &mut analysis.observability;
     let cap = INTERVAL_CAP_FACTOR * obs.threshold_deg_per_frame;
     let c0 = problem.cost(p);
@@ -448,6 +445,18 @@ pub fn widen_to_likelihood_intervals(problem: &RateProblem, p: [f64; 3], analysi
     analysis.covariance = inverse_from_eigen(&obs.information_eigenvalues, &obs.eigenvectors);
 }
 
+/// The noise variance s² in the cost's units: one unit of whitened χ², or the variance the
+/// covariance was scaled by.
+fn noise_variance(source: &CovarianceSource) -> f64 {
+    match *source {
+        CovarianceSource::GivenSigma => 1.0,
+        CovarianceSource::GivenSigmaScaled { variance_scale, .. } => variance_scale,
+        CovarianceSource::ResidualVariance {
+            sigma_normalised, ..
+        } => sigma_normalised.powi(2),
+    }
+}
+
 /// Bisection steps of a likelihood half-width (2⁻⁸ of its bracket: the bound is a 1σ figure).
 const INTERVAL_BISECTIONS: usize = 8;
 
@@ -457,8 +466,22 @@ const INTERVAL_CAP_FACTOR: f64 = 4.0;
 /// Smallest δ in (0, cap] with `rise(δ) ≥ s2` (doubling from `start`, then bisection); `cap`
 /// if the cost never rises that far.
 fn half_width(rise: impl Fn(f64) -> f64, start: f64, cap: f64, s2: f64) -> f64 {
-    let (mut lo, mut hi) = (0.0, start.min(cap));
-    while rise(hi) < s2 || rise(hi).is_nan() {
+    bracket_and_bisect(rise, 0.0, start.min(cap), cap, s2)
+}
+
+fn bracket_and_bisect(
+    mut rise: impl FnMut(f64) -> f64,
+    lo: f64,
+    hi: f64,
+    cap: f64,
+    s2: f64,
+) -> f64 {
+    let (mut lo, mut hi) = (lo, hi);
+    loop {
+        let r = rise(hi);
+        if r >= s2 {
+            break;
+        }
         if hi >= cap {
             return cap;
         }

@@ -67,6 +67,15 @@ pub fn fit_rates(
         }
         _ => None,
     };
+    // Every decision is taken: the answers report their profile-likelihood intervals (when
+    // `profile_intervals` attached them).
+    let mut joint_rate = joint_rate;
+    if let RateSolution::Determined(kept) = &mut rate {
+        kept.report_profile(covariance_scale.unwrap_or(1.0));
+    }
+    if let Some((RateSolution::Determined(joint), _)) = &mut joint_rate {
+        joint.report_profile(1.0);
+    }
     Ok(RateFits {
         rate,
         covariance_scale,
@@ -204,6 +213,11 @@ pub fn fit_band(
     {
         setup = setup.with_speed_floor(joint_speed);
         (rate, problem, sense_from_joint) = search_and_polish_band(&setup, config, joint)?;
+    }
+    if let RateSolution::Determined(fit) = &mut rate {
+        if config.profile_intervals {
+            fit.attach_profile(&problem);
+        }
     }
     let mut out = BandFit {
         rate,
@@ -415,12 +429,14 @@ fn reweighted_joint(
             Some(j2) => (j2, reweighted_problem, &reweighted_setup),
             None => (j, problem, setup),
         };
-    Ok(
-        match horizon::polish_with_refit(setup, config, &searched)? {
-            Some((polished, problem)) => (polished, problem.frame_count()),
-            None => (searched, problem.frame_count()),
-        },
-    )
+    let (mut joint, problem) =
+        horizon::polish_with_refit(setup, config, &searched)?.unwrap_or((searched, problem));
+    if let RateSolution::Determined(fit) = &mut joint {
+        if config.profile_intervals {
+            fit.attach_profile(&problem);
+        }
+    }
+    Ok((joint, problem.frame_count()))
 }
 
 /// Multi-start fit on the frames within the fit horizon: the first window is valid for every
@@ -434,6 +450,9 @@ fn reweighted_joint(
 /// model's validity pull the fit towards slower rates, a slower rate would admit more such
 /// frames, and the window would run away (the Z case at phase 20° crept from 0.21 to 0.11
 /// deg/frame over 184 frames that way).
+///
+/// With [`Stage3Config::profile_intervals`] the answer reports its profile-likelihood intervals
+/// ([`RateFit::report_profile`]).
 pub fn fit_within_horizon(
     motion: &[Observation],
     bands: &[RateBand],
@@ -442,7 +461,13 @@ pub fn fit_within_horizon(
     config: &Stage3Config,
 ) -> Result<(RateSolution, usize), InversionError> {
     let setup = FitSetup::new(motion, bands, coefficient_covariance, None, model);
-    let (rate, problem) = horizon::search_and_polish(&setup, config)?;
+    let (mut rate, problem) = horizon::search_and_polish(&setup, config)?;
+    if let RateSolution::Determined(fit) = &mut rate {
+        if config.profile_intervals {
+            fit.attach_profile(&problem);
+            fit.report_profile(1.0);
+        }
+    }
     Ok((rate, problem.frame_count()))
 }
 

@@ -32,6 +32,7 @@ pub(crate) fn solution(p: [f64; 3], mirror: Option<[f64; 3]>) -> RateSolution {
         held_directions: vec![],
         mirror_deg_per_frame: mirror,
         refit: None,
+        profiled_bounds_deg_per_frame: None,
     })
 }
 
