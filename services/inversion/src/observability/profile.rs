@@ -39,7 +39,7 @@ use super::{CovarianceSource, Observability, INTERVAL_CAP_FACTOR};
 use crate::model::RateProblem;
 use std::cmp::Ordering;
 
-/// Gauss–Newton steps of the minimisation over the other free directions, per walk step.
+/// Gauss–Newton steps of the minimisation over the other determined directions, per walk step.
 const PROFILE_STEPS: usize = 1;
 
 /// Walk steps per straight-line half-width of the walked direction.
@@ -67,8 +67,12 @@ const FLAT_RELATIVE: f64 = 1e-8;
 pub trait LeastSquares {
     /// Residuals per call.
     fn residual_count(&self) -> usize;
-    /// Σ r² at p.
-    fn cost(&self, p: [f64; 3]) -> f64;
+    /// Σ r² at p (by default from the residuals; the rate problem has a cheaper one).
+    fn cost(&self, p: [f64; 3]) -> f64 {
+        let n = self.residual_count();
+        let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
+        self.residuals_and_jacobian(p, &mut r, &mut jac)
+    }
     /// Residuals r and `J = −∂r/∂p` at p; returns Σ r².
     fn residuals_and_jacobian(&self, p: [f64; 3], r: &mut [f64], jac: &mut [[f64; 3]]) -> f64;
 }
@@ -398,11 +402,6 @@ mod tests {
         fn residual_count(&self) -> usize {
             3
         }
-        fn cost(&self, p: [f64; 3]) -> f64 {
-            let mut r = [0.0; 3];
-            let mut j = [[0.0; 3]; 3];
-            self.residuals_and_jacobian(p, &mut r, &mut j)
-        }
         fn residuals_and_jacobian(&self, p: [f64; 3], r: &mut [f64], jac: &mut [[f64; 3]]) -> f64 {
             let [x, y, z] = p;
             r[0] = -x / self.a;
@@ -516,11 +515,6 @@ mod tests {
     impl LeastSquares for TwoWells {
         fn residual_count(&self) -> usize {
             3
-        }
-        fn cost(&self, p: [f64; 3]) -> f64 {
-            let mut r = [0.0; 3];
-            let mut j = [[0.0; 3]; 3];
-            self.residuals_and_jacobian(p, &mut r, &mut j)
         }
         fn residuals_and_jacobian(&self, p: [f64; 3], r: &mut [f64], jac: &mut [[f64; 3]]) -> f64 {
             let [x, y, z] = p;
