@@ -466,22 +466,8 @@ const INTERVAL_CAP_FACTOR: f64 = 4.0;
 /// Smallest δ in (0, cap] with `rise(δ) ≥ s2` (doubling from `start`, then bisection); `cap`
 /// if the cost never rises that far.
 fn half_width(rise: impl Fn(f64) -> f64, start: f64, cap: f64, s2: f64) -> f64 {
-    bracket_and_bisect(rise, 0.0, start.min(cap), cap, s2)
-}
-
-fn bracket_and_bisect(
-    mut rise: impl FnMut(f64) -> f64,
-    lo: f64,
-    hi: f64,
-    cap: f64,
-    s2: f64,
-) -> f64 {
-    let (mut lo, mut hi) = (lo, hi);
-    loop {
-        let r = rise(hi);
-        if r >= s2 {
-            break;
-        }
+    let (mut lo, mut hi) = (0.0, start.min(cap));
+    while rise(hi) < s2 || rise(hi).is_nan() {
         if hi >= cap {
             return cap;
         }

@@ -28,7 +28,7 @@ pub fn fit_rates(
     config: &Stage3Config,
     joint: bool,
 ) -> Result<RateFits, InversionError> {
-    let joint_rate = if joint {
+    let mut joint_rate = if joint {
         Some(fit_joint(motion, stage1, model, config)?)
     } else {
         None
@@ -69,11 +69,8 @@ pub fn fit_rates(
     };
     // Every decision is taken: the answers report their profile-likelihood intervals (when
     // `profile_intervals` attached them).
-    let mut joint_rate = joint_rate;
-    if let RateSolution::Determined(kept) = &mut rate {
-        kept.report_profile(covariance_scale.unwrap_or(1.0));
-    }
-    if let Some((RateSolution::Determined(joint), _)) = &mut joint_rate {
+    rate.report_profile(covariance_scale.unwrap_or(1.0));
+    if let Some((joint, _)) = &mut joint_rate {
         joint.report_profile(1.0);
     }
     Ok(RateFits {
@@ -214,11 +211,7 @@ pub fn fit_band(
         setup = setup.with_speed_floor(joint_speed);
         (rate, problem, sense_from_joint) = search_and_polish_band(&setup, config, joint)?;
     }
-    if let RateSolution::Determined(fit) = &mut rate {
-        if config.profile_intervals {
-            fit.attach_profile(&problem);
-        }
-    }
+    rate.attach_profile_if_asked(&problem, config);
     let mut out = BandFit {
         rate,
         fitted_frames: problem.frame_count(),
@@ -431,11 +424,7 @@ fn reweighted_joint(
         };
     let (mut joint, problem) =
         horizon::polish_with_refit(setup, config, &searched)?.unwrap_or((searched, problem));
-    if let RateSolution::Determined(fit) = &mut joint {
-        if config.profile_intervals {
-            fit.attach_profile(&problem);
-        }
-    }
+    joint.attach_profile_if_asked(&problem, config);
     Ok((joint, problem.frame_count()))
 }
 
@@ -462,12 +451,8 @@ pub fn fit_within_horizon(
 ) -> Result<(RateSolution, usize), InversionError> {
     let setup = FitSetup::new(motion, bands, coefficient_covariance, None, model);
     let (mut rate, problem) = horizon::search_and_polish(&setup, config)?;
-    if let RateSolution::Determined(fit) = &mut rate {
-        if config.profile_intervals {
-            fit.attach_profile(&problem);
-            fit.report_profile(1.0);
-        }
-    }
+    rate.attach_profile_if_asked(&problem, config);
+    rate.report_profile(1.0);
     Ok((rate, problem.frame_count()))
 }
 

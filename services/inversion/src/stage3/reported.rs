@@ -1,7 +1,7 @@
 //! The profile-likelihood intervals a fit reports once the solve's decisions are taken
 //! (docs/adr/0017; the walk itself is [`crate::observability::profiled_bounds`]).
 
-use super::RateFit;
+use super::{RateFit, RateSolution, Stage3Config};
 use crate::model::RateProblem;
 use crate::observability::profiled_bounds;
 use std::cmp::Ordering;
@@ -22,7 +22,7 @@ impl RateFit {
     /// Reports the profile-likelihood half-widths (docs/adr/0017): along each determined
     /// direction v_i whose profile interval δ_i is wider than the reported 1σ, the bound becomes
     /// δ_i and the covariance's variance along v_i becomes δ_i² (the covariance is diagonal in
-    /// the v_i, `variance_scale` times their bounds² after [`widen_to_joint`]). The decisions
+    /// the v_i, `variance_scale` times their bounds² after [`widen_to_joint`](super::widen_to_joint)). The decisions
     /// read the local covariance, so the solve calls this once they are all taken. Returns
     /// whether anything widened.
     pub fn report_profile(&mut self, variance_scale: f64) -> bool {
@@ -54,6 +54,23 @@ impl RateFit {
             widened = true;
         }
         widened
+    }
+}
+
+impl RateSolution {
+    /// [`RateFit::attach_profile`] on a determined answer, when `config.profile_intervals`
+    /// asks for it.
+    pub(crate) fn attach_profile_if_asked(&mut self, problem: &RateProblem, config: &Stage3Config) {
+        if let (true, RateSolution::Determined(fit)) = (config.profile_intervals, self) {
+            fit.attach_profile(problem);
+        }
+    }
+
+    /// [`RateFit::report_profile`] on a determined answer (a no-op without an attached profile).
+    pub(crate) fn report_profile(&mut self, variance_scale: f64) {
+        if let RateSolution::Determined(fit) = self {
+            fit.report_profile(variance_scale);
+        }
     }
 }
 
