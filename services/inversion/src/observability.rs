@@ -37,6 +37,7 @@ use crate::lm::normal_equations;
 use crate::model::RateProblem;
 use faer::{Mat, Side};
 use serde::{Deserialize, Serialize};
+use std::cmp::Ordering;
 
 mod profile;
 pub use profile::profiled_bounds;
@@ -467,7 +468,11 @@ const INTERVAL_CAP_FACTOR: f64 = 4.0;
 /// if the cost never rises that far.
 fn half_width(rise: impl Fn(f64) -> f64, start: f64, cap: f64, s2: f64) -> f64 {
     let (mut lo, mut hi) = (0.0, start.min(cap));
-    while rise(hi) < s2 || rise(hi).is_nan() {
+    // Each point once: `!(r >= s2)` also carries on past a NaN.
+    while !matches!(
+        rise(hi).partial_cmp(&s2),
+        Some(Ordering::Greater | Ordering::Equal)
+    ) {
         if hi >= cap {
             return cap;
         }
