@@ -102,6 +102,17 @@ fn rejects_invalid_input_and_config() {
             })
         ));
     }
+    config = InversionConfig::default();
+    config.stage3.polish_reach_frames = 11;
+    assert!(matches!(
+        config.stage3.validate(),
+        Err(InversionError::InvalidConfig {
+            field: "polish_reach_frames",
+            ..
+        })
+    ));
+    config.stage3.polish_reach_frames = 10;
+    assert!(config.stage3.validate().is_ok());
 }
 
 #[test]

@@ -228,13 +228,13 @@ pub(super) fn polish_with_refit(
         }
         frames = next;
         let problem = setup.problem(&frames, Some(config))?;
-        let mut polished = stage3::fit_from_starts(&problem, &[p], config)?;
+        let mut polished = stage3::fit_from_neighbourhood(&problem, p, config)?;
         if polished
             .fit()
             .is_some_and(|f| wrong_side(f.rate_deg_per_frame))
         {
             let q = polished.fit().map_or(p, |f| f.rate_deg_per_frame);
-            polished = stage3::fit_from_starts(&problem, &[stage3::mirror(q)], config)?;
+            polished = stage3::fit_from_neighbourhood(&problem, stage3::mirror(q), config)?;
             if polished
                 .fit()
                 .is_none_or(|f| wrong_side(f.rate_deg_per_frame))

@@ -56,6 +56,45 @@ impl BisectorHold {
         onto_prior_planes(p, &[self.weak], &self.prior.directions)
     }
 
+    /// Starts about `p` within the prior's plane: `p` itself, then `p` ± k·`step`, k = 1 … `reach`,
+    /// along the plane's two directions (the rate's own within the plane, and the one across it).
+    pub(super) fn plane_starts(&self, p: [f64; 3], step: f64, reach: usize) -> Vec<[f64; 3]> {
+        let e = self.prior.directions[0];
+        let p = self.onto_plane(p);
+        let along_e: f64 = (0..3).map(|i| p[i] * e[i]).sum();
+        let in_plane: [f64; 3] = std::array::from_fn(|i| p[i] - along_e * e[i]);
+        let norm = in_plane.iter().map(|v| v * v).sum::<f64>().sqrt();
+        // A rate along e has no direction of its own in the plane: any unit vector across e.
+        let d1 = if norm > 0.0 {
+            in_plane.map(|v| v / norm)
+        } else {
+            let k = (0..3)
+                .min_by(|&a, &b| e[a].abs().total_cmp(&e[b].abs()))
+                .unwrap_or(0);
+            let mut a = [0.0; 3];
+            a[k] = 1.0;
+            let d: f64 = (0..3).map(|i| a[i] * e[i]).sum();
+            let v: [f64; 3] = std::array::from_fn(|i| a[i] - d * e[i]);
+            let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            v.map(|x| x / n)
+        };
+        let d2 = [
+            e[1] * d1[2] - e[2] * d1[1],
+            e[2] * d1[0] - e[0] * d1[2],
+            e[0] * d1[1] - e[1] * d1[0],
+        ];
+        let mut starts = vec![p];
+        for k in 1..=reach {
+            for d in [d1, d2] {
+                for sign in [1.0, -1.0] {
+                    let h = sign * step * k as f64;
+                    starts.push(std::array::from_fn(|i| p[i] + h * d[i]));
+                }
+            }
+        }
+        starts
+    }
+
     /// LM from `p0` (moved onto the plane) under the prior; the outcome's cost is the data's.
     pub(super) fn fit(
         &self,
@@ -200,5 +239,48 @@ mod tests {
         assert_eq!(obs.eigenvectors[0], [1.0, 0.0, 0.0]);
         assert_eq!(obs.unobservable, [true, false, false]);
         assert!(analysis.unobservable.is_none());
+    }
+
+    #[test]
+    fn plane_starts_step_along_the_rate_and_across_it_within_the_plane() {
+        let hold = BisectorHold {
+            weak: [0.9, 0.0, 0.436],
+            prior: Prior {
+                directions: vec![[1.0, 0.0, 0.0]],
+                weight: 1.0,
+            },
+        };
+        let dot = |a: [f64; 3], b: [f64; 3]| (0..3).map(|i| a[i] * b[i]).sum::<f64>();
+        // The start is moved onto the plane w_x = 0 along u first: [0, 0.03, 0.25 − 0.436/0.9·0.1].
+        let p = [0.1, 0.03, 0.2];
+        let starts = hold.plane_starts(p, 0.002, 2);
+        assert_eq!(starts.len(), 9);
+        let centre = starts[0];
+        assert!(centre[0].abs() < 1e-15, "{centre:?}");
+        assert!(
+            (centre[2] - (0.2 - 0.436 / 0.9 * 0.1)).abs() < 1e-12,
+            "{centre:?}"
+        );
+        let rate_dir = {
+            let n = dot(centre, centre).sqrt();
+            centre.map(|v| v / n)
+        };
+        for (i, s) in starts[1..].iter().enumerate() {
+            let d: [f64; 3] = std::array::from_fn(|k| s[k] - centre[k]);
+            let k = (i / 4 + 1) as f64;
+            assert!(s[0].abs() < 1e-15, "every start on the plane: {s:?}");
+            assert!((dot(d, d).sqrt() - 0.002 * k).abs() < 1e-12, "{i}: {d:?}");
+            // First along the rate (±), then across it (±).
+            let along = dot(d, rate_dir).abs() / (0.002 * k);
+            let expected = if i % 4 < 2 { 1.0 } else { 0.0 };
+            assert!((along - expected).abs() < 1e-12, "{i}: {along}");
+        }
+        // A rate along the held direction has no direction of its own: still four directions
+        // across it, on the plane.
+        let starts = hold.plane_starts([0.0; 3], 0.001, 1);
+        assert_eq!(starts.len(), 5);
+        for s in &starts[1..] {
+            assert!(s[0].abs() < 1e-15 && (dot(*s, *s).sqrt() - 0.001).abs() < 1e-12);
+        }
     }
 }

@@ -93,6 +93,12 @@ pub struct Stage3Config {
     /// the mean NEES by 1–20 %, into its interval in one row and out of it in another, for
     /// about 4 % more solve time.
     pub profile_intervals: bool,
+    /// The polish of a model that re-fits the diffuse terms also starts from the searched rate's
+    /// neighbours 1 … this many frames' shift away and takes a neighbouring minimum that fits
+    /// clearly better ([`super::fit_from_neighbourhood`]). Off (0) by default: it finds those
+    /// minima, but about Z the stable window's noise makes the deeper one the farther from the
+    /// noise-free answer (docs/adr/0018).
+    pub polish_reach_frames: usize,
 }
 
 impl Default for Stage3Config {
@@ -110,6 +116,7 @@ impl Default for Stage3Config {
             lobe_test_confidence: DEFAULT_LOBE_TEST_CONFIDENCE,
             widen_to_joint: true,
             profile_intervals: false,
+            polish_reach_frames: DEFAULT_POLISH_REACH_FRAMES,
         }
     }
 }
@@ -146,6 +153,10 @@ impl LobeRefit {
 
 /// Default [`Stage3Config::lobe_test_confidence`].
 pub const DEFAULT_LOBE_TEST_CONFIDENCE: f64 = 0.99;
+/// Default [`Stage3Config::polish_reach_frames`].
+pub const DEFAULT_POLISH_REACH_FRAMES: usize = 0;
+/// Largest [`Stage3Config::polish_reach_frames`]: each frame of reach adds four LM starts.
+const MAX_POLISH_REACH_FRAMES: usize = 10;
 
 /// Default [`Stage3Config::joint_gate_sigma`]: far beyond any scatter of the two fits (they share
 /// data), near nothing a second minimum can hide in.
@@ -198,6 +209,9 @@ pub(super) fn validate(config: &Stage3Config) -> Result<(), InversionError> {
     let confidence = config.lobe_test_confidence;
     if !(confidence > 0.0 && confidence < 1.0) {
         return bad("lobe_test_confidence", "must be in (0, 1)");
+    }
+    if config.polish_reach_frames > MAX_POLISH_REACH_FRAMES {
+        return bad("polish_reach_frames", "must be in 0 ..= 10");
     }
     if !(0.0..=1.0).contains(&config.observability.min_lobe_share) {
         return bad("observability.min_lobe_share", "must be in [0, 1]");

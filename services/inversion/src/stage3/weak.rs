@@ -150,7 +150,7 @@ const HOLD_MAX_DELTA_CHI2: f64 = 9.0;
 /// ([`given_sigma_scale`]); without σ, the residual variance of the fit p̂, inflated for the
 /// residuals' serial correlation ([`residual_variance`]). Model mismatch is smooth in time, and
 /// counting its N residuals as independent would make any prior look rejected.
-fn noise_variance(problem: &RateProblem, p: [f64; 3], config: &Stage3Config) -> f64 {
+pub(super) fn noise_variance(problem: &RateProblem, p: [f64; 3], config: &Stage3Config) -> f64 {
     let mut r = vec![0.0; problem.residual_count()];
     let cost = problem.residuals(p, &mut r);
     if problem.sigma_given() {
@@ -279,7 +279,7 @@ const MIRROR_MIN_DISTANCE_DEG_PER_FRAME: f64 = 1e-2;
 const MIRROR_MIN_SEPARATION_SIGMA: f64 = 2.0;
 /// The mirror is reported when its cost exceeds p̂'s by at most this many noise variances
 /// (Δχ² ≤ 4: the data cannot tell them apart at 2σ).
-const MIRROR_MAX_DELTA_CHI2: f64 = 4.0;
+pub(super) const MIRROR_MAX_DELTA_CHI2: f64 = 4.0;
 
 /// The mirror solution of p̂ when the data cannot tell them apart: LM polished from
 /// (−w_x, w_y, −w_z) (an exact minimum when every geometry vector lies in the body XZ plane, a
