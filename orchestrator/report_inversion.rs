@@ -88,6 +88,8 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
         let mirror_ok = r.p_mirror_deg_per_frame.iter().all(|v| v.is_finite());
         let joint_mirror = r.p_joint_mirror_deg_per_frame;
         let joint_mirror_ok = joint_ok && joint_mirror.iter().all(|v| v.is_finite());
+        let neighbour = r.p_joint_neighbour_deg_per_frame;
+        let neighbour_ok = joint_ok && neighbour.iter().all(|v| v.is_finite());
         json!({
             "status": status(r),
             "unobservable_reason": reason(r.unobservable_reason),
@@ -116,6 +118,9 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 "glint_lobes_only": r.stage3_flags & SolveResponse::JOINT_GLINT_LOBES_ONLY != 0,
                 "mirror_deg_per_frame": if joint_mirror_ok { json!(joint_mirror) } else { Value::Null },
                 "err_paper_metric_mirror": if joint_mirror_ok { finite(rate_error_metric(joint_mirror, truth)) } else { Value::Null },
+                "neighbour_deg_per_frame": if neighbour_ok { json!(neighbour) } else { Value::Null },
+                "neighbour_delta_chi2": if neighbour_ok { finite(r.stage3_joint_neighbour_delta_chi2) } else { Value::Null },
+                "err_paper_metric_neighbour": if neighbour_ok { finite(rate_error_metric(neighbour, truth)) } else { Value::Null },
             },
             "fisher": {
                 "eigenvalues": r.fisher_eigenvalues.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
@@ -238,6 +243,20 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                     s,
                     "\n**The joint fit's mirror [{:.5}, {:.5}, {:.5}] fits all bands equally well** (error {:.3}): the data cannot tell the two apart (for a rate with components about X or Z, its sense of rotation), and the covariance describes the scatter about the one reported.",
                     m[0], m[1], m[2], rate_error_metric(m, truth)
+                );
+            }
+            let q = r.p_joint_neighbour_deg_per_frame;
+            let delta = r.stage3_joint_neighbour_delta_chi2;
+            if q.iter().all(|v| v.is_finite()) && delta.is_finite() {
+                let fits = if delta < 0.0 {
+                    format!("fits all bands better by Δχ² = {:.1}", -delta)
+                } else {
+                    format!("fits all bands worse by Δχ² = {delta:.1}")
+                };
+                let _ = writeln!(
+                    s,
+                    "\nA second minimum of the joint cost a frame's shift away, [{:.5}, {:.5}, {:.5}] (error {:.3}), {fits}: the two-facet model's glint moves to the next sample there, and which minimum is deeper can be decided by the stable window's noise. The joint covariance carries it, weighted by its likelihood (docs/adr/0019).",
+                    q[0], q[1], q[2], rate_error_metric(q, truth)
                 );
             }
         }

@@ -217,6 +217,7 @@ pub fn invert(
                 }
                 text += "\n";
                 text += &bounds_line(label, &fit.observability, &fit.held_directions);
+                text += &neighbour_line(label, fit);
             }
             None => {
                 let why = match sol {
@@ -338,8 +339,28 @@ fn sweep_bands(
     Ok((rows, text))
 }
 
-/// A TOML error as `FILE:LINE: message (in `the line`)`, so that errors whose message does not
-/// name the key (an unknown enum variant, a wrong type) still point at the field.
+/// The minima a frame's shift from a fit that its covariance carries (docs/adr/0019): the best
+/// one, how much better or worse it fits, and how many there are; empty when none was found.
+fn neighbour_line(label: &str, fit: &glint_inversion::RateFit) -> String {
+    let Some(best) = fit.neighbours.first() else {
+        return String::new();
+    };
+    let q = best.rate_deg_per_frame;
+    let fits = if best.delta_chi2 < 0.0 {
+        format!("fits better by Δχ² = {:.1}", -best.delta_chi2)
+    } else {
+        format!("fits worse by Δχ² = {:.1}", best.delta_chi2)
+    };
+    let others = match fit.neighbours.len() {
+        1 => String::new(),
+        n => format!(" ({} more, less likely)", n - 1),
+    };
+    format!(
+        "{label}: a minimum a frame's shift away, [{:.5}, {:.5}, {:.5}], {fits}{others}; the 1σ above carries it, weighted by its likelihood\n",
+        q[0], q[1], q[2]
+    )
+}
+
 /// One fit's uncertainty, per eigen-direction of its information: the 1σ of each determined
 /// one, and for each undetermined one whether the stated prior held it or p sits where the
 /// fit ended along it.
@@ -379,6 +400,8 @@ fn bounds_line(
     format!("{label}: 1σ [deg/frame]: {}\n", parts.join("; "))
 }
 
+/// A TOML error as `FILE:LINE: message (in `the line`)`, so that errors whose message does not
+/// name the key (an unknown enum variant, a wrong type) still point at the field.
 fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> anyhow::Error {
     let Some(span) = e.span() else {
         return anyhow!("{}: {}", path.display(), e.message());

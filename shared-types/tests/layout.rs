@@ -219,7 +219,7 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, flags), 44);
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (2592, 8)
+        (2624, 8)
     );
     assert_eq!(offset_of!(SolveResponse, status), 44);
     assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
@@ -260,4 +260,12 @@ fn solve_layout() {
     );
     assert_eq!(offset_of!(SolveResponse, stage3_held_axes), 2584);
     assert_eq!(offset_of!(SolveResponse, stage3_covariance_source), 2588);
+    assert_eq!(
+        offset_of!(SolveResponse, p_joint_neighbour_deg_per_frame),
+        2592
+    );
+    assert_eq!(
+        offset_of!(SolveResponse, stage3_joint_neighbour_delta_chi2),
+        2616
+    );
 }

@@ -137,6 +137,10 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
         if let Some(m) = fit.mirror_deg_per_frame {
             out.p_joint_mirror_deg_per_frame = m;
         }
+        if let Some(n) = fit.neighbours.first() {
+            out.p_joint_neighbour_deg_per_frame = n.rate_deg_per_frame;
+            out.stage3_joint_neighbour_delta_chi2 = n.delta_chi2;
+        }
         for r in 0..3 {
             for c in 0..3 {
                 out.p_joint_covariance[3 * r + c] = fit.covariance_deg2_per_frame2[r][c];

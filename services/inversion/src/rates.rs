@@ -72,6 +72,7 @@ pub fn fit_rates(
     rate.report_profile(covariance_scale.unwrap_or(1.0));
     if let Some((joint, _)) = &mut joint_rate {
         joint.report_profile(1.0);
+        joint.report_neighbours();
     }
     Ok(RateFits {
         rate,
@@ -326,7 +327,7 @@ fn separate_minimum(
 ///
 /// With [`LobeRefit::WhenNeeded`] this runs twice from the same search, once keeping stage 1's
 /// widest lobes and once re-fitting them, and reports the first unless the second lies outside
-/// its confidence region ([`choose_lobes`]).
+/// its confidence region (`choose_lobes`).
 pub fn fit_joint(
     motion: &[Observation],
     stage1: &[Stage1Band],
@@ -424,6 +425,7 @@ fn reweighted_joint(
         };
     let (mut joint, problem) =
         horizon::polish_with_refit(setup, config, &searched)?.unwrap_or((searched, problem));
+    joint.attach_neighbours_if_asked(&problem, config)?;
     joint.attach_profile_if_asked(&problem, config);
     Ok((joint, problem.frame_count()))
 }

@@ -36,6 +36,7 @@ mod bisector;
 mod config;
 #[cfg(test)]
 pub(crate) mod fixtures;
+mod neighbours;
 mod reported;
 mod weak;
 use config::validate;
@@ -43,6 +44,7 @@ pub use config::{
     LobeRefit, Stage3Config, StartConfig, DEFAULT_JOINT_GATE_SIGMA, DEFAULT_LOBE_TEST_CONFIDENCE,
     DEFAULT_MAX_ROTATION_DEG,
 };
+pub use neighbours::Neighbour;
 pub use weak::{
     disagreement, disagreement_sigma, distance, has_sense, mirror, nearest_body_axis,
     widen_to_joint, WeakPrior, RATE_NAMES,
@@ -105,6 +107,10 @@ pub struct RateFit {
     /// ([`RateFit::report_profile`]); `None` once reported.
     #[serde(skip)]
     pub profiled_bounds_deg_per_frame: Option<[f64; 3]>,
+    /// The minima one and two frames' shift from the rate, lowest Δχ² first
+    /// ([`RateFit::attach_neighbours`]); empty when not looked for or none found.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub neighbours: Vec<Neighbour>,
 }
 
 /// The terms a fit re-estimated per band from the motion window, with the body axis it held.
@@ -414,6 +420,7 @@ fn polish(
             glint_lobes_only: problem.keeps_glint_lobes(),
         }),
         profiled_bounds_deg_per_frame: None,
+        neighbours: vec![],
     }))
 }
 

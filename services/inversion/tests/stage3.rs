@@ -365,6 +365,29 @@ fn the_polish_finds_the_lower_minimum_a_frame_s_shift_away() {
         polished.starts_polished, 9,
         "p and ±1, ±2 δ along two directions"
     );
+    // Stopped in the neighbouring minimum, the fit finds the truth a frame's shift away, fitting
+    // better, and its reported covariance then covers the distance to it.
+    let mut stuck = single.clone();
+    stuck.attach_neighbours(&problem, &cfg).expect("neighbours");
+    let truth = stuck
+        .neighbours
+        .iter()
+        .find(|n| rate_error_metric(n.rate_deg_per_frame, p_true) < 1e-6)
+        .copied()
+        .expect("the truth among the neighbours");
+    assert!(truth.delta_chi2 < -4.0, "{truth:?}");
+    assert_eq!(stuck.neighbours[0], truth, "the best first");
+    assert!(stuck.report_neighbours() > 0.99);
+    let d: [f64; 3] = std::array::from_fn(|i| p_true[i] - stuck.rate_deg_per_frame[i]);
+    let obs = &stuck.observability;
+    let nees: f64 = (0..3)
+        .filter(|&k| !obs.unobservable[k])
+        .map(|k| {
+            let along: f64 = (0..3).map(|i| obs.eigenvectors[k][i] * d[i]).sum();
+            (along / obs.bounds_1sigma_deg_per_frame[k]).powi(2)
+        })
+        .sum();
+    assert!(nees <= 1.0 + 1e-6, "{nees}");
     // Without the reach (the default) the polish is LM from the start alone.
     let alone = Stage3Config::default();
     assert_eq!(alone.polish_reach_frames, 0);

@@ -289,6 +289,13 @@ pub struct SolveResponse {
     /// Stage 3 at λ*: where the covariance's noise level came from, see
     /// [`SolveResponse::COVARIANCE_SOURCE_NAMES`] (0 without a rate).
     pub stage3_covariance_source: u32,
+    /// Stage 3: the likeliest of the joint fit's minima one or two frames' shift from
+    /// `p_joint_deg_per_frame`, which `p_joint_covariance` carries weighted by its likelihood;
+    /// NaN when none was found.
+    pub p_joint_neighbour_deg_per_frame: [f64; 3],
+    /// Stage 3: that minimum's cost minus the joint fit's, in noise variances (negative: it
+    /// fits better); NaN without one.
+    pub stage3_joint_neighbour_delta_chi2: f64,
 }
 
 impl Default for SolveResponse {
@@ -337,6 +344,8 @@ impl Default for SolveResponse {
             p_joint_mirror_deg_per_frame: [f64::NAN; 3],
             stage3_held_axes: 0,
             stage3_covariance_source: 0,
+            p_joint_neighbour_deg_per_frame: [f64::NAN; 3],
+            stage3_joint_neighbour_delta_chi2: f64::NAN,
         }
     }
 }

@@ -99,6 +99,11 @@ pub struct Stage3Config {
     /// minima, but about Z the stable window's noise makes the deeper one the farther from the
     /// noise-free answer (docs/adr/0018).
     pub polish_reach_frames: usize,
+    /// Once every decision is taken, the joint answer's covariance carries the minima one and
+    /// two frames' shift from it, each weighted by its likelihood, and the answer names them
+    /// ([`RateFit::report_neighbours`](super::RateFit::report_neighbours); default `true`,
+    /// docs/adr/0019). `false`: the local covariance alone.
+    pub cover_neighbours: bool,
 }
 
 impl Default for Stage3Config {
@@ -117,6 +122,7 @@ impl Default for Stage3Config {
             widen_to_joint: true,
             profile_intervals: false,
             polish_reach_frames: DEFAULT_POLISH_REACH_FRAMES,
+            cover_neighbours: true,
         }
     }
 }

@@ -33,6 +33,7 @@ pub(crate) fn solution(p: [f64; 3], mirror: Option<[f64; 3]>) -> RateSolution {
         mirror_deg_per_frame: mirror,
         refit: None,
         profiled_bounds_deg_per_frame: None,
+        neighbours: vec![],
     })
 }
 

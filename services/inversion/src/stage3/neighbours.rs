@@ -1,0 +1,252 @@
+//! The minima a frame's shift from an answer (docs/adr/0019): found by LM from the answer's
+//! neighbours, and carried in its covariance in proportion to how well they fit.
+
+use super::bisector::BisectorHold;
+use super::weak::{distance, noise_variance};
+use super::{RateFit, RateSolution, Stage3Config, SAME_SOLUTION_DEG_PER_FRAME};
+use crate::error::InversionError;
+use crate::model::RateProblem;
+use crate::observability::symmetric_eigen;
+use serde::{Deserialize, Serialize};
+use std::cmp::Ordering;
+
+/// Shifts of one and two frames each way, along the rate and across it.
+const NEIGHBOUR_REACH_FRAMES: usize = 2;
+
+/// A minimum of the answer's cost apart from the answer.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Neighbour {
+    /// Where it is \[deg/frame\].
+    pub rate_deg_per_frame: [f64; 3],
+    /// Its cost minus the answer's, in noise variances (negative: it fits better).
+    pub delta_chi2: f64,
+}
+
+/// The distinct minima LM reaches from `fit`'s neighbours one and two frames' shift away
+/// (`p` ± k |p|/T in the held plane, [`BisectorHold::plane_starts`]), lowest first. Only for a
+/// problem that re-fits the diffuse terms (the polish's; none otherwise).
+pub(super) fn neighbouring_minima(
+    problem: &RateProblem,
+    fit: &RateFit,
+    config: &Stage3Config,
+) -> Result<Vec<Neighbour>, InversionError> {
+    if !problem.refits_diffuse() {
+        return Ok(vec![]);
+    }
+    let p = fit.rate_deg_per_frame;
+    let hold = BisectorHold::new(problem, p, config);
+    let speed = p.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let step = speed / problem.frame_count().max(1) as f64;
+    let variance = noise_variance(problem, p, config);
+    let mut found: Vec<Neighbour> = Vec::new();
+    for start in hold
+        .plane_starts(p, step, NEIGHBOUR_REACH_FRAMES)
+        .into_iter()
+        .skip(1)
+    {
+        // A start that rejoins the answer or a minimum already found is dropped there.
+        let known: Vec<[f64; 3]> = std::iter::once(p)
+            .chain(found.iter().map(|n| n.rate_deg_per_frame))
+            .collect();
+        let rejoined = |q: &[f64; 3], _cost: f64, _k: usize| {
+            known
+                .iter()
+                .any(|&k| distance(*q, k) < SAME_SOLUTION_DEG_PER_FRAME)
+        };
+        let out = hold.fit(problem, start, config, rejoined)?;
+        let q = out.p_deg_per_frame;
+        if !out.cost.is_finite()
+            || known
+                .iter()
+                .any(|&k| distance(q, k) < SAME_SOLUTION_DEG_PER_FRAME)
+        {
+            continue;
+        }
+        found.push(Neighbour {
+            rate_deg_per_frame: q,
+            delta_chi2: (out.cost - fit.cost) / variance,
+        });
+    }
+    found.sort_by(|a, b| a.delta_chi2.total_cmp(&b.delta_chi2));
+    Ok(found)
+}
+
+/// The covariance of `fit` about its rate when the data's likelihood is shared with
+/// `neighbours`: each minimum i, at offset d_i and Δχ²_i from the answer, weighs
+/// w_i ∝ exp(−Δχ²_i / 2) (the answer w_0 ∝ 1), and C' = C + Σ_i w_i d_i d_iᵀ, the mean
+/// squared error of reporting p̂ under that mixture (each mode with the answer's C). A
+/// neighbour that fits clearly worse adds nothing; one that fits clearly better adds its whole
+/// offset. Returns the weight the neighbours carry together.
+fn cover_neighbours(fit: &mut RateFit, neighbours: &[Neighbour]) -> f64 {
+    let weights: Vec<f64> = neighbours
+        .iter()
+        .map(|n| (-0.5 * n.delta_chi2).exp())
+        .collect();
+    let total = 1.0 + weights.iter().sum::<f64>();
+    if !total.is_finite() {
+        return 0.0;
+    }
+    let p = fit.rate_deg_per_frame;
+    for (n, w) in neighbours.iter().zip(&weights) {
+        let d: [f64; 3] = std::array::from_fn(|i| n.rate_deg_per_frame[i] - p[i]);
+        for (row, di) in fit.covariance_deg2_per_frame2.iter_mut().zip(d) {
+            for (c, dj) in row.iter_mut().zip(d) {
+                *c += w / total * di * dj;
+            }
+        }
+    }
+    (total - 1.0) / total
+}
+
+/// `fit`'s observability restated from its covariance: the eigen-pairs of C, each direction's
+/// 1σ the square root of its variance, not determined beyond the threshold; ordered as the
+/// analysis orders them (least information first).
+fn restate_from_covariance(fit: &mut RateFit) {
+    let Ok((variances, vectors)) = symmetric_eigen(&fit.covariance_deg2_per_frame2) else {
+        return;
+    };
+    let mut pairs: Vec<(f64, [f64; 3])> = (0..3).map(|k| (variances[k], vectors[k])).collect();
+    pairs.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let obs = &mut fit.observability;
+    obs.bounds_1sigma_deg_per_frame = std::array::from_fn(|k| pairs[k].0.max(0.0).sqrt());
+    obs.information_eigenvalues = std::array::from_fn(|k| pairs[k].0.recip());
+    obs.eigenvectors = std::array::from_fn(|k| pairs[k].1);
+    let threshold = obs.threshold_deg_per_frame;
+    // A NaN bound determines nothing.
+    obs.unobservable = obs.bounds_1sigma_deg_per_frame.map(|b| {
+        !matches!(
+            b.partial_cmp(&threshold),
+            Some(Ordering::Less | Ordering::Equal)
+        )
+    });
+}
+
+impl RateFit {
+    /// Looks for the minima a frame's shift from this fit on `problem`, the one it was made on
+    /// (LM from p̂ ± δ and ± 2δ, δ = |p̂|/T, along the rate and across it in the held plane),
+    /// and holds them for [`RateFit::report_neighbours`].
+    ///
+    /// The fit's mirror, when it is one of them, is left out: the answer names it apart
+    /// (`mirror_deg_per_frame`) as the sense of rotation the data cannot tell, and the
+    /// covariance describes the scatter about the sense reported.
+    pub fn attach_neighbours(
+        &mut self,
+        problem: &RateProblem,
+        config: &Stage3Config,
+    ) -> Result<(), InversionError> {
+        let mirror = self.mirror_deg_per_frame;
+        self.neighbours = neighbouring_minima(problem, self, config)?
+            .into_iter()
+            .filter(|n| {
+                mirror.is_none_or(|m| {
+                    distance(n.rate_deg_per_frame, m) >= SAME_SOLUTION_DEG_PER_FRAME
+                })
+            })
+            .collect();
+        Ok(())
+    }
+
+    /// Reports the neighbours in the covariance, C' = C + Σ_i w_i d_i d_iᵀ with
+    /// w_i ∝ exp(−Δχ²_i / 2) against 1 for the fit (the mean squared error of reporting p̂ when
+    /// the likelihood is shared), and restates the observability from it. The decisions read the local covariance, so the solve calls this
+    /// once they are all taken. Returns the weight the neighbours carry.
+    pub fn report_neighbours(&mut self) -> f64 {
+        if self.neighbours.is_empty() {
+            return 0.0;
+        }
+        let neighbours = self.neighbours.clone();
+        let weight = cover_neighbours(self, &neighbours);
+        restate_from_covariance(self);
+        weight
+    }
+}
+
+impl RateSolution {
+    /// [`RateFit::attach_neighbours`] on a determined answer when `config.cover_neighbours`
+    /// asks for it.
+    pub(crate) fn attach_neighbours_if_asked(
+        &mut self,
+        problem: &RateProblem,
+        config: &Stage3Config,
+    ) -> Result<(), InversionError> {
+        match self {
+            RateSolution::Determined(fit) if config.cover_neighbours => {
+                fit.attach_neighbours(problem, config)
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// [`RateFit::report_neighbours`] on a determined answer.
+    pub(crate) fn report_neighbours(&mut self) {
+        if let RateSolution::Determined(fit) = self {
+            fit.report_neighbours();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stage3::fixtures::with_covariance;
+
+    fn neighbour(q: [f64; 3], delta_chi2: f64) -> Neighbour {
+        Neighbour {
+            rate_deg_per_frame: q,
+            delta_chi2,
+        }
+    }
+
+    #[test]
+    fn each_neighbour_adds_its_offset_weighted_by_its_likelihood() {
+        let c = [[0.25, 0.0, 0.0], [0.0, 4e-8, 0.0], [0.0, 0.0, 1e-6]];
+        let p = [0.0, -0.0006, 0.2528];
+        let d = [0.0, -0.0028, -0.0026];
+        let q = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
+        // Δχ² = 0: the two fit alike, w = ½. Far better: all of it. Far worse: nothing.
+        for (delta, w) in [(0.0, 0.5), (-60.0, 1.0), (60.0, 0.0)] {
+            let mut fit = with_covariance(p, c);
+            fit.neighbours = vec![neighbour(q, delta)];
+            let weight = fit.report_neighbours();
+            assert!((weight - w).abs() < 1e-12, "{delta}: {weight}");
+            let got = fit.covariance_deg2_per_frame2;
+            for i in 0..3 {
+                for j in 0..3 {
+                    let expected = c[i][j] + w * d[i] * d[j];
+                    assert!((got[i][j] - expected).abs() < 1e-15, "{delta}: {got:?}");
+                }
+            }
+        }
+        // Two neighbours at Δχ² = 0 each: a third each.
+        let mut fit = with_covariance(p, c);
+        let other = [p[0], p[1] - d[1], p[2] - d[2]];
+        fit.neighbours = vec![neighbour(q, 0.0), neighbour(other, 0.0)];
+        assert!((fit.report_neighbours() - 2.0 / 3.0).abs() < 1e-12);
+        let expected_yy = c[1][1] + 2.0 / 3.0 * d[1] * d[1];
+        assert!((fit.covariance_deg2_per_frame2[1][1] - expected_yy).abs() < 1e-15);
+        // Opposite offsets do not cancel: about p̂ each adds its own d dᵀ.
+        assert!(fit.covariance_deg2_per_frame2[1][2] > 0.0);
+    }
+
+    #[test]
+    fn the_observability_is_restated_from_the_covered_covariance() {
+        let c = [[0.25, 0.0, 0.0], [0.0, 4e-8, 0.0], [0.0, 0.0, 1e-6]];
+        let mut fit = with_covariance([0.0, 0.0, 0.25], c);
+        fit.neighbours = vec![neighbour([0.0, 0.003, 0.25], -60.0)];
+        fit.report_neighbours();
+        let obs = &fit.observability;
+        // Least information first: X (held, 0.5), Z (1e-3), then Y covered to its offset.
+        let expected_y = (4e-8f64 + 9e-6).sqrt();
+        assert_eq!(obs.eigenvectors[0].map(f64::abs), [1.0, 0.0, 0.0]);
+        assert!((obs.bounds_1sigma_deg_per_frame[0] - 0.5).abs() < 1e-12);
+        assert!((obs.bounds_1sigma_deg_per_frame[1] - expected_y).abs() < 1e-12);
+        assert!((obs.bounds_1sigma_deg_per_frame[2] - 1e-3).abs() < 1e-12);
+        assert_eq!(obs.unobservable, [true, false, false]);
+        assert!((obs.information_eigenvalues[1] * expected_y * expected_y - 1.0).abs() < 1e-9);
+        // Nothing to report: nothing changes.
+        let mut plain = with_covariance([0.0, 0.0, 0.25], c);
+        let before = plain.clone();
+        assert_eq!(plain.report_neighbours(), 0.0);
+        assert_eq!(plain, before);
+    }
+}
