@@ -106,18 +106,11 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
     );
     assert_eq!(s3["joint"]["neighbour_delta_chi2"], neighbour["delta_chi2"]);
     let at = |v: &serde_json::Value| -> Vec<f64> {
-        v.as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect()
+        let v = v.as_array().unwrap();
+        v.iter().map(|x| x.as_f64().unwrap()).collect()
     };
-    let m = at(mirror);
-    for n in off["joint_rate"]["neighbours"]
-        .as_array()
-        .into_iter()
-        .flatten()
-    {
+    let (m, neighbours) = (at(mirror), off["joint_rate"]["neighbours"].as_array());
+    for n in neighbours.into_iter().flatten() {
         let q = at(&n["rate_deg_per_frame"]);
         let d = (0..3).map(|i| (q[i] - m[i]).powi(2)).sum::<f64>().sqrt();
         assert!(d >= 1e-3, "the mirror among the neighbours: {n}");
