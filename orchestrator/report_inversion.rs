@@ -138,6 +138,13 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
     json!({ "windows": windows, "stage1": stage1, "stage2": stage2, "stage3": stage3 })
 }
 
+/// "fits {what}better by Δχ² = …" (or worse) for a minimum `delta_chi2` noise variances above
+/// or below the answer's cost.
+pub(crate) fn fits_by(delta_chi2: f64, what: &str) -> String {
+    let sense = if delta_chi2 < 0.0 { "better" } else { "worse" };
+    format!("fits {what}{sense} by Δχ² = {:.1}", delta_chi2.abs())
+}
+
 pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
     let mut s = String::new();
     let _ = writeln!(
@@ -248,11 +255,7 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             let q = r.p_joint_neighbour_deg_per_frame;
             let delta = r.stage3_joint_neighbour_delta_chi2;
             if q.iter().all(|v| v.is_finite()) && delta.is_finite() {
-                let fits = if delta < 0.0 {
-                    format!("fits all bands better by Δχ² = {:.1}", -delta)
-                } else {
-                    format!("fits all bands worse by Δχ² = {delta:.1}")
-                };
+                let fits = fits_by(delta, "all bands ");
                 let _ = writeln!(
                     s,
                     "\nA second minimum of the joint cost a frame's shift away, [{:.5}, {:.5}, {:.5}] (error {:.3}), {fits}: the two-facet model's glint moves to the next sample there, and which minimum is deeper can be decided by the stable window's noise. The joint covariance carries it, weighted by its likelihood (docs/adr/0019).",

@@ -346,11 +346,7 @@ fn neighbour_line(label: &str, fit: &glint_inversion::RateFit) -> String {
         return String::new();
     };
     let q = best.rate_deg_per_frame;
-    let fits = if best.delta_chi2 < 0.0 {
-        format!("fits better by Δχ² = {:.1}", -best.delta_chi2)
-    } else {
-        format!("fits worse by Δχ² = {:.1}", best.delta_chi2)
-    };
+    let fits = crate::report_inversion::fits_by(best.delta_chi2, "");
     let others = match fit.neighbours.len() {
         1 => String::new(),
         n => format!(" ({} more, less likely)", n - 1),

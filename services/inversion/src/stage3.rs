@@ -44,7 +44,7 @@ pub use config::{
     LobeRefit, Stage3Config, StartConfig, DEFAULT_JOINT_GATE_SIGMA, DEFAULT_LOBE_TEST_CONFIDENCE,
     DEFAULT_MAX_ROTATION_DEG,
 };
-pub use neighbours::Neighbour;
+pub use neighbours::{fit_from_neighbourhood, Neighbour};
 pub use weak::{
     disagreement, disagreement_sigma, distance, has_sense, mirror, nearest_body_axis,
     widen_to_joint, WeakPrior, RATE_NAMES,
@@ -254,45 +254,6 @@ pub fn fit_from_starts(
     config: &Stage3Config,
 ) -> Result<RateSolution, InversionError> {
     polish(problem, starts, (0, 0), config)
-}
-
-/// LM from `p` and from its neighbours one and two frames' shift away (`p` ± k |p|/T along the
-/// two directions of the fitted plane, T the frames fitted): the polish of a model that re-fits
-/// the diffuse terms ([`RateProblem::refits_diffuse`]). Its cost has minima about one frame's
-/// shift apart, where a narrow glint moves from one sample to the next, and the search's rate
-/// (on stage 1's coefficients) need not lie in the lowest one's basin. A neighbouring minimum
-/// is taken only when it fits clearly better, by more than Δχ² = 4 in units of the noise
-/// variance: two minima within that are the mirror pair the fit reports as such
-/// (`mirror_deg_per_frame`), and the search's sense decides between them. A problem that
-/// re-fits nothing is polished from `p` alone.
-pub fn fit_from_neighbourhood(
-    problem: &RateProblem,
-    p: [f64; 3],
-    config: &Stage3Config,
-) -> Result<RateSolution, InversionError> {
-    if !problem.refits_diffuse() || config.polish_reach_frames == 0 {
-        return fit_from_starts(problem, &[p], config);
-    }
-    let hold = bisector::BisectorHold::new(problem, p, config);
-    let speed = p.iter().map(|v| v * v).sum::<f64>().sqrt();
-    let step = speed / problem.frame_count().max(1) as f64;
-    let starts = hold.plane_starts(p, step, config.polish_reach_frames);
-    let best = polish(problem, &starts, (0, 0), config)?;
-    let Some(found) = best.fit().filter(|f| f.start_deg_per_frame != starts[0]) else {
-        return Ok(best);
-    };
-    // A neighbour's minimum won: it stands if it fits clearly better than p's own.
-    let own = fit_from_starts(problem, &[p], config)?;
-    let Some(own_fit) = own.fit() else {
-        return Ok(best);
-    };
-    let variance = weak::noise_variance(problem, own_fit.rate_deg_per_frame, config);
-    let gain = (own_fit.cost - found.cost) / variance;
-    Ok(if gain > weak::MIRROR_MAX_DELTA_CHI2 {
-        best
-    } else {
-        own
-    })
 }
 
 /// Whether every |p_i| is within twice the start box's half-width: a credible answer.

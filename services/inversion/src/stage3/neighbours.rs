@@ -2,8 +2,10 @@
 //! neighbours, and carried in its covariance in proportion to how well they fit.
 
 use super::bisector::BisectorHold;
-use super::weak::{distance, noise_variance};
-use super::{RateFit, RateSolution, Stage3Config, SAME_SOLUTION_DEG_PER_FRAME};
+use super::weak::{distance, noise_variance, MIRROR_MAX_DELTA_CHI2};
+use super::{
+    fit_from_starts, polish, RateFit, RateSolution, Stage3Config, SAME_SOLUTION_DEG_PER_FRAME,
+};
 use crate::error::InversionError;
 use crate::model::RateProblem;
 use crate::observability::symmetric_eigen;
@@ -22,6 +24,49 @@ pub struct Neighbour {
     pub delta_chi2: f64,
 }
 
+/// One frame's shift of `p` on `problem`: the rate change δ = |p|/T that moves the last of its T
+/// frames by one sample, where a narrow glint falls on the next one \[deg/frame\].
+fn frame_shift(problem: &RateProblem, p: [f64; 3]) -> f64 {
+    distance(p, [0.0; 3]) / problem.frame_count().max(1) as f64
+}
+
+/// LM from `p` and from its neighbours one and two frames' shift away (`p` ± k |p|/T along the
+/// two directions of the fitted plane, T the frames fitted): the polish of a model that re-fits
+/// the diffuse terms ([`RateProblem::refits_diffuse`]). Its cost has minima about one frame's
+/// shift apart, where a narrow glint moves from one sample to the next, and the search's rate
+/// (on stage 1's coefficients) need not lie in the lowest one's basin. A neighbouring minimum
+/// is taken only when it fits clearly better, by more than Δχ² = 4 in units of the noise
+/// variance: two minima within that are the mirror pair the fit reports as such
+/// (`mirror_deg_per_frame`), and the search's sense decides between them. A problem that
+/// re-fits nothing is polished from `p` alone.
+pub fn fit_from_neighbourhood(
+    problem: &RateProblem,
+    p: [f64; 3],
+    config: &Stage3Config,
+) -> Result<RateSolution, InversionError> {
+    if !problem.refits_diffuse() || config.polish_reach_frames == 0 {
+        return fit_from_starts(problem, &[p], config);
+    }
+    let hold = BisectorHold::new(problem, p, config);
+    let starts = hold.plane_starts(p, frame_shift(problem, p), config.polish_reach_frames);
+    let best = polish(problem, &starts, (0, 0), config)?;
+    let Some(found) = best.fit().filter(|f| f.start_deg_per_frame != starts[0]) else {
+        return Ok(best);
+    };
+    // A neighbour's minimum won: it stands if it fits clearly better than p's own.
+    let own = fit_from_starts(problem, &[p], config)?;
+    let Some(own_fit) = own.fit() else {
+        return Ok(best);
+    };
+    let variance = noise_variance(problem, own_fit.rate_deg_per_frame, config);
+    let gain = (own_fit.cost - found.cost) / variance;
+    Ok(if gain > MIRROR_MAX_DELTA_CHI2 {
+        best
+    } else {
+        own
+    })
+}
+
 /// The distinct minima LM reaches from `fit`'s neighbours one and two frames' shift away
 /// (`p` ± k |p|/T in the held plane, [`BisectorHold::plane_starts`]), lowest first. Only for a
 /// problem that re-fits the diffuse terms (the polish's; none otherwise).
@@ -35,8 +80,7 @@ pub(super) fn neighbouring_minima(
     }
     let p = fit.rate_deg_per_frame;
     let hold = BisectorHold::new(problem, p, config);
-    let speed = p.iter().map(|v| v * v).sum::<f64>().sqrt();
-    let step = speed / problem.frame_count().max(1) as f64;
+    let step = frame_shift(problem, p);
     let variance = noise_variance(problem, p, config);
     let mut found: Vec<Neighbour> = Vec::new();
     for start in hold
