@@ -90,6 +90,8 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
         let joint_mirror_ok = joint_ok && joint_mirror.iter().all(|v| v.is_finite());
         let neighbour = r.p_joint_neighbour_deg_per_frame;
         let neighbour_ok = joint_ok && neighbour.iter().all(|v| v.is_finite());
+        let own_neighbour = r.p_neighbour_deg_per_frame;
+        let own_neighbour_ok = determined && own_neighbour.iter().all(|v| v.is_finite());
         json!({
             "status": status(r),
             "unobservable_reason": reason(r.unobservable_reason),
@@ -107,6 +109,9 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
             "covariance": r.p_covariance.iter().map(|v| finite(*v)).collect::<Vec<_>>(),
             "mirror_deg_per_frame": if mirror_ok { json!(r.p_mirror_deg_per_frame) } else { Value::Null },
             "err_paper_metric_mirror": if mirror_ok { finite(rate_error_metric(r.p_mirror_deg_per_frame, truth)) } else { Value::Null },
+            "neighbour_deg_per_frame": if own_neighbour_ok { json!(own_neighbour) } else { Value::Null },
+            "neighbour_delta_chi2": if own_neighbour_ok { finite(r.stage3_neighbour_delta_chi2) } else { Value::Null },
+            "err_paper_metric_neighbour": if own_neighbour_ok { finite(rate_error_metric(own_neighbour, truth)) } else { Value::Null },
             "joint": {
                 "unobservable_reason": reason(r.joint_unobservable_reason),
                 "p_deg_per_frame": if joint_ok { json!(pj) } else { Value::Null },
@@ -143,6 +148,30 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
 pub(crate) fn fits_by(delta_chi2: f64, what: &str) -> String {
     let sense = if delta_chi2 < 0.0 { "better" } else { "worse" };
     format!("fits {what}{sense} by Δχ² = {:.1}", delta_chi2.abs())
+}
+
+/// The summary's sentence on a fit's neighbouring minimum `q`, Δχ² `delta_chi2` from the
+/// answer (the joint fit's when `joint`); empty without one (NaN).
+fn neighbour_sentence(q: [f64; 3], delta_chi2: f64, truth: [f64; 3], joint: bool) -> String {
+    if !(q.iter().all(|v| v.is_finite()) && delta_chi2.is_finite()) {
+        return String::new();
+    }
+    let (cost, fits, covariance) = if joint {
+        (
+            "joint cost",
+            fits_by(delta_chi2, "all bands "),
+            "joint covariance",
+        )
+    } else {
+        ("fit's cost", fits_by(delta_chi2, ""), "covariance")
+    };
+    format!(
+        "\nA second minimum of the {cost} a frame's shift away, [{:.5}, {:.5}, {:.5}] (error {:.3}), {fits}: the two-facet model's glint moves to the next sample there, and which minimum is deeper can be decided by the stable window's noise. The {covariance} carries it, weighted by its likelihood (docs/adr/0019).\n",
+        q[0],
+        q[1],
+        q[2],
+        rate_error_metric(q, truth)
+    )
 }
 
 pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
@@ -233,6 +262,12 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                 m[0], m[1], m[2], rate_error_metric(m, truth)
             );
         }
+        s += &neighbour_sentence(
+            r.p_neighbour_deg_per_frame,
+            r.stage3_neighbour_delta_chi2,
+            truth,
+            false,
+        );
         let pj = r.p_joint_deg_per_frame;
         if pj.iter().all(|v| v.is_finite()) {
             let _ = writeln!(
@@ -252,16 +287,12 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                     m[0], m[1], m[2], rate_error_metric(m, truth)
                 );
             }
-            let q = r.p_joint_neighbour_deg_per_frame;
-            let delta = r.stage3_joint_neighbour_delta_chi2;
-            if q.iter().all(|v| v.is_finite()) && delta.is_finite() {
-                let fits = fits_by(delta, "all bands ");
-                let _ = writeln!(
-                    s,
-                    "\nA second minimum of the joint cost a frame's shift away, [{:.5}, {:.5}, {:.5}] (error {:.3}), {fits}: the two-facet model's glint moves to the next sample there, and which minimum is deeper can be decided by the stable window's noise. The joint covariance carries it, weighted by its likelihood (docs/adr/0019).",
-                    q[0], q[1], q[2], rate_error_metric(q, truth)
-                );
-            }
+            s += &neighbour_sentence(
+                r.p_joint_neighbour_deg_per_frame,
+                r.stage3_joint_neighbour_delta_chi2,
+                truth,
+                true,
+            );
         }
         let b = r.bound_1sigma_deg_per_frame;
         let _ = writeln!(s, "\nFisher information eigen-directions (columns) and 1σ bounds [deg/frame]:\n\n| direction | x | y | z | 1σ | observable |\n|---|---|---|---|---|---|");

@@ -265,6 +265,11 @@ fn sweep_bands(
     let mut rows = Vec::with_capacity(result.stage1.len());
     let mut text = String::from("band sweep (stage 3 at each band):\n");
     let mut errors = Vec::new();
+    // The sweep reports rates, not covariances: no neighbouring minima looked for.
+    let stage3 = glint_inversion::stage3::Stage3Config {
+        cover_neighbours: false,
+        ..config.stage3.clone()
+    };
     for (b, band) in result.stage1.iter().enumerate() {
         // Each band as λ* would be fitted: with the joint fit (when run) deciding the sense of
         // rotation where the band alone cannot.
@@ -277,7 +282,7 @@ fn sweep_bands(
             result.single_band_stage1(),
             b,
             &config.model,
-            &config.stage3,
+            &stage3,
             result.joint_rate.as_ref(),
         )?;
         let p = rate.fit().map(|f| f.rate_deg_per_frame);

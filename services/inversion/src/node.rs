@@ -81,6 +81,10 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
             if let Some(m) = fit.mirror_deg_per_frame {
                 out.p_mirror_deg_per_frame = m;
             }
+            if let Some(n) = fit.neighbours.first() {
+                out.p_neighbour_deg_per_frame = n.rate_deg_per_frame;
+                out.stage3_neighbour_delta_chi2 = n.delta_chi2;
+            }
             out.iterations = fit.total_iterations as u32;
             out.starts = fit.starts_polished as u32;
             out.stage3_held_axes = held_axes(&fit.held_directions);

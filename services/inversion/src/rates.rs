@@ -68,8 +68,10 @@ pub fn fit_rates(
         _ => None,
     };
     // Every decision is taken: the answers report their profile-likelihood intervals (when
-    // `profile_intervals` attached them).
+    // `profile_intervals` attached them) and carry their neighbouring minima (when
+    // `cover_neighbours` found them).
     rate.report_profile(covariance_scale.unwrap_or(1.0));
+    rate.report_neighbours();
     if let Some((joint, _)) = &mut joint_rate {
         joint.report_profile(1.0);
         joint.report_neighbours();
@@ -185,6 +187,10 @@ pub struct BandFit {
 ///   more than the gate's standard deviations apart *and* the band's own cost has a separate
 ///   minimum on the joint solution's side (re-polished from the joint solution, LM does not
 ///   slide back to p̂). A bias of the band — one minimum, shifted — is not rejected.
+///
+/// With [`Stage3Config::cover_neighbours`] the minima a frame's shift from p̂ are looked for
+/// and held on the fit; [`fit_rates`] has its covariance carry them once every decision is
+/// taken (docs/adr/0020).
 pub fn fit_band(
     motion: &[Observation],
     stage1: &[Stage1Band],
@@ -213,6 +219,7 @@ pub fn fit_band(
         (rate, problem, sense_from_joint) = search_and_polish_band(&setup, config, joint)?;
     }
     rate.attach_profile_if_asked(&problem, config);
+    rate.attach_neighbours_if_asked(&problem, config)?;
     let mut out = BandFit {
         rate,
         fitted_frames: problem.frame_count(),

@@ -506,3 +506,64 @@ fn the_joint_fit_re_fits_the_widest_lobe_only_when_the_test_asks() {
         "kept, re-fitted: {decisions:?}"
     );
 }
+
+/// λ*'s covariance carries the minima a frame's shift from its rate (docs/adr/0019), once
+/// every decision is taken: with `stage3.cover_neighbours` the answer, its joint check and the
+/// widening to the joint fit are those without it, to the bit, and the covariance is the
+/// widened one plus Σ w_i d_i d_iᵀ, w_i = e^(−Δχ²_i/2) / (1 + Σ_j e^(−Δχ²_j/2)), over the
+/// neighbours it names (the closed form). About Z with the stable window at SNR 10, λ* has a
+/// neighbour.
+#[test]
+fn lambda_star_s_covariance_carries_its_neighbours_after_the_widening() {
+    let mut set = scenario(720, 360, [0.0, 0.0, 0.25]);
+    let mut noisy = set.stable.clone();
+    attach_sigma(&mut noisy, 10.0);
+    let mut g = Gauss::new(NEIGHBOUR_SEED);
+    for (o, n) in set.stable.iter_mut().zip(&noisy) {
+        for (f, s) in o.flux_w.iter_mut().zip(&n.sigma_w) {
+            *f += s * g.gaussian();
+        }
+    }
+    let mut config = InversionConfig {
+        joint_fit: true,
+        ..InversionConfig::default()
+    };
+    assert!(config.stage3.cover_neighbours);
+    let on = solve_three_stage(&set, &config).expect("solve");
+    config.stage3.cover_neighbours = false;
+    let off = solve_three_stage(&set, &config).expect("solve");
+    let (a, b) = (on.rate.fit().expect("rate"), off.rate.fit().expect("rate"));
+    assert!(!a.neighbours.is_empty(), "no neighbour: {a:?}");
+    assert!(b.neighbours.is_empty());
+    assert_eq!(a.rate_deg_per_frame, b.rate_deg_per_frame);
+    assert_eq!(on.rate_covariance_scale, off.rate_covariance_scale);
+    assert_eq!(on.joint_disagreement_sigma, off.joint_disagreement_sigma);
+    let weights: Vec<f64> = a
+        .neighbours
+        .iter()
+        .map(|n| (-0.5 * n.delta_chi2).exp())
+        .collect();
+    let total = 1.0 + weights.iter().sum::<f64>();
+    let p = a.rate_deg_per_frame;
+    for i in 0..3 {
+        for j in 0..3 {
+            let carried: f64 = a
+                .neighbours
+                .iter()
+                .zip(&weights)
+                .map(|(n, w)| {
+                    let q = n.rate_deg_per_frame;
+                    w / total * (q[i] - p[i]) * (q[j] - p[j])
+                })
+                .sum();
+            let expected = b.covariance_deg2_per_frame2[i][j] + carried;
+            let got = a.covariance_deg2_per_frame2[i][j];
+            assert!(
+                (got - expected).abs() <= 1e-12 * expected.abs() + 1e-24,
+                "[{i}][{j}]: {got:e} against {expected:e}"
+            );
+        }
+    }
+}
+
+const NEIGHBOUR_SEED: u64 = 1;

@@ -296,6 +296,13 @@ pub struct SolveResponse {
     /// Stage 3: that minimum's cost minus the joint fit's, in noise variances (negative: it
     /// fits better); NaN without one.
     pub stage3_joint_neighbour_delta_chi2: f64,
+    /// Stage 3 at λ*: the likeliest of the fit's minima one or two frames' shift from
+    /// `p_deg_per_frame`, which `p_covariance` carries weighted by its likelihood; NaN when
+    /// none was found.
+    pub p_neighbour_deg_per_frame: [f64; 3],
+    /// Stage 3 at λ*: that minimum's cost minus the fit's, in noise variances (negative: it
+    /// fits better); NaN without one.
+    pub stage3_neighbour_delta_chi2: f64,
 }
 
 impl Default for SolveResponse {
@@ -346,6 +353,8 @@ impl Default for SolveResponse {
             stage3_covariance_source: 0,
             p_joint_neighbour_deg_per_frame: [f64::NAN; 3],
             stage3_joint_neighbour_delta_chi2: f64::NAN,
+            p_neighbour_deg_per_frame: [f64::NAN; 3],
+            stage3_neighbour_delta_chi2: f64::NAN,
         }
     }
 }

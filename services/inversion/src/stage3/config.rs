@@ -99,10 +99,10 @@ pub struct Stage3Config {
     /// minima, but about Z the stable window's noise makes the deeper one the farther from the
     /// noise-free answer (docs/adr/0018).
     pub polish_reach_frames: usize,
-    /// Once every decision is taken, the joint answer's covariance carries the minima one and
-    /// two frames' shift from it, each weighted by its likelihood, and the answer names them
-    /// ([`RateFit::report_neighbours`](super::RateFit::report_neighbours); default `true`,
-    /// docs/adr/0019). `false`: the local covariance alone.
+    /// Once every decision is taken, the covariances of the joint answer and of λ*'s carry the
+    /// minima one and two frames' shift from each, weighted by their likelihood, and the
+    /// answers name them ([`RateFit::report_neighbours`](super::RateFit::report_neighbours);
+    /// default `true`, docs/adr/0019 and 0020). `false`: the local covariance alone.
     pub cover_neighbours: bool,
 }
 
