@@ -156,17 +156,14 @@ fn neighbour_sentence(q: [f64; 3], delta_chi2: f64, truth: [f64; 3], joint: bool
     if !(q.iter().all(|v| v.is_finite()) && delta_chi2.is_finite()) {
         return String::new();
     }
-    let (cost, fits, covariance) = if joint {
-        (
-            "joint cost",
-            fits_by(delta_chi2, "all bands "),
-            "joint covariance",
-        )
+    let (cost, fits, covariance, adr) = if joint {
+        let fits = fits_by(delta_chi2, "all bands ");
+        ("joint cost", fits, "joint covariance", "0019")
     } else {
-        ("fit's cost", fits_by(delta_chi2, ""), "covariance")
+        ("fit's cost", fits_by(delta_chi2, ""), "covariance", "0020")
     };
     format!(
-        "\nA second minimum of the {cost} a frame's shift away, [{:.5}, {:.5}, {:.5}] (error {:.3}), {fits}: the two-facet model's glint moves to the next sample there, and which minimum is deeper can be decided by the stable window's noise. The {covariance} carries it, weighted by its likelihood (docs/adr/0019).\n",
+        "\nA second minimum of the {cost} a frame's shift away, [{:.5}, {:.5}, {:.5}] (error {:.3}), {fits}: the two-facet model's glint moves to the next sample there, and which minimum is deeper can be decided by the stable window's noise. The {covariance} carries it, weighted by its likelihood (docs/adr/{adr}).\n",
         q[0],
         q[1],
         q[2],

@@ -478,14 +478,7 @@ fn the_joint_fit_re_fits_the_widest_lobe_only_when_the_test_asks() {
     for seed in [None, Some(1), Some(2)] {
         let mut set = scenario(720, 360, p_true);
         if let Some(seed) = seed {
-            let mut noisy = set.stable.clone();
-            attach_sigma(&mut noisy, 10.0);
-            let mut g = Gauss::new(seed);
-            for (o, n) in set.stable.iter_mut().zip(&noisy) {
-                for (f, s) in o.flux_w.iter_mut().zip(&n.sigma_w) {
-                    *f += s * g.gaussian();
-                }
-            }
+            add_stable_noise(&mut set, 10.0, seed);
         }
         let tested = joint(&set, None);
         let refit = tested.refit.expect("polished");
@@ -507,7 +500,7 @@ fn the_joint_fit_re_fits_the_widest_lobe_only_when_the_test_asks() {
     );
 }
 
-/// λ*'s covariance carries the minima a frame's shift from its rate (docs/adr/0019), once
+/// λ*'s covariance carries the minima a frame's shift from its rate (docs/adr/0020), once
 /// every decision is taken: with `stage3.cover_neighbours` the answer, its joint check and the
 /// widening to the joint fit are those without it, to the bit, and the covariance is the
 /// widened one plus Σ w_i d_i d_iᵀ, w_i = e^(−Δχ²_i/2) / (1 + Σ_j e^(−Δχ²_j/2)), over the
@@ -516,14 +509,7 @@ fn the_joint_fit_re_fits_the_widest_lobe_only_when_the_test_asks() {
 #[test]
 fn lambda_star_s_covariance_carries_its_neighbours_after_the_widening() {
     let mut set = scenario(720, 360, [0.0, 0.0, 0.25]);
-    let mut noisy = set.stable.clone();
-    attach_sigma(&mut noisy, 10.0);
-    let mut g = Gauss::new(NEIGHBOUR_SEED);
-    for (o, n) in set.stable.iter_mut().zip(&noisy) {
-        for (f, s) in o.flux_w.iter_mut().zip(&n.sigma_w) {
-            *f += s * g.gaussian();
-        }
-    }
+    add_stable_noise(&mut set, 10.0, 1);
     let mut config = InversionConfig {
         joint_fit: true,
         ..InversionConfig::default()
@@ -566,4 +552,14 @@ fn lambda_star_s_covariance_carries_its_neighbours_after_the_widening() {
     }
 }
 
-const NEIGHBOUR_SEED: u64 = 1;
+/// Gaussian noise at `snr` (σ = mean flux / SNR per band) on `set`'s stable window only.
+fn add_stable_noise(set: &mut ObservationSet, snr: f64, seed: u64) {
+    let mut noisy = set.stable.clone();
+    attach_sigma(&mut noisy, snr);
+    let mut g = Gauss::new(seed);
+    for (o, n) in set.stable.iter_mut().zip(&noisy) {
+        for (f, s) in o.flux_w.iter_mut().zip(&n.sigma_w) {
+            *f += s * g.gaussian();
+        }
+    }
+}
