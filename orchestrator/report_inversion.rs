@@ -120,6 +120,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 "widest_lobe_refit": r.stage3_flags & SolveResponse::JOINT_LOBE_REFIT != 0,
                 "lobe_test_chi2": finite(r.stage3_joint_lobe_test_chi2),
                 "lobe_rate_traded": r.stage3_flags & SolveResponse::JOINT_LOBE_RATE_TRADED != 0,
+                "lobe_kept_off_minimum": r.stage3_flags & SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM != 0,
                 "glint_lobes_only": r.stage3_flags & SolveResponse::JOINT_GLINT_LOBES_ONLY != 0,
                 "mirror_deg_per_frame": if joint_mirror_ok { json!(joint_mirror) } else { Value::Null },
                 "err_paper_metric_mirror": if joint_mirror_ok { finite(rate_error_metric(joint_mirror, truth)) } else { Value::Null },
@@ -488,6 +489,11 @@ fn lobe_test_text(r: &SolveResponse) -> String {
     if r.stage3_flags & SolveResponse::JOINT_LOBE_RATE_TRADED != 0 {
         return format!(
             " Stage 1's widest lobes kept: the fit re-fitting them ended below half this rate, trading the rate for the lobe (χ² = {chi2:.1}, 2 dof, not used)."
+        );
+    }
+    if r.stage3_flags & SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM != 0 {
+        return format!(
+            " Each facet's widest lobe re-fitted from the motion window: the fit keeping stage 1's has a minimum a frame's shift away that fits clearly better, so it is not its own model's best fit and its confidence region is no reference (χ² = {chi2:.1}, 2 dof, not used; docs/adr/0021)."
         );
     }
     if r.stage3_flags & SolveResponse::JOINT_LOBE_REFIT != 0 {

@@ -185,6 +185,11 @@ pub fn invert(
                             " (lobe test: the re-fit traded the rate for the lobe, ending below half this rate; stage 1's lobes kept, χ² {:.1} not used)",
                             t.chi2
                         );
+                    } else if let Some(t) = refit.lobe_test.filter(|t| t.kept_off_minimum) {
+                        text += &format!(
+                            " (lobe test: the fit keeping stage 1's lobes has a clearly better minimum a frame's shift away, so it is not its model's best fit; re-fitted, χ² {:.1} not used)",
+                            t.chi2
+                        );
                     } else if let Some(t) = refit.lobe_test {
                         text += &format!(
                             " (lobe test χ² {:.1} {} {:.2}: stage 1's lobes {})",

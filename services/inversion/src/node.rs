@@ -135,6 +135,9 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
                 if test.rate_traded {
                     out.stage3_flags |= SolveResponse::JOINT_LOBE_RATE_TRADED;
                 }
+                if test.kept_off_minimum {
+                    out.stage3_flags |= SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM;
+                }
             }
         }
         out.p_joint_deg_per_frame = fit.rate_deg_per_frame;

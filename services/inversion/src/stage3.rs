@@ -45,6 +45,7 @@ pub use config::{
     DEFAULT_MAX_ROTATION_DEG,
 };
 pub use neighbours::{fit_from_neighbourhood, Neighbour};
+pub(crate) use weak::MIRROR_MAX_DELTA_CHI2;
 pub use weak::{
     disagreement, disagreement_sigma, distance, has_sense, mirror, nearest_body_axis,
     widen_to_joint, WeakPrior, RATE_NAMES,
@@ -146,6 +147,12 @@ pub struct LobeTest {
     /// identifiable, so stage 1's lobes are kept whatever `chi2` says.
     #[serde(default)]
     pub rate_traded: bool,
+    /// The fit keeping stage 1's lobes has a minimum a frame's shift away that fits better by
+    /// more than Δχ² = 4 ([`RateFit::neighbours`]): it is not its own model's best fit, so its
+    /// region is no reference, and the re-fit is reported whatever `chi2` says (unless
+    /// `rate_traded`; docs/adr/0021).
+    #[serde(default)]
+    pub kept_off_minimum: bool,
 }
 
 /// Stage-3 outcome: a rate, or the statement that the data do not determine it.

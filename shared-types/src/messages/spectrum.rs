@@ -245,7 +245,7 @@ pub struct SolveResponse {
     pub separation_band: u32,
     /// Stage 3 flags: [`SolveResponse::SENSE_FROM_JOINT`], [`SolveResponse::LAMBDA_REJECTED`],
     /// [`SolveResponse::JOINT_LOBE_REFIT`], [`SolveResponse::JOINT_LOBE_RATE_TRADED`],
-    /// [`SolveResponse::JOINT_GLINT_LOBES_ONLY`].
+    /// [`SolveResponse::JOINT_GLINT_LOBES_ONLY`], [`SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM`].
     pub stage3_flags: u32,
     /// Stage 2: the lobes' share of the stage-1 coefficients per band.
     pub specular_share: [f64; MAX_BANDS],
@@ -372,12 +372,17 @@ impl SolveResponse {
     /// The joint fit re-fitted no lobe: each facet's widest lobe in use is a glint lobe
     /// (μ < 0.2), whose amplitude trades against the rate, so it stays stage 1's.
     pub const JOINT_GLINT_LOBES_ONLY: u32 = 16;
+    /// The joint fit re-fitted the widest lobes because the fit keeping stage 1's has a
+    /// neighbouring minimum that fits clearly better (Δχ² < −4): it is not its own model's best
+    /// fit, whatever the lobe test's χ².
+    pub const JOINT_LOBE_KEPT_OFF_MINIMUM: u32 = 32;
     /// Every `stage3_flags` bit defined above.
     pub const STAGE3_FLAGS_KNOWN: u32 = Self::SENSE_FROM_JOINT
         | Self::LAMBDA_REJECTED
         | Self::JOINT_LOBE_REFIT
         | Self::JOINT_LOBE_RATE_TRADED
-        | Self::JOINT_GLINT_LOBES_ONLY;
+        | Self::JOINT_GLINT_LOBES_ONLY
+        | Self::JOINT_LOBE_KEPT_OFF_MINIMUM;
 
     /// `stage3_held_axes`: a held direction that is not a body axis (bits 0–2 are x, y, z).
     pub const HELD_OTHER: u32 = 8;

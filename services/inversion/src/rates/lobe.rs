@@ -51,6 +51,7 @@ pub(crate) fn lobe_test(
         chi2,
         threshold: chi2_2dof_quantile(confidence),
         rate_traded: false,
+        kept_off_minimum: false,
     }
 }
 

@@ -279,7 +279,7 @@ const MIRROR_MIN_DISTANCE_DEG_PER_FRAME: f64 = 1e-2;
 const MIRROR_MIN_SEPARATION_SIGMA: f64 = 2.0;
 /// The mirror is reported when its cost exceeds p̂'s by at most this many noise variances
 /// (Δχ² ≤ 4: the data cannot tell them apart at 2σ).
-pub(super) const MIRROR_MAX_DELTA_CHI2: f64 = 4.0;
+pub(crate) const MIRROR_MAX_DELTA_CHI2: f64 = 4.0;
 
 /// The mirror solution of p̂ when the data cannot tell them apart: LM polished from
 /// (−w_x, w_y, −w_z) (an exact minimum when every geometry vector lies in the body XZ plane, a
