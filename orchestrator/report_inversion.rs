@@ -493,7 +493,7 @@ fn lobe_test_text(r: &SolveResponse) -> String {
     }
     if r.stage3_flags & SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM != 0 {
         return format!(
-            " Each facet's widest lobe re-fitted from the motion window: the fit keeping stage 1's has a minimum a frame's shift away that fits clearly better, so it is not its own model's best fit and its confidence region is no reference (χ² = {chi2:.1}, 2 dof, not used; docs/adr/0021)."
+            " Each facet's widest lobe re-fitted from the motion window: the fit keeping stage 1's has a minimum a frame's shift away that fits clearly better, so it is not its own model's best fit and its confidence region is no reference (χ² = {chi2:.1}, 2 dof, not used; docs/adr/0022)."
         );
     }
     if r.stage3_flags & SolveResponse::JOINT_LOBE_REFIT != 0 {
