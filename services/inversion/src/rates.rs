@@ -396,7 +396,7 @@ fn choose_lobes(
     // not identifiable (paper-like materials at phase 20°: 0.10 against 0.25 deg/frame).
     test.rate_traded = speed(r.rate_deg_per_frame) < SLOW_FRACTION * speed(k.rate_deg_per_frame);
     // A kept fit with a clearly better neighbouring minimum is not its model's best fit: its
-    // region is no reference for the test (docs/adr/0021).
+    // region is no reference for the test (docs/adr/0022).
     test.kept_off_minimum = test.chi2 <= test.threshold
         && k.neighbours
             .iter()

@@ -150,7 +150,7 @@ pub struct LobeTest {
     /// The fit keeping stage 1's lobes has a minimum a frame's shift away that fits better by
     /// more than Δχ² = 4 ([`RateFit::neighbours`]): it is not its own model's best fit, so its
     /// region is no reference, and the re-fit is reported whatever `chi2` says (unless
-    /// `rate_traded`; docs/adr/0021).
+    /// `rate_traded`; docs/adr/0022).
     #[serde(default)]
     pub kept_off_minimum: bool,
 }

@@ -4,15 +4,20 @@ use super::*;
 use crate::stage3::fixtures::{no_glint, with_covariance};
 use crate::stage3::Refit;
 
-/// A slow re-fitted rate, as the paper-like phase-30° joint fit found.
-fn refitted() -> (RateSolution, usize) {
-    let mut fit = with_covariance([0.0, 0.034, 0.011], [[1e-8; 3]; 3]);
-    fit.refit = Some(Refit {
-        widest_lobe: true,
+/// The record of a fit that held X and re-fitted the widest lobe or not, before the lobe test.
+fn refit_record(widest_lobe: bool) -> Refit {
+    Refit {
+        widest_lobe,
         held_direction: [1.0, 0.0, 0.0],
         lobe_test: None,
         glint_lobes_only: false,
-    });
+    }
+}
+
+/// A slow re-fitted rate, as the paper-like phase-30° joint fit found.
+fn refitted() -> (RateSolution, usize) {
+    let mut fit = with_covariance([0.0, 0.034, 0.011], [[1e-8; 3]; 3]);
+    fit.refit = Some(refit_record(true));
     (RateSolution::Determined(fit), 711)
 }
 
@@ -47,12 +52,7 @@ fn a_re_fit_that_ends_below_half_the_kept_rate_traded_the_rate_for_the_lobe() {
     // χ² alone would take the re-fit: it lies 10⁴ of the kept fit's σ away.
     let kept = || {
         let mut fit = with_covariance([0.0, 0.0, 0.25], [[1e-8; 3]; 3]);
-        fit.refit = Some(Refit {
-            widest_lobe: false,
-            held_direction: [1.0, 0.0, 0.0],
-            lobe_test: None,
-            glint_lobes_only: false,
-        });
+        fit.refit = Some(refit_record(false));
         (RateSolution::Determined(fit), 101)
     };
     let (chosen, frames) = choose_lobes(kept(), refitted(), 0.99);
@@ -107,12 +107,7 @@ fn a_kept_fit_with_a_clearly_better_neighbour_is_no_reference_for_the_lobe_test(
     let kept = |delta_chi2: Option<f64>| {
         let mut fit = with_covariance([0.0, 0.0, 0.25], [[1e-6; 3]; 3]);
         fit.covariance_deg2_per_frame2 = [[0.25, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 1e-6]];
-        fit.refit = Some(Refit {
-            widest_lobe: false,
-            held_direction: [1.0, 0.0, 0.0],
-            lobe_test: None,
-            glint_lobes_only: false,
-        });
+        fit.refit = Some(refit_record(false));
         fit.neighbours = delta_chi2
             .map(|d| Neighbour {
                 rate_deg_per_frame: [0.0, 0.0, 0.2525],
