@@ -92,6 +92,8 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
         let neighbour_ok = joint_ok && neighbour.iter().all(|v| v.is_finite());
         let own_neighbour = r.p_neighbour_deg_per_frame;
         let own_neighbour_ok = determined && own_neighbour.iter().all(|v| v.is_finite());
+        let lobe_other = r.p_joint_lobe_other_deg_per_frame;
+        let lobe_other_ok = joint_ok && lobe_other.iter().all(|v| v.is_finite());
         json!({
             "status": status(r),
             "unobservable_reason": reason(r.unobservable_reason),
@@ -122,6 +124,9 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 "lobe_rate_traded": r.stage3_flags & SolveResponse::JOINT_LOBE_RATE_TRADED != 0,
                 "lobe_kept_off_minimum": r.stage3_flags & SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM != 0,
                 "glint_lobes_only": r.stage3_flags & SolveResponse::JOINT_GLINT_LOBES_ONLY != 0,
+                "lobe_other_deg_per_frame": if lobe_other_ok { json!(lobe_other) } else { Value::Null },
+                "lobe_other_weight": if lobe_other_ok { finite(r.stage3_joint_lobe_other_weight) } else { Value::Null },
+                "err_paper_metric_lobe_other": if lobe_other_ok { finite(rate_error_metric(lobe_other, truth)) } else { Value::Null },
                 "mirror_deg_per_frame": if joint_mirror_ok { json!(joint_mirror) } else { Value::Null },
                 "err_paper_metric_mirror": if joint_mirror_ok { finite(rate_error_metric(joint_mirror, truth)) } else { Value::Null },
                 "neighbour_deg_per_frame": if neighbour_ok { json!(neighbour) } else { Value::Null },
@@ -270,12 +275,13 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
         if pj.iter().all(|v| v.is_finite()) {
             let _ = writeln!(
                 s,
-                "Joint fit over all bands: p = [{:.5}, {:.5}, {:.5}], error {:.3}.{}",
+                "Joint fit over all bands: p = [{:.5}, {:.5}, {:.5}], error {:.3}.{}{}",
                 pj[0],
                 pj[1],
                 pj[2],
                 rate_error_metric(pj, truth),
-                lobe_test_text(r)
+                lobe_test_text(r),
+                lobe_other_text(r, truth)
             );
             let m = r.p_joint_mirror_deg_per_frame;
             if m.iter().all(|v| v.is_finite()) {
@@ -505,6 +511,23 @@ fn lobe_test_text(r: &SolveResponse) -> String {
             " Stage 1's widest lobes kept: the fit re-fitting them lies within this one's confidence region (χ² = {chi2:.1}, 2 dof; `stage3.lobe_test_confidence`)."
         )
     }
+}
+
+/// The lobe model the joint fit did not report and the weight its covariance gives it, as a
+/// sentence (empty when it carries none).
+fn lobe_other_text(r: &SolveResponse, truth: [f64; 3]) -> String {
+    let q = r.p_joint_lobe_other_deg_per_frame;
+    let w = r.stage3_joint_lobe_other_weight;
+    if !(q.iter().all(|v| v.is_finite()) && w.is_finite() && w > 0.0) {
+        return String::new();
+    }
+    format!(
+        " The other lobe model's rate, [{:.5}, {:.5}, {:.5}] (error {:.3}), is carried in the covariance at weight {w:.2}: the nearer the test was to going the other way, the more (½ at its threshold; docs/adr/0023).",
+        q[0],
+        q[1],
+        q[2],
+        rate_error_metric(q, truth)
+    )
 }
 
 /// What the joint-fit check did to λ* (`SolveResponse::LAMBDA_REJECTED`).

@@ -88,6 +88,16 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
         s3["joint"]["lobe_test_chi2"].as_f64(),
         refit["lobe_test"]["chi2"].as_f64()
     );
+    // With the other lobe model's rate and the weight the joint covariance gives it
+    // (docs/adr/0023).
+    let other = &refit["lobe_test"]["other_rate_deg_per_frame"];
+    assert_eq!(s3["joint"]["lobe_other_deg_per_frame"], *other, "{s3}");
+    if other.is_array() {
+        assert_eq!(
+            s3["joint"]["lobe_other_weight"],
+            refit["lobe_test"]["other_weight"]
+        );
+    }
     // So does its mirror: a rate about Y is nearly its own mirror (−w_x, w_y, −w_z), which fits
     // all bands as well, and the answer names it; both meet the target.
     let mirror = &s3["joint"]["mirror_deg_per_frame"];

@@ -219,7 +219,7 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, flags), 44);
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (2656, 8)
+        (2688, 8)
     );
     assert_eq!(offset_of!(SolveResponse, status), 44);
     assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
@@ -270,4 +270,12 @@ fn solve_layout() {
     );
     assert_eq!(offset_of!(SolveResponse, p_neighbour_deg_per_frame), 2624);
     assert_eq!(offset_of!(SolveResponse, stage3_neighbour_delta_chi2), 2648);
+    assert_eq!(
+        offset_of!(SolveResponse, p_joint_lobe_other_deg_per_frame),
+        2656
+    );
+    assert_eq!(
+        offset_of!(SolveResponse, stage3_joint_lobe_other_weight),
+        2680
+    );
 }

@@ -132,6 +132,10 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
             }
             if let Some(test) = refit.lobe_test {
                 out.stage3_joint_lobe_test_chi2 = test.chi2;
+                if let Some(other) = test.other_rate_deg_per_frame {
+                    out.p_joint_lobe_other_deg_per_frame = other;
+                    out.stage3_joint_lobe_other_weight = test.other_weight;
+                }
                 if test.rate_traded {
                     out.stage3_flags |= SolveResponse::JOINT_LOBE_RATE_TRADED;
                 }

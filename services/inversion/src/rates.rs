@@ -75,6 +75,11 @@ pub fn fit_rates(
     if let Some((joint, _)) = &mut joint_rate {
         joint.report_profile(1.0);
         joint.report_neighbours();
+        if let RateSolution::Determined(fit) = joint {
+            if config.cover_lobe_alternative {
+                fit.report_lobe_alternative();
+            }
+        }
     }
     Ok(RateFits {
         rate,
@@ -402,11 +407,13 @@ fn choose_lobes(
             .iter()
             .any(|n| n.delta_chi2 < -MIRROR_MAX_DELTA_CHI2);
     let refit_wins = test.chi2 > test.threshold || test.kept_off_minimum;
-    let (mut chosen, frames) = if refit_wins && !test.rate_traded {
-        refitted
+    let reports_refit = refit_wins && !test.rate_traded;
+    test.other_rate_deg_per_frame = Some(if reports_refit {
+        k.rate_deg_per_frame
     } else {
-        kept
-    };
+        r.rate_deg_per_frame
+    });
+    let (mut chosen, frames) = if reports_refit { refitted } else { kept };
     if let RateSolution::Determined(fit) = &mut chosen {
         if let Some(refit) = &mut fit.refit {
             refit.lobe_test = Some(test);

@@ -153,6 +153,32 @@ pub struct LobeTest {
     /// `rate_traded`; docs/adr/0022).
     #[serde(default)]
     pub kept_off_minimum: bool,
+    /// The rate of the fit not reported: the re-fit's when stage 1's lobes are kept, the
+    /// kept fit's when the lobe is re-fitted.
+    #[serde(default)]
+    pub other_rate_deg_per_frame: Option<[f64; 3]>,
+    /// The weight the reported covariance gives `other_rate_deg_per_frame`
+    /// ([`RateFit::report_lobe_alternative`]); 0 when it carries none.
+    #[serde(default)]
+    pub other_weight: f64,
+}
+
+impl LobeTest {
+    /// How near the decision was to going the other way, as the pseudo-Δχ² of the lobe model
+    /// not reported against the one reported (`reported_refit`: the re-fit was reported): the
+    /// threshold minus χ² when stage 1's lobes were kept, χ² minus the threshold when χ²
+    /// re-fitted them. `None` when the other model is no alternative: the re-fit traded the
+    /// rate, the kept fit was off its own minimum, or χ² is not finite.
+    pub fn alternative_excess(&self, reported_refit: bool) -> Option<f64> {
+        if self.rate_traded || self.kept_off_minimum || !self.chi2.is_finite() {
+            return None;
+        }
+        Some(if reported_refit {
+            self.chi2 - self.threshold
+        } else {
+            self.threshold - self.chi2
+        })
+    }
 }
 
 /// Stage-3 outcome: a rate, or the statement that the data do not determine it.

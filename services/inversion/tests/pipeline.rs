@@ -360,6 +360,9 @@ fn kept_rate_covariance_is_widened_by_the_birge_ratio_of_the_joint_fit() {
     };
     let mut off = on.clone();
     off.stage3.widen_to_joint = false;
+    // The widening reads the joint fit's covariance before it carries the other lobe model
+    // (docs/adr/0023): compare against that one.
+    off.stage3.cover_lobe_alternative = false;
     let mut widened = 0;
     for seed in 1..=6 {
         let (_, noisy) = fine_bands(2.0, seed);

@@ -303,6 +303,13 @@ pub struct SolveResponse {
     /// Stage 3 at λ*: that minimum's cost minus the fit's, in noise variances (negative: it
     /// fits better); NaN without one.
     pub stage3_neighbour_delta_chi2: f64,
+    /// Stage 3: the joint fit's rate under the lobe model its lobe test did not report (the
+    /// re-fit's when stage 1's lobes were kept, the kept fit's when re-fitted); NaN when the
+    /// lobes were not tested.
+    pub p_joint_lobe_other_deg_per_frame: [f64; 3],
+    /// Stage 3: the weight `p_joint_covariance` gives that rate (½ at the test's threshold, 0
+    /// when it carries none); NaN when the lobes were not tested.
+    pub stage3_joint_lobe_other_weight: f64,
 }
 
 impl Default for SolveResponse {
@@ -355,6 +362,8 @@ impl Default for SolveResponse {
             stage3_joint_neighbour_delta_chi2: f64::NAN,
             p_neighbour_deg_per_frame: [f64::NAN; 3],
             stage3_neighbour_delta_chi2: f64::NAN,
+            p_joint_lobe_other_deg_per_frame: [f64::NAN; 3],
+            stage3_joint_lobe_other_weight: f64::NAN,
         }
     }
 }

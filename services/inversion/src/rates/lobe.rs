@@ -52,6 +52,8 @@ pub(crate) fn lobe_test(
         threshold: chi2_2dof_quantile(confidence),
         rate_traded: false,
         kept_off_minimum: false,
+        other_rate_deg_per_frame: None,
+        other_weight: 0.0,
     }
 }
 

@@ -158,3 +158,29 @@ fn a_kept_fit_with_a_clearly_better_neighbour_is_no_reference_for_the_lobe_test(
     assert_eq!(frames, 101, "{chosen:?}");
     assert!(lobe_test_of(&chosen).rate_traded);
 }
+
+#[test]
+fn the_lobe_test_records_the_rate_of_the_model_it_did_not_report() {
+    let kept = || {
+        let mut fit = with_covariance([0.0, 0.0, 0.25], [[1e-6; 3]; 3]);
+        fit.covariance_deg2_per_frame2 = [[0.25, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 1e-6]];
+        fit.refit = Some(refit_record(false));
+        (RateSolution::Determined(fit), 101)
+    };
+    let refit_at = |z: f64| {
+        let mut r = refitted();
+        if let RateSolution::Determined(f) = &mut r.0 {
+            f.rate_deg_per_frame = [0.0, 0.0, z];
+        }
+        r
+    };
+    let other_of = |chosen: &RateSolution| {
+        let t = chosen.fit().and_then(|f| f.refit).and_then(|r| r.lobe_test);
+        t.and_then(|t| t.other_rate_deg_per_frame)
+    };
+    // Kept (χ² = 1): the re-fit's rate is the other. Re-fitted (χ² = 25): the kept fit's.
+    let (chosen, _) = choose_lobes(kept(), refit_at(0.251), 0.99);
+    assert_eq!(other_of(&chosen), Some([0.0, 0.0, 0.251]));
+    let (chosen, _) = choose_lobes(kept(), refit_at(0.255), 0.99);
+    assert_eq!(other_of(&chosen), Some([0.0, 0.0, 0.25]));
+}

@@ -104,6 +104,12 @@ pub struct Stage3Config {
     /// answers name them ([`RateFit::report_neighbours`](super::RateFit::report_neighbours);
     /// default `true`, docs/adr/0019 and 0020). `false`: the local covariance alone.
     pub cover_neighbours: bool,
+    /// Once every decision is taken, the joint covariance also carries the lobe model the
+    /// lobe test did not report ([`LobeRefit::WhenNeeded`]), weighted by how near the test was
+    /// to going the other way: half at its threshold, little far from it
+    /// ([`RateFit::report_lobe_alternative`](super::RateFit::report_lobe_alternative); default
+    /// `true`, docs/adr/0023). `false`: the reported model's covariance alone.
+    pub cover_lobe_alternative: bool,
 }
 
 impl Default for Stage3Config {
@@ -123,6 +129,7 @@ impl Default for Stage3Config {
             profile_intervals: false,
             polish_reach_frames: DEFAULT_POLISH_REACH_FRAMES,
             cover_neighbours: true,
+            cover_lobe_alternative: true,
         }
     }
 }

@@ -205,6 +205,38 @@ impl RateFit {
     }
 }
 
+impl RateFit {
+    /// Has the covariance carry the lobe model the joint fit did not report
+    /// ([`other_rate_deg_per_frame`](super::LobeTest::other_rate_deg_per_frame)) as one more minimum, at the pseudo-Δχ² of
+    /// [`alternative_excess`](super::LobeTest::alternative_excess): w = 1 / (1 + exp(excess / 2)), half its offset at the
+    /// test's threshold, 12 % four below it (docs/adr/0023). Records the weight on the test,
+    /// restates the observability, and returns the weight.
+    pub fn report_lobe_alternative(&mut self) -> f64 {
+        let Some(refit) = self.refit else {
+            return 0.0;
+        };
+        let Some(test) = refit.lobe_test else {
+            return 0.0;
+        };
+        let (Some(other), Some(excess)) = (
+            test.other_rate_deg_per_frame,
+            test.alternative_excess(refit.widest_lobe),
+        ) else {
+            return 0.0;
+        };
+        let alternative = Neighbour {
+            rate_deg_per_frame: other,
+            delta_chi2: excess,
+        };
+        let weight = cover_neighbours(self, &[alternative]);
+        restate_from_covariance(self);
+        if let Some(t) = self.refit.as_mut().and_then(|r| r.lobe_test.as_mut()) {
+            t.other_weight = weight;
+        }
+        weight
+    }
+}
+
 impl RateSolution {
     /// [`RateFit::attach_neighbours`] on a determined answer when `config.cover_neighbours`
     /// asks for it.
@@ -292,5 +324,75 @@ mod tests {
         let before = plain.clone();
         assert_eq!(plain.report_neighbours(), 0.0);
         assert_eq!(plain, before);
+    }
+
+    #[test]
+    fn the_lobe_model_not_reported_is_carried_by_how_near_the_test_came() {
+        use crate::stage3::{LobeTest, Refit};
+        let c = [[0.25, 0.0, 0.0], [0.0, 4e-8, 0.0], [0.0, 0.0, 1e-6]];
+        let p = [0.0, -0.0006, 0.2528];
+        let d = [0.0, 0.0014, -0.0021];
+        let q = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
+        let threshold = 9.21;
+        let fit_with = |widest_lobe: bool, chi2: f64, traded: bool, off: bool| {
+            let mut fit = with_covariance(p, c);
+            fit.refit = Some(Refit {
+                widest_lobe,
+                held_direction: [1.0, 0.0, 0.0],
+                lobe_test: Some(LobeTest {
+                    chi2,
+                    threshold,
+                    rate_traded: traded,
+                    kept_off_minimum: off,
+                    other_rate_deg_per_frame: Some(q),
+                    other_weight: 0.0,
+                }),
+                glint_lobes_only: false,
+            });
+            fit
+        };
+        // w = 1 / (1 + exp(excess / 2)): ½ at the threshold, 1 / (1 + e²) four from it on
+        // either side of the decision, nothing far from it.
+        let near = 1.0 / (1.0 + 2f64.exp());
+        for (refit, chi2, w) in [
+            (false, threshold, 0.5),
+            (false, threshold - 4.0, near),
+            (true, threshold + 4.0, near),
+            (false, 0.0, 1.0 / (1.0 + (threshold / 2.0).exp())),
+            (true, 400.0, 0.0),
+        ] {
+            let mut fit = fit_with(refit, chi2, false, false);
+            let weight = fit.report_lobe_alternative();
+            assert!((weight - w).abs() < 1e-12, "{refit} {chi2}: {weight}");
+            let recorded = fit.refit.and_then(|r| r.lobe_test).map(|t| t.other_weight);
+            assert_eq!(recorded, Some(weight));
+            for i in 0..3 {
+                for j in 0..3 {
+                    let expected = c[i][j] + w * d[i] * d[j];
+                    let got = fit.covariance_deg2_per_frame2[i][j];
+                    assert!(
+                        (got - expected).abs() < 1e-15,
+                        "{chi2}: {got} vs {expected}"
+                    );
+                }
+            }
+            // The observability is restated from it: the determined 1σ grow.
+            let b = fit.observability.bounds_1sigma_deg_per_frame;
+            assert!(w == 0.0 || b[1] > 1e-3, "{b:?}");
+        }
+        // No alternative: a re-fit that traded the rate, a kept fit off its own minimum, a
+        // singular test; or no other rate on record. Nothing changes.
+        for (traded, off, chi2) in [
+            (true, false, 1.0),
+            (false, true, 1.0),
+            (false, false, f64::INFINITY),
+        ] {
+            let mut fit = fit_with(false, chi2, traded, off);
+            let before = fit.clone();
+            assert_eq!(fit.report_lobe_alternative(), 0.0);
+            assert_eq!(fit, before);
+        }
+        let mut untested = with_covariance(p, c);
+        assert_eq!(untested.report_lobe_alternative(), 0.0);
     }
 }
