@@ -21,6 +21,23 @@ fn refitted() -> (RateSolution, usize) {
     (RateSolution::Determined(fit), 711)
 }
 
+/// A fit keeping stage 1's lobes at 0.25 deg/frame about Z, σ 1e-3 on the plane X leaves.
+fn kept_at_quarter() -> (RateSolution, usize) {
+    let mut fit = with_covariance([0.0, 0.0, 0.25], [[1e-6; 3]; 3]);
+    fit.covariance_deg2_per_frame2 = [[0.25, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 1e-6]];
+    fit.refit = Some(refit_record(false));
+    (RateSolution::Determined(fit), 101)
+}
+
+/// The re-fit of [`refitted`] moved to `z` deg/frame about Z.
+fn refitted_about_z(z: f64) -> (RateSolution, usize) {
+    let mut r = refitted();
+    if let RateSolution::Determined(f) = &mut r.0 {
+        f.rate_deg_per_frame = [0.0, 0.0, z];
+    }
+    r
+}
+
 #[test]
 fn a_rate_the_joint_fit_does_not_confirm_is_not_reported() {
     let slow = [0.0, -0.0116, 0.0098];
@@ -105,25 +122,19 @@ fn a_kept_fit_with_a_clearly_better_neighbour_is_no_reference_for_the_lobe_test(
     use crate::stage3::Neighbour;
     // The re-fit lies 1σ from the kept fit on the plane (χ² = 1, within the 99 % region).
     let kept = |delta_chi2: Option<f64>| {
-        let mut fit = with_covariance([0.0, 0.0, 0.25], [[1e-6; 3]; 3]);
-        fit.covariance_deg2_per_frame2 = [[0.25, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 1e-6]];
-        fit.refit = Some(refit_record(false));
-        fit.neighbours = delta_chi2
-            .map(|d| Neighbour {
-                rate_deg_per_frame: [0.0, 0.0, 0.2525],
-                delta_chi2: d,
-            })
-            .into_iter()
-            .collect();
-        (RateSolution::Determined(fit), 101)
-    };
-    let near = |z: f64| {
-        let mut r = refitted();
-        if let RateSolution::Determined(f) = &mut r.0 {
-            f.rate_deg_per_frame = [0.0, 0.0, z];
+        let (mut kept, frames) = kept_at_quarter();
+        if let RateSolution::Determined(fit) = &mut kept {
+            fit.neighbours = delta_chi2
+                .map(|d| Neighbour {
+                    rate_deg_per_frame: [0.0, 0.0, 0.2525],
+                    delta_chi2: d,
+                })
+                .into_iter()
+                .collect();
         }
-        r
+        (kept, frames)
     };
+    let near = refitted_about_z;
     let lobe_test_of = |chosen: &RateSolution| {
         chosen
             .fit()
@@ -161,19 +172,7 @@ fn a_kept_fit_with_a_clearly_better_neighbour_is_no_reference_for_the_lobe_test(
 
 #[test]
 fn the_lobe_test_records_the_rate_of_the_model_it_did_not_report() {
-    let kept = || {
-        let mut fit = with_covariance([0.0, 0.0, 0.25], [[1e-6; 3]; 3]);
-        fit.covariance_deg2_per_frame2 = [[0.25, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 1e-6]];
-        fit.refit = Some(refit_record(false));
-        (RateSolution::Determined(fit), 101)
-    };
-    let refit_at = |z: f64| {
-        let mut r = refitted();
-        if let RateSolution::Determined(f) = &mut r.0 {
-            f.rate_deg_per_frame = [0.0, 0.0, z];
-        }
-        r
-    };
+    let (kept, refit_at) = (kept_at_quarter, refitted_about_z);
     let other_of = |chosen: &RateSolution| {
         let t = chosen.fit().and_then(|f| f.refit).and_then(|r| r.lobe_test);
         t.and_then(|t| t.other_rate_deg_per_frame)
