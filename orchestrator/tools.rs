@@ -203,13 +203,14 @@ pub fn invert(
                             }
                         );
                     }
-                    let other = refit.lobe_test.filter(|t| t.other_weight > 0.0);
-                    if let Some((t, q)) = other.and_then(|t| Some((t, t.other_rate_deg_per_frame?)))
-                    {
-                        text += &format!(
-                            "; the other lobe model's rate [{:.5}, {:.5}, {:.5}] carried in the covariance at weight {:.2}",
-                            q[0], q[1], q[2], t.other_weight
-                        );
+                    let carried = refit.lobe_test.filter(|t| t.other_weight > 0.0);
+                    if let Some(t) = carried {
+                        if let Some(q) = t.other_rate_deg_per_frame {
+                            text += &format!(
+                                "; the other lobe model's rate [{:.5}, {:.5}, {:.5}] carried in the covariance at weight {:.2}",
+                                q[0], q[1], q[2], t.other_weight
+                            );
+                        }
                     }
                 }
                 if let Some(m) = fit.mirror_deg_per_frame {
