@@ -49,6 +49,9 @@ const INV_MU2: [f64; LOBES] = {
 /// The widths the power chain below relies on (1/μ² = 10⁴, 2500, 625, 400, ·, ·, 100, 25, ·, 4).
 const CHAIN_WIDTHS: [f64; LOBES] = [0.01, 0.02, 0.04, 0.05, 0.07, 0.08, 0.10, 0.20, 0.30, 0.50];
 
+/// The lobes whose exponential the chain from e₂₅ gives.
+const CHAIN_LOBES: [usize; 6] = [0, 1, 2, 3, 6, 7];
+
 const CHAIN_APPLIES: bool = {
     let mut same = true;
     let mut m = 0;
@@ -60,41 +63,57 @@ const CHAIN_APPLIES: bool = {
 };
 
 /// `exp(−t/μ_m²)` for every lobe (t = tan²τ ≥ 0); 0 where `t/μ_m² > LOBE_EXP_CUTOFF`.
-///
-/// For the Table-4 widths five `exp` calls suffice: with e₂₅ = exp(−25t),
-/// e₁₀₀ = e₂₅⁴, e₄₀₀ = e₁₀₀⁴, e₆₂₅ = e₂₅²⁵, e₂₅₀₀ = e₆₂₅⁴, e₁₀₀₀₀ = e₂₅₀₀⁴ (relative rounding
-/// ≲ 400 ulp ≈ 5e-14 on e₁₀₀₀₀, which is only used while ≥ e⁻⁶⁰).
 pub fn lobe_exponentials(tan2: f64) -> [f64; LOBES] {
+    lobe_exponentials_of(tan2, &[true; LOBES])
+}
+
+/// [`lobe_exponentials`] for the lobes flagged in `needed` (the others 0): only the
+/// exponentials a needed lobe within the cutoff uses are computed, and each needed value is
+/// bit-for-bit the one [`lobe_exponentials`] gives.
+///
+/// For the Table-4 widths one `exp` serves six lobes: with e₂₅ = exp(−25t),
+/// e₁₀₀ = e₂₅⁴, e₄₀₀ = e₁₀₀⁴, e₆₂₅ = e₂₅²⁵, e₂₅₀₀ = e₆₂₅⁴, e₁₀₀₀₀ = e₂₅₀₀⁴ (relative rounding
+/// ≲ 400 ulp ≈ 5e-14 on e₁₀₀₀₀, which is only used while ≥ e⁻⁶⁰); the other four take their
+/// own. Far from the specular direction most lobes are past the cutoff and cost nothing.
+#[inline]
+pub fn lobe_exponentials_of(tan2: f64, needed: &[bool; LOBES]) -> [f64; LOBES] {
     let mut out = [0.0; LOBES];
+    let mut want = [false; LOBES];
+    for m in 0..LOBES {
+        want[m] = needed[m] && tan2 * INV_MU2[m] <= LOBE_EXP_CUTOFF;
+    }
     if CHAIN_APPLIES {
-        let e25 = (-25.0 * tan2).exp();
-        let x4 = (e25 * e25) * (e25 * e25);
-        let x8 = x4 * x4;
-        let x16 = x8 * x8;
-        let e625 = x16 * x8 * e25;
-        let e2500 = (e625 * e625) * (e625 * e625);
-        let chain = [
-            (0, (e2500 * e2500) * (e2500 * e2500)),
-            (1, e2500),
-            (2, e625),
-            (3, (x4 * x4) * (x4 * x4)),
-            (6, x4),
-            (7, e25),
-        ];
-        for (m, v) in chain {
-            out[m] = v;
+        if CHAIN_LOBES.iter().any(|&m| want[m]) {
+            let e25 = (-25.0 * tan2).exp();
+            let x4 = (e25 * e25) * (e25 * e25);
+            let x8 = x4 * x4;
+            let x16 = x8 * x8;
+            let e625 = x16 * x8 * e25;
+            let e2500 = (e625 * e625) * (e625 * e625);
+            let chain = [
+                (0, (e2500 * e2500) * (e2500 * e2500)),
+                (1, e2500),
+                (2, e625),
+                (3, (x4 * x4) * (x4 * x4)),
+                (6, x4),
+                (7, e25),
+            ];
+            for (m, v) in chain {
+                if want[m] {
+                    out[m] = v;
+                }
+            }
         }
         for m in [4, 5, 8, 9] {
-            out[m] = (-INV_MU2[m] * tan2).exp();
+            if want[m] {
+                out[m] = (-INV_MU2[m] * tan2).exp();
+            }
         }
     } else {
         for m in 0..LOBES {
-            out[m] = (-INV_MU2[m] * tan2).exp();
-        }
-    }
-    for m in 0..LOBES {
-        if tan2 * INV_MU2[m] > LOBE_EXP_CUTOFF {
-            out[m] = 0.0;
+            if want[m] {
+                out[m] = (-INV_MU2[m] * tan2).exp();
+            }
         }
     }
     out
@@ -104,7 +123,7 @@ pub fn lobe_exponentials(tan2: f64) -> [f64; LOBES] {
 /// c ≤ 0, or beyond the cutoff).
 fn quarter_beckmann(
     cos_tau: f64,
-    active: &[bool],
+    active: &[bool; LOBES],
     with_derivative: bool,
 ) -> ([f64; LOBES], [f64; LOBES]) {
     let (mut d, mut dd) = ([0.0; LOBES], [0.0; LOBES]);
@@ -114,7 +133,7 @@ fn quarter_beckmann(
     let c2 = (cos_tau * cos_tau).min(1.0);
     let inv_c2 = 1.0 / c2;
     let tan2 = (1.0 - c2) * inv_c2;
-    let e = lobe_exponentials(tan2);
+    let e = lobe_exponentials_of(tan2, active);
     let k = 0.25 * inv_c2 * inv_c2 / PI;
     let inv_c = inv_c2.sqrt();
     for m in 0..LOBES {
@@ -196,13 +215,18 @@ impl FacetGeometry {
         } else {
             0.0
         };
-        let (d, _) = quarter_beckmann(self.cos_tau, &active[1..], false);
+        let [_, lobes @ ..] = active;
+        let (d, _) = quarter_beckmann(self.cos_tau, lobes, false);
         out[1..].copy_from_slice(&d);
     }
 
     /// Lobe values `D_m/4` and slopes `d(D_m/4)/dc` for the lobes flagged in `active` (M
     /// entries; the slopes are 0 unless `with_slope`).
-    pub fn quarter_lobes(&self, active: &[bool], with_slope: bool) -> ([f64; LOBES], [f64; LOBES]) {
+    pub fn quarter_lobes(
+        &self,
+        active: &[bool; LOBES],
+        with_slope: bool,
+    ) -> ([f64; LOBES], [f64; LOBES]) {
         quarter_beckmann(self.cos_tau, active, with_slope)
     }
 }
@@ -319,6 +343,32 @@ mod tests {
         for mu in [0.01, 0.07, 0.5] {
             let c = 0.995;
             assert!((beckmann_with_derivative(c, mu).0 - beckmann_d(c, mu)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn lobe_exponentials_of_a_subset_are_the_full_set_s_bits() {
+        for k in 0..2000 {
+            let t2 = 1e-7 * 1.01f64.powi(k);
+            let all = lobe_exponentials(t2);
+            for mask in [
+                0b11_1111_1111u32,
+                0b00_1111_1111,
+                0b11_0011_0000,
+                0b00_0000_0001,
+                0,
+            ] {
+                let needed: [bool; LOBES] = std::array::from_fn(|m| mask >> m & 1 == 1);
+                let some = lobe_exponentials_of(t2, &needed);
+                for m in 0..LOBES {
+                    let want = if needed[m] { all[m] } else { 0.0 };
+                    assert_eq!(
+                        some[m].to_bits(),
+                        want.to_bits(),
+                        "t2 {t2} m {m} mask {mask:b}"
+                    );
+                }
+            }
         }
     }
 

@@ -378,7 +378,8 @@ impl RateProblem {
                 slope.d_diffuse[i] = (da * b + a * db) * FRAC_1_PI;
                 slope.dc[i] = dc_dso.dot(&(ds[i] + d_o[i])) + dn[i].dot(&geom.half);
             }
-            let (lobes, lobe_slopes) = geom.quarter_lobes(&self.active[k][1..], true);
+            let [_, active_lobes @ ..] = &self.active[k];
+            let (lobes, lobe_slopes) = geom.quarter_lobes(active_lobes, true);
             g[k][0] = a * b * FRAC_1_PI;
             g[k][1..].copy_from_slice(&lobes);
             slope.lobe = lobe_slopes;
