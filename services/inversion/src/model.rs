@@ -415,6 +415,15 @@ impl RateProblem {
 
     /// Cost Σ r² over every `stride`-th frame (stride ≥ 1), without storing residuals.
     pub fn cost_strided(&self, p: [f64; 3], stride: usize) -> f64 {
+        self.cost_strided_within(p, stride, f64::INFINITY)
+    }
+
+    /// [`RateProblem::cost_strided`], stopped as soon as the partial sum exceeds `bound`: the
+    /// value returned is then a partial sum above `bound`, and the full cost lies above it too
+    /// (every term is a square). A problem that re-fits the diffuse terms projects them out at
+    /// the end, so its partial sums bound nothing and it always runs to the end. A cost at or
+    /// below `bound` is bit-for-bit [`RateProblem::cost_strided`]'s.
+    pub fn cost_strided_within(&self, p: [f64; 3], stride: usize, bound: f64) -> f64 {
         let mut g = [[0.0; TERMS]; 2];
         let mut cost = 0.0;
         let mut normals = vec![Normal::default(); self.bands.len()];
@@ -432,6 +441,9 @@ impl RateProblem {
                 } else {
                     cost += res * res;
                 }
+            }
+            if cost > bound {
+                return cost;
             }
         }
         if self.refit_diffuse {

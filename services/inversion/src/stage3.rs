@@ -9,7 +9,9 @@
 //!
 //! 1. **Grid**: `points_per_axis`³ points over the box `[−h, h]³` (h = `half_width_deg_per_frame`,
 //!    default 0.5 deg/frame, 9 points per axis → 0.125 deg/frame spacing), each costed on every
-//!    `⌈T/max_grid_frames⌉`-th frame (values only).
+//!    `⌈T/max_grid_frames⌉`-th frame (values only). A point's sum stops once it passes the
+//!    `screen_starts`-th best full cost so far: it cannot be a candidate, and the candidates
+//!    are those of the full costs, in their order.
 //! 2. **Screen**: the `screen_starts` best grid points (default 16) each get `screen_iterations`
 //!    LM iterations (default 6) on every `⌈T/max_screen_frames⌉`-th frame.
 //! 3. **Polish**: the `polish_starts` best screened points (default 3; duplicates within
@@ -231,11 +233,25 @@ pub fn grid_candidates(problem: &RateProblem, start: &StartConfig) -> (Vec<[f64;
     let axis = axis_values(start);
     let stride = problem.frame_count().div_ceil(start.max_grid_frames);
     let mut scored: Vec<(f64, [f64; 3])> = Vec::with_capacity(axis.len().pow(3));
+    // The `screen_starts` lowest costs so far, ascending: a point whose partial cost passes
+    // the last of them has `screen_starts` better points and is not a candidate, so its
+    // evaluation stops there (the candidates and their order are those of the full costs).
+    let mut best: Vec<f64> = Vec::with_capacity(start.screen_starts + 1);
     for &x in &axis {
         for &y in &axis {
             for &z in &axis {
-                let c = problem.cost_strided([x, y, z], stride);
-                scored.push((if c.is_finite() { c } else { f64::INFINITY }, [x, y, z]));
+                let bound = match best.len() < start.screen_starts {
+                    true => f64::INFINITY,
+                    false => best.last().copied().unwrap_or(f64::INFINITY),
+                };
+                let c = problem.cost_strided_within([x, y, z], stride, bound);
+                let c = if c.is_finite() { c } else { f64::INFINITY };
+                if c <= bound {
+                    let at = best.partition_point(|&b| b <= c);
+                    best.insert(at, c);
+                    best.truncate(start.screen_starts);
+                }
+                scored.push((c, [x, y, z]));
             }
         }
     }

@@ -4,7 +4,8 @@ mod common;
 
 use common::*;
 use glint_inversion::stage3::{
-    fit_from_neighbourhood, fit_from_starts, fit_multistart, fit_single_start, Stage3Config,
+    fit_from_neighbourhood, fit_from_starts, fit_multistart, fit_single_start, grid_candidates,
+    Stage3Config,
 };
 use glint_inversion::{
     rate_error_metric, AttitudeModel, MotionModelConfig, Observation, PanelNormalMode, RateBand,
@@ -199,6 +200,64 @@ fn multistart_recovers_exact_rates_about_y_and_z() {
             assert_eq!(fit.grid_points, 729);
             assert_eq!(fit.starts_screened, 16);
             assert!(fit.starts_polished >= 1 && fit.starts_polished <= 3);
+        }
+    }
+}
+
+/// The grid's candidates, best first, from every point's full cost: the stopped evaluation of
+/// `grid_candidates` must give the same points in the same order.
+fn brute_force_candidates(problem: &RateProblem, cfg: &Stage3Config) -> Vec<[f64; 3]> {
+    let (n, h) = (
+        cfg.start.points_per_axis,
+        cfg.start.half_width_deg_per_frame,
+    );
+    let axis: Vec<f64> = (0..n)
+        .map(|k| -h + 2.0 * h * k as f64 / (n - 1) as f64)
+        .collect();
+    let stride = problem.frame_count().div_ceil(cfg.start.max_grid_frames);
+    let mut scored = Vec::new();
+    for &x in &axis {
+        for &y in &axis {
+            for &z in &axis {
+                let c = problem.cost_strided([x, y, z], stride);
+                scored.push((if c.is_finite() { c } else { f64::INFINITY }, [x, y, z]));
+            }
+        }
+    }
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    scored.truncate(cfg.start.screen_starts);
+    scored.into_iter().map(|(_, p)| p).collect()
+}
+
+#[test]
+fn the_grid_stopping_early_keeps_the_full_costs_candidates() {
+    for p_true in [[0.0, 0.25, 0.0], [0.0, 0.0, 0.25], [0.05, 0.2, -0.1]] {
+        let problem = problem_for(p_true);
+        for cfg in configs() {
+            let (candidates, evaluated) = grid_candidates(&problem, &cfg.start);
+            assert_eq!(evaluated, 729);
+            assert_eq!(
+                candidates,
+                brute_force_candidates(&problem, &cfg),
+                "p* {p_true:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_cost_within_its_bound_is_the_full_cost_and_one_beyond_stops_above_it() {
+    let problem = problem_for([0.0, 0.25, 0.0]);
+    for p in [[0.0, 0.25, 0.0], [0.1, -0.3, 0.2], [0.5, 0.5, 0.5]] {
+        let full = problem.cost_strided(p, 3);
+        let within = problem.cost_strided_within(p, 3, full);
+        assert_eq!(within.to_bits(), full.to_bits());
+        if full > 0.0 {
+            let stopped = problem.cost_strided_within(p, 3, 0.5 * full);
+            assert!(
+                stopped > 0.5 * full && stopped <= full,
+                "{stopped} of {full}"
+            );
         }
     }
 }
