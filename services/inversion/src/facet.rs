@@ -137,11 +137,14 @@ fn quarter_beckmann(
     let k = 0.25 * inv_c2 * inv_c2 / PI;
     let inv_c = inv_c2.sqrt();
     for m in 0..LOBES {
-        if active[m] {
-            d[m] = e[m] * INV_MU2[m] * k;
-            if with_derivative {
-                dd[m] = d[m] * inv_c * (2.0 * INV_MU2[m] * inv_c2 - 4.0);
-            }
+        // Inactive lobes stay +0 (their e is 0, but 0 · k is NaN when k overflows).
+        let value = e[m] * INV_MU2[m] * k;
+        d[m] = if active[m] { value } else { 0.0 };
+    }
+    if with_derivative {
+        for m in 0..LOBES {
+            let slope = d[m] * inv_c * (2.0 * INV_MU2[m] * inv_c2 - 4.0);
+            dd[m] = if active[m] { slope } else { 0.0 };
         }
     }
     (d, dd)
