@@ -230,32 +230,51 @@ fn axis_values(start: &StartConfig) -> Vec<f64> {
 /// Evaluates the grid; returns the `screen_starts` best points (best first) and the number of
 /// grid points evaluated.
 pub fn grid_candidates(problem: &RateProblem, start: &StartConfig) -> (Vec<[f64; 3]>, usize) {
+    grid_candidates_near(problem, start, None)
+}
+
+/// [`grid_candidates`], visiting the points nearest `near` first (a rate already found on a
+/// shorter window): good points found early stop the others' sums sooner. The candidates and
+/// their order do not depend on the order of the visit.
+pub fn grid_candidates_near(
+    problem: &RateProblem,
+    start: &StartConfig,
+    near: Option<[f64; 3]>,
+) -> (Vec<[f64; 3]>, usize) {
     let axis = axis_values(start);
     let stride = problem.frame_count().div_ceil(start.max_grid_frames);
     let mut scored: Vec<(f64, [f64; 3])> = Vec::with_capacity(axis.len().pow(3));
+    for &x in &axis {
+        for &y in &axis {
+            for &z in &axis {
+                scored.push((f64::INFINITY, [x, y, z]));
+            }
+        }
+    }
+    let mut visit: Vec<usize> = (0..scored.len()).collect();
+    if let Some(q) = near {
+        visit.sort_by(|&i, &j| distance(scored[i].1, q).total_cmp(&distance(scored[j].1, q)));
+    }
     // The `screen_starts` lowest costs so far, ascending: a point whose partial cost passes
     // the last of them has `screen_starts` better points and is not a candidate, so its
     // evaluation stops there (the candidates and their order are those of the full costs).
     let mut best: Vec<f64> = Vec::with_capacity(start.screen_starts + 1);
-    for &x in &axis {
-        for &y in &axis {
-            for &z in &axis {
-                let bound = match best.len() < start.screen_starts {
-                    true => f64::INFINITY,
-                    false => best.last().copied().unwrap_or(f64::INFINITY),
-                };
-                let c = problem.cost_strided_within([x, y, z], stride, bound);
-                let c = if c.is_finite() { c } else { f64::INFINITY };
-                if c <= bound {
-                    let at = best.partition_point(|&b| b <= c);
-                    best.insert(at, c);
-                    best.truncate(start.screen_starts);
-                }
-                scored.push((c, [x, y, z]));
-            }
+    for i in visit {
+        let bound = match best.len() < start.screen_starts {
+            true => f64::INFINITY,
+            false => best.last().copied().unwrap_or(f64::INFINITY),
+        };
+        let c = problem.cost_strided_within(scored[i].1, stride, bound);
+        let c = if c.is_finite() { c } else { f64::INFINITY };
+        if c <= bound {
+            let at = best.partition_point(|&b| b <= c);
+            best.insert(at, c);
+            best.truncate(start.screen_starts);
         }
+        scored[i].0 = c;
     }
     let evaluated = scored.len();
+    // Stable: equal costs keep the grid's order.
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     scored.truncate(start.screen_starts);
     (scored.into_iter().map(|(_, p)| p).collect(), evaluated)
@@ -459,7 +478,8 @@ pub fn fit_multistart_with(
     extra: &[[f64; 3]],
 ) -> Result<RateSolution, InversionError> {
     validate(config)?;
-    let (candidates, grid_points) = grid_candidates(problem, &config.start);
+    let (candidates, grid_points) =
+        grid_candidates_near(problem, &config.start, extra.first().copied());
     let mut starts = screen_candidates(problem, &candidates, config)?;
     starts.extend_from_slice(extra);
     polish(problem, &starts, (grid_points, candidates.len()), config)

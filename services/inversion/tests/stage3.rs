@@ -5,7 +5,7 @@ mod common;
 use common::*;
 use glint_inversion::stage3::{
     fit_from_neighbourhood, fit_from_starts, fit_multistart, fit_single_start, grid_candidates,
-    Stage3Config,
+    grid_candidates_near, Stage3Config,
 };
 use glint_inversion::{
     rate_error_metric, AttitudeModel, MotionModelConfig, Observation, PanelNormalMode, RateBand,
@@ -234,13 +234,15 @@ fn the_grid_stopping_early_keeps_the_full_costs_candidates() {
     for p_true in [[0.0, 0.25, 0.0], [0.0, 0.0, 0.25], [0.05, 0.2, -0.1]] {
         let problem = problem_for(p_true);
         for cfg in configs() {
+            let want = brute_force_candidates(&problem, &cfg);
             let (candidates, evaluated) = grid_candidates(&problem, &cfg.start);
             assert_eq!(evaluated, 729);
-            assert_eq!(
-                candidates,
-                brute_force_candidates(&problem, &cfg),
-                "p* {p_true:?}"
-            );
+            assert_eq!(candidates, want, "p* {p_true:?}");
+            // Visiting the points nearest a rate first changes nothing but the work done.
+            for near in [p_true, [0.5, -0.5, 0.5]] {
+                let (candidates, _) = grid_candidates_near(&problem, &cfg.start, Some(near));
+                assert_eq!(candidates, want, "p* {p_true:?}, near {near:?}");
+            }
         }
     }
 }
