@@ -260,9 +260,10 @@ pub fn grid_candidates_near(
     // evaluation stops there (the candidates and their order are those of the full costs).
     let mut best: Vec<f64> = Vec::with_capacity(start.screen_starts + 1);
     for i in visit {
-        let bound = match best.len() < start.screen_starts {
-            true => f64::INFINITY,
-            false => best.last().copied().unwrap_or(f64::INFINITY),
+        let bound = if best.len() < start.screen_starts {
+            f64::INFINITY
+        } else {
+            best.last().copied().unwrap_or(f64::INFINITY)
         };
         let c = problem.cost_strided_within(scored[i].1, stride, bound);
         let c = if c.is_finite() { c } else { f64::INFINITY };
