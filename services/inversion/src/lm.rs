@@ -235,8 +235,10 @@ pub fn levenberg_marquardt_prior(
             let p_new = [p[0] + delta[0], p[1] + delta[1], p[2] + delta[2]];
             // Value and Jacobian cost the same (the lobes dominate), so trials carry J along.
             // A non-finite trial cost compares false and counts as a rejection.
-            let cost_new = problem.residuals_and_jacobian(p_new, &mut r_try, &mut jac_try)
-                + prior.cost(&p_new);
+            // A trial stops once its partial cost passes ε(p): rejected either way.
+            let cost_new =
+                problem.residuals_and_jacobian_within(p_new, &mut r_try, &mut jac_try, cost)
+                    + prior.cost(&p_new);
             if cost_new < cost {
                 let rel = (cost - cost_new) / cost;
                 let small_step = norm(&delta) < config.step_tol * (1.0 + norm(&p));

@@ -459,7 +459,22 @@ impl RateProblem {
 
     /// Residuals and the Jacobian `J = w ∂m/∂p` (rows T·B, 3 columns); returns Σ r².
     pub fn residuals_and_jacobian(&self, p: [f64; 3], r: &mut [f64], jac: &mut [[f64; 3]]) -> f64 {
+        self.residuals_and_jacobian_within(p, r, jac, f64::INFINITY)
+    }
+
+    /// [`Self::residuals_and_jacobian`], stopped once the partial Σ r² exceeds `bound`: the
+    /// value returned is then only known to exceed `bound`, and `r`, `jac` are incomplete.
+    /// Otherwise the full cost, to the bit (the sum runs in the same order). Stops only when
+    /// the diffuse terms are not re-fitted (their projection needs every frame).
+    pub fn residuals_and_jacobian_within(
+        &self,
+        p: [f64; 3],
+        r: &mut [f64],
+        jac: &mut [[f64; 3]],
+        bound: f64,
+    ) -> f64 {
         let nb = self.bands.len();
+        let mut cost = 0.0;
         let mut g = [[0.0; TERMS]; 2];
         let mut slopes = [FacetSlopes::default(); 2];
         let mut rows = self.nuisance_rows();
@@ -480,7 +495,9 @@ impl RateProblem {
                 }
                 let (w, k) = (band.w[t], frame.inv_range2);
                 let wk = w * k;
-                r[t * nb + b] = w * (band.y[t] - k * m);
+                let res = w * (band.y[t] - k * m);
+                cost += res * res;
+                r[t * nb + b] = res;
                 jac[t * nb + b] = [wk * dm[0], wk * dm[1], wk * dm[2]];
                 if let Some(rows) = rows.get_mut(b) {
                     rows[t] = Row {
@@ -495,6 +512,12 @@ impl RateProblem {
                     };
                 }
             }
+            if cost > bound && !self.refit_diffuse {
+                return cost;
+            }
+        }
+        if !self.refit_diffuse {
+            return cost;
         }
         self.project(&rows, r, Some(jac));
         r.iter().map(|v| v * v).sum()

@@ -264,6 +264,54 @@ fn a_cost_within_its_bound_is_the_full_cost_and_one_beyond_stops_above_it() {
     }
 }
 
+/// LM's trials stop once their cost passes the current one; a trial that does not stop must be
+/// the full evaluation, bit for bit, and the re-fitting model (which projects at the end) never
+/// stops.
+#[test]
+fn residuals_within_their_bound_are_the_full_evaluation() {
+    let plain = problem_for([0.0, 0.25, 0.0]);
+    let obs = window(
+        [0.0, 0.25, 0.0],
+        AttitudeModel::Verbatim,
+        PanelNormalMode::Literal,
+    );
+    let refit = RateProblem::new(
+        &obs,
+        &[table4_band()],
+        &MotionModelConfig {
+            refit_diffuse: true,
+            ..MotionModelConfig::default()
+        },
+    )
+    .expect("problem");
+    for problem in [&plain, &refit] {
+        let n = problem.residual_count();
+        for p in [[0.0, 0.25, 0.0], [0.1, -0.3, 0.2], [0.5, 0.5, 0.5]] {
+            let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
+            let full = problem.residuals_and_jacobian(p, &mut r, &mut jac);
+            let sum_sq: f64 = r.iter().map(|v| v * v).sum();
+            assert_eq!(full.to_bits(), sum_sq.to_bits());
+            let (mut r2, mut jac2) = (vec![0.0; n], vec![[0.0; 3]; n]);
+            let within = problem.residuals_and_jacobian_within(p, &mut r2, &mut jac2, full);
+            assert_eq!(within.to_bits(), full.to_bits());
+            assert!(r2.iter().zip(&r).all(|(a, b)| a.to_bits() == b.to_bits()));
+            assert!(jac2.iter().zip(&jac).all(|(a, b)| a == b));
+            if full > 0.0 {
+                let stopped =
+                    problem.residuals_and_jacobian_within(p, &mut r2, &mut jac2, 0.5 * full);
+                if problem.refits_diffuse() {
+                    assert_eq!(stopped.to_bits(), full.to_bits());
+                } else {
+                    assert!(
+                        stopped > 0.5 * full && stopped <= full,
+                        "{stopped} of {full}"
+                    );
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn multistart_recovers_off_axis_rates() {
     for p_true in [
