@@ -81,8 +81,8 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
     s.push_str(
         "\n## Efficiency and honesty (scatter about the noise-free solution)\n\n\
          p₀, the noise-free solution, is the estimator's answer on the noise-free run's observations carrying the noisy runs' σ: σ sets the bands' weights, the stage-1 basis test and the joint fit's reweighting, so the reference deployment's own answer, solved without σ, is another estimator's (the *noise-free p₀* column above is p₀ at λ*; with σ, stage 1 also takes the spectral-pooling decision the noisy runs take on average). The CRB is the scenario's: the stage-1 coefficients are unknown and informed by both windows when both are noisy; the next column is the bound if they were known. The *two-stage* column is the variance of an efficient estimator that takes the coefficients from the stable window alone and plugs them in, as glint does: F⁺ + F⁺CF⁺, F = JᵀWJ and C the stage-1 coefficients' covariance propagated. The CRB lets the motion window inform the coefficients too; an estimator that does so takes the motion window's model mismatch into them (docs/adr/0012). The CRB sees only the light curve's slope at p₀. The Hammersley–Chapman–Robbins bound sup_h (v·h)²/(exp Δ(h) − 1) (Δ = the noise-free χ² between p₀ + h and p₀, with the stage-1 coefficients moved as the stable window allows, as in the CRB) sees the whole light curve: where it is far above the CRB, a rate h away fits nearly as well and no unbiased estimator reaches the CRB. When a rate fits within one noise variance (Δ < 1, the coefficients fixed) it is a *copy* of p₀: a Y rotation is nearly its own mirror (−w_x, w_y, −w_z), and the Sun's fraction of a degree off the body XZ plane moves the mirror a few 10⁻³ deg/frame off p₀. The data cannot tell p₀ from its copy at any SNR a campaign runs; runs nearer the copy are counted in its column and their deviation is taken from the copy. The joint fit tests stage 1's widest lobes in every run and re-fits them only when the data ask (`stage3.refit_widest_lobe = \"when-needed\"`): it has a noise-free solution per model, keeping the lobes and re-fitting them. Each run is measured from that of the model it reported (*joint, lobe re-fitted in k*: k runs re-fitted it), and the table's bound is that of the model most runs reported.\n\n\
-         RMS = sqrt(mean ‖(p̂ − p₀ or its copy) projected on the observable CRB directions‖²) over the runs with p₀'s sense of rotation (those nearer the mirror of a rate that has a sense, |mirror(p₀) − p₀| ≥ |p₀|, are counted apart, with how many of them reported the sense as not determined: their answer named the mirror as fitting as well); efficiency = RMS / CRB (1 is efficient). *HCR / CRB* above 1.25 means the target RMS ≤ 1.25 × CRB is out of reach of every unbiased estimator (the light curve is not linear over the scatter the noise allows); *RMS / HCR* is then the efficiency against the bound that applies. NEES uses each run's reported covariance over its observable directions, about the same centre; its 95 % interval is for the mean over the runs.\n\n\
-         | value | fit | runs determined | other sense | on p₀'s copy (Δ) | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | two-stage 1σ | HCR 1σ | HCR / CRB | RMS [deg/frame] | efficiency (RMS / CRB) | RMS / two-stage | RMS / HCR | NEES mean (dof) | NEES 95 % |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         RMS = sqrt(mean ‖(p̂ − p₀ or its copy) projected on the observable CRB directions‖²) over the runs with p₀'s sense of rotation (those nearer the mirror of a rate that has a sense, |mirror(p₀) − p₀| ≥ |p₀|, are counted apart, with how many of them reported the sense as not determined: their answer named the mirror as fitting as well); efficiency = RMS / CRB (1 is efficient). *HCR / CRB* above 1.25 means the target RMS ≤ 1.25 × CRB is out of reach of every unbiased estimator (the light curve is not linear over the scatter the noise allows); *RMS / HCR* is then the efficiency against the bound that applies. NEES uses each run's reported covariance over its observable directions, about the same centre; its 95 % interval is for the mean over the runs. *NEES, speed and axis* measures the same deviation as a rate's speed and the arc between the two axes instead of a straight line (equal to first order): where a run's axis wanders along a direction its fit holds under the prior (about Y, w_z by a few 10⁻³ deg/frame), the straight line puts |p₀|(1 − cos angle) of that wander on the determined speed (docs/adr/0025). The target is the straight-line NEES; this column tells the curvature from a covariance that is too small.\n\n\
+         | value | fit | runs determined | other sense | on p₀'s copy (Δ) | observable dirs | CRB 1σ [deg/frame] | CRB 1σ, coefficients known | two-stage 1σ | HCR 1σ | HCR / CRB | RMS [deg/frame] | efficiency (RMS / CRB) | RMS / two-stage | RMS / HCR | NEES mean (dof) | NEES 95 % | NEES, speed and axis |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         for (label, key) in [("λ*", "single"), ("joint", "joint")] {
@@ -94,7 +94,7 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
             };
             let _ = writeln!(
                 s,
-                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {}–{} |",
+                "| {} | {label} | {}/{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {}–{} | {} |",
                 r["value"].as_str().unwrap_or("?"),
                 e["determined"],
                 r["monte_carlo"]["runs"],
@@ -114,6 +114,7 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
                 fmt(&e["nees_dof_mean"], 1),
                 fmt(&e["nees_bounds_95"][0], 2),
                 fmt(&e["nees_bounds_95"][1], 2),
+                fmt(&e["nees_mean_curvilinear"], 2),
             );
         }
     }
@@ -123,8 +124,8 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
     s
 }
 
-/// `campaign-nees.svg` and `campaign-efficiency.svg`: each fit's NEES mean beside the joint
-/// fit's 95 % interval, and its RMS / CRB beside the 1.25 target and its HCR / CRB (markers:
+/// `campaign-nees.svg` and `campaign-efficiency.svg`: each fit's NEES mean (markers: measured in
+/// speed and axis) beside the joint fit's 95 % interval, and its RMS / CRB beside the 1.25 target and its HCR / CRB (markers:
 /// above the target, no unbiased estimator reaches it), against the parameter, on
 /// log10 axes (the values span 0.1 to 10⁴). Nothing is drawn for a non-numeric parameter.
 pub fn plot_honesty(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
@@ -158,6 +159,23 @@ pub fn plot_honesty(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
         &[
             line("λ*", series("single", "nees_mean", None), BLUE),
             line("joint", series("joint", "nees_mean", None), GREEN),
+            // The diagnostic measure in speed and axis (docs/adr/0025), as markers.
+            Series {
+                markers: true,
+                ..line(
+                    "λ*, speed and axis",
+                    series("single", "nees_mean_curvilinear", None),
+                    BLUE,
+                )
+            },
+            Series {
+                markers: true,
+                ..line(
+                    "joint, speed and axis",
+                    series("joint", "nees_mean_curvilinear", None),
+                    GREEN,
+                )
+            },
             line(
                 "joint's 95 % interval, low",
                 series("joint", "nees_bounds_95", Some(0)),

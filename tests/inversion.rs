@@ -385,6 +385,9 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
         assert!(e["efficiency"].as_f64().unwrap().is_finite(), "{e}");
         let [lo, hi] = [0, 1].map(|i| e["nees_bounds_95"][i].as_f64().unwrap());
         assert!(lo > 0.0 && hi > lo, "{e}");
+        // The diagnostic NEES in speed and axis is scored from the same runs.
+        let curvilinear = e["nees_mean_curvilinear"].as_f64().unwrap();
+        assert!(curvilinear.is_finite() && curvilinear > 0.0, "{e}");
         // The Hammersley–Chapman–Robbins bound tends to the CRB at small offsets (profiled over
         // the determined directions: within a few per cent of the bound with coefficients known).
         let [crb, hcr] = [

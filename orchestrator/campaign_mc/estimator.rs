@@ -16,6 +16,8 @@ pub(super) struct Estimator {
     dev2_along: Vec<[f64; 3]>,
     /// (NEES, dof) per run with a reported covariance.
     nees: Vec<(f64, usize)>,
+    /// The same with the deviation measured in speed and axis ([`curvilinear_deviation`]).
+    nees_curvilinear: Vec<(f64, usize)>,
     /// Runs without a determined rate.
     undetermined: usize,
     /// Runs nearer the mirror of p₀ than p₀ (the other sense of rotation): a global ambiguity,
@@ -42,6 +44,7 @@ impl Estimator {
             dev2_observable: vec![],
             dev2_along: vec![],
             nees: vec![],
+            nees_curvilinear: vec![],
             undetermined: 0,
             other_sense: 0,
             other_sense_flagged: 0,
@@ -94,6 +97,9 @@ impl Estimator {
                 if let Some(n) = nees(&cov, &d) {
                     out.nees.push(n);
                 }
+                if let Some(n) = nees(&cov, &curvilinear_deviation(p, centre)) {
+                    out.nees_curvilinear.push(n);
+                }
             }
         }
         out
@@ -128,6 +134,10 @@ impl Estimator {
         let mean_nees = (!self.nees.is_empty())
             .then(|| self.nees.iter().map(|(e, _)| e).sum::<f64>() / self.nees.len() as f64);
         let [lo, hi] = chi2_mean_bounds(total_dof, self.nees.len());
+        let mean_nees_curvilinear = (!self.nees_curvilinear.is_empty()).then(|| {
+            self.nees_curvilinear.iter().map(|(e, _)| e).sum::<f64>()
+                / self.nees_curvilinear.len() as f64
+        });
         json!({
             "p0_deg_per_frame": self.bound.p0,
             "determined": n + self.other_sense,
@@ -154,8 +164,38 @@ impl Estimator {
             "nees_mean": mean_nees,
             "nees_dof_mean": (!self.nees.is_empty()).then(|| total_dof as f64 / self.nees.len() as f64),
             "nees_bounds_95": [finite(lo), finite(hi)],
+            "nees_mean_curvilinear": mean_nees_curvilinear,
         })
     }
+}
+
+/// p̂ − c measured in speed and axis instead of along a straight line: the speed difference
+/// along p̂'s axis, plus the arc from p̂'s axis to c's, of length |p̂|·angle, in the plane of the
+/// two axes. It equals p̂ − c to first order; where a run's axis wanders along a direction the
+/// data hold under their prior (about Y, w_z), the straight line cuts the sphere of p̂'s speed
+/// and puts |c|(1 − cos angle) of the held direction's wander on the determined speed.
+pub(super) fn curvilinear_deviation(p: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+    let straight = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+    let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let (n, n0) = (norm(p), norm(c));
+    if !(n > 0.0 && n0 > 0.0) {
+        return straight;
+    }
+    let (u, u0) = (p.map(|x| x / n), c.map(|x| x / n0));
+    let cos = (0..3).map(|i| u[i] * u0[i]).sum::<f64>().clamp(-1.0, 1.0);
+    // Toward c's axis, in the tangent plane at p̂'s.
+    let t = [0, 1, 2].map(|i| u0[i] - cos * u[i]);
+    let sin = norm(t);
+    if sin == 0.0 {
+        // The same axis (radial only), or opposite ones (no single arc): the straight line.
+        return if cos > 0.0 {
+            u.map(|x| (n - n0) * x)
+        } else {
+            straight
+        };
+    }
+    let arc = n * cos.acos();
+    [0, 1, 2].map(|i| (n - n0) * u[i] - arc * t[i] / sin)
 }
 
 /// NEES of deviation d under a reported covariance, over its observable eigen-directions.
