@@ -322,10 +322,41 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
             );
         }
         if r.status == SolveStatus::Ok as u32 {
+            s.push_str(&speed_sentence(r));
             s.push_str(&held_sentences(r));
         }
     }
     s
+}
+
+/// A determined direction this close to the rate's own axis is its speed \[cos 1°\].
+const SPEED_DIRECTION_MIN_COS: f64 = 0.999_85;
+
+/// When a determined eigen-direction is the rate's own axis (within 1°), what the light curve
+/// fixes is the spin rate |p|, the angle the body turns through per frame (docs/adr/0025):
+/// named, with its 1σ, so that a reader does not take it for a rate about a body axis.
+fn speed_sentence(r: &SolveResponse) -> String {
+    let p = r.p_deg_per_frame;
+    let speed = p.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if !(speed > 0.0 && speed.is_finite()) {
+        return String::new();
+    }
+    (0..3)
+        .filter(|&i| r.observable_mask & (1 << i) != 0)
+        .find(|&i| {
+            let cos: f64 = (0..3)
+                .map(|k| r.fisher_eigenvectors[3 * k + i] * p[k] / speed)
+                .sum();
+            cos.abs() >= SPEED_DIRECTION_MIN_COS
+        })
+        .map_or_else(String::new, |i| {
+            format!(
+                "\nDirection {} is the rate's own axis: the light curve fixes the spin rate |p| = {:.5} ± {:.1e} deg/frame (1σ), the angle the body turns through per frame.\n",
+                i + 1,
+                speed,
+                r.bound_1sigma_deg_per_frame[i]
+            )
+        })
 }
 
 /// The rates `SolveResponse::stage3_held_axes` says the prior held at zero.
@@ -501,6 +532,29 @@ mod tests {
             r.fisher_eigenvectors[3 * axis + i] = 1.0;
         }
         r
+    }
+
+    #[test]
+    fn a_determined_direction_along_the_rate_is_named_its_speed() {
+        // Y determined (direction 3) and the rate along Y, 0.5° off: the spin rate.
+        let mut r = weak_response(1, 1);
+        let tilt = 0.5f64.to_radians();
+        r.p_deg_per_frame = [0.0, 0.25 * tilt.cos(), 0.25 * tilt.sin()];
+        r.bound_1sigma_deg_per_frame = [0.5, 0.5, 3e-5];
+        let text = speed_sentence(&r);
+        assert!(
+            text.contains("Direction 3 is the rate's own axis")
+                && text.contains("|p| = 0.25000 ± 3.0e-5"),
+            "{text}"
+        );
+        // 2° off, or along an undetermined direction: not the speed.
+        let tilt = 2f64.to_radians();
+        r.p_deg_per_frame = [0.0, 0.25 * tilt.cos(), 0.25 * tilt.sin()];
+        assert!(speed_sentence(&r).is_empty());
+        r.p_deg_per_frame = [0.0, 0.0, 0.25];
+        assert!(speed_sentence(&r).is_empty());
+        r.p_deg_per_frame = [0.0; 3];
+        assert!(speed_sentence(&r).is_empty());
     }
 
     #[test]
