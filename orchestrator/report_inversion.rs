@@ -337,19 +337,13 @@ const SPEED_DIRECTION_MIN_COS: f64 = 0.999_85;
 /// named, with its 1σ, so that a reader does not take it for a rate about a body axis.
 fn speed_sentence(r: &SolveResponse) -> String {
     let p = r.p_deg_per_frame;
-    let speed = p.iter().map(|v| v * v).sum::<f64>().sqrt();
-    if !(speed > 0.0 && speed.is_finite()) {
-        return String::new();
-    }
     (0..3)
         .filter(|&i| r.observable_mask & (1 << i) != 0)
-        .find(|&i| {
-            let cos: f64 = (0..3)
-                .map(|k| r.fisher_eigenvectors[3 * k + i] * p[k] / speed)
-                .sum();
-            cos.abs() >= SPEED_DIRECTION_MIN_COS
+        .find_map(|i| {
+            let v = [0, 1, 2].map(|k| r.fisher_eigenvectors[3 * k + i]);
+            speed_if_own_axis(&v, p).map(|speed| (i, speed))
         })
-        .map_or_else(String::new, |i| {
+        .map_or_else(String::new, |(i, speed)| {
             format!(
                 "\nDirection {} is the rate's own axis: the light curve fixes the spin rate |p| = {:.5} ± {:.1e} deg/frame (1σ), the angle the body turns through per frame.\n",
                 i + 1,
@@ -357,6 +351,16 @@ fn speed_sentence(r: &SolveResponse) -> String {
                 r.bound_1sigma_deg_per_frame[i]
             )
         })
+}
+
+/// |p| \[deg/frame\] when the unit direction `v` is p's own axis (within 1°), else `None`.
+pub(crate) fn speed_if_own_axis(v: &[f64; 3], p: [f64; 3]) -> Option<f64> {
+    let speed = p.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if !(speed > 0.0 && speed.is_finite()) {
+        return None;
+    }
+    let cos: f64 = (0..3).map(|k| v[k] * p[k] / speed).sum();
+    (cos.abs() >= SPEED_DIRECTION_MIN_COS).then_some(speed)
 }
 
 /// The rates `SolveResponse::stage3_held_axes` says the prior held at zero.

@@ -230,7 +230,12 @@ pub fn invert(
                     text += ")";
                 }
                 text += "\n";
-                text += &bounds_line(label, &fit.observability, &fit.held_directions);
+                text += &bounds_line(
+                    label,
+                    &fit.observability,
+                    &fit.held_directions,
+                    fit.rate_deg_per_frame,
+                );
                 text += &neighbour_line(label, fit);
             }
             None => {
@@ -383,6 +388,7 @@ fn bounds_line(
     label: &str,
     obs: &glint_inversion::observability::Observability,
     held: &[[f64; 3]],
+    p: [f64; 3],
 ) -> String {
     let fmt_v = |v: &[f64; 3]| format!("[{:.3}, {:.3}, {:.3}]", v[0], v[1], v[2]);
     let parts: Vec<String> = (0..3)
@@ -391,7 +397,9 @@ fn bounds_line(
             let v = &obs.eigenvectors[k];
             let sigma = obs.bounds_1sigma_deg_per_frame[k];
             if !obs.unobservable[k] {
-                return format!("{sigma:.2e} along {}", fmt_v(v));
+                let speed = crate::report_inversion::speed_if_own_axis(v, p)
+                    .map_or_else(String::new, |s| format!(" (the spin rate |p| = {s:.5})"));
+                return format!("{sigma:.2e} along {}{speed}", fmt_v(v));
             }
             // Held: the prior's direction is v itself or the body axis nearest v.
             let axis = glint_inversion::stage3::nearest_body_axis(v);
@@ -482,9 +490,11 @@ mod tests {
             condition_number: 1e9,
             rms_sensitivity_per_deg_per_frame: 1.0,
         };
-        let line = bounds_line("stage 3", &obs, &[[1.0, 0.0, 0.0]]);
+        let line = bounds_line("stage 3", &obs, &[[1.0, 0.0, 0.0]], [0.0, 0.25, -0.002]);
         assert!(
-            line.starts_with("stage 3: 1σ [deg/frame]: 1.46e-4 along [0.000, 1.000, -0.008]"),
+            line.starts_with(
+                "stage 3: 1σ [deg/frame]: 1.46e-4 along [0.000, 1.000, -0.008] (the spin rate |p| = 0.25001)"
+            ),
             "{line}"
         );
         assert!(
@@ -496,7 +506,14 @@ mod tests {
             "{line}"
         );
         // Both held: nothing is left where the fit ended.
-        let both = bounds_line("joint", &obs, &[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]);
+        let both = bounds_line(
+            "joint",
+            &obs,
+            &[[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+            [0.0, 0.0, 0.25],
+        );
+        // A rate off the determined direction's axis: no spin rate named.
+        assert!(!both.contains("spin rate"), "{both}");
         assert!(!both.contains("not determined"), "{both}");
         assert!(both.contains("(w_z = 0)"), "{both}");
     }
