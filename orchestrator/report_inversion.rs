@@ -355,7 +355,7 @@ fn speed_sentence(r: &SolveResponse) -> String {
 
 /// |p| \[deg/frame\] when the unit direction `v` is p's own axis (within 1°), else `None`.
 pub(crate) fn speed_if_own_axis(v: &[f64; 3], p: [f64; 3]) -> Option<f64> {
-    let speed = p.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let speed = glint_inversion::stage3::distance(p, [0.0; 3]);
     if !(speed > 0.0 && speed.is_finite()) {
         return None;
     }

@@ -176,7 +176,7 @@ impl Estimator {
 /// and puts |c|(1 − cos angle) of the held direction's wander on the determined speed.
 pub(super) fn curvilinear_deviation(p: [f64; 3], c: [f64; 3]) -> [f64; 3] {
     let straight = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
-    let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let norm = |v: [f64; 3]| distance(v, [0.0; 3]);
     let (n, n0) = (norm(p), norm(c));
     if !(n > 0.0 && n0 > 0.0) {
         return straight;
