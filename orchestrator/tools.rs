@@ -118,6 +118,17 @@ pub fn invert(
             );
         }
     }
+    if let Some(scale) = result
+        .rate
+        .fit()
+        .and_then(|f| f.interval_variance_scale)
+        .filter(|s| *s > 1.0)
+    {
+        text += &format!(
+            "stage 3: the curvature changes across the rate's ±{}σ interval: its covariance is averaged over it (largest variance ×{scale:.1})\n",
+            glint_inversion::stage3::INTERVAL_SIGMAS
+        );
+    }
     if let Some(scale) = result.rate_covariance_scale.filter(|s| *s > 1.0) {
         text += &format!(
             "stage 3: the rate's covariance is widened ×{scale:.1} to cover its distance from the joint fit ({:.1}σ)\n",

@@ -223,6 +223,9 @@ pub fn fit_band(
         setup = setup.with_speed_floor(joint_speed);
         (rate, problem, sense_from_joint) = search_and_polish_band(&setup, config, joint)?;
     }
+    if let (RateSolution::Determined(fit), true) = (&mut rate, config.average_over_interval) {
+        fit.average_over_interval(&problem, &config.observability);
+    }
     rate.attach_profile_if_asked(&problem, config);
     rate.attach_neighbours_if_asked(&problem, config)?;
     let mut out = BandFit {

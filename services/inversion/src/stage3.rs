@@ -38,6 +38,7 @@ mod bisector;
 mod config;
 #[cfg(test)]
 pub(crate) mod fixtures;
+mod interval;
 mod neighbours;
 mod reported;
 mod weak;
@@ -46,6 +47,7 @@ pub use config::{
     LobeRefit, Stage3Config, StartConfig, DEFAULT_JOINT_GATE_SIGMA, DEFAULT_LOBE_TEST_CONFIDENCE,
     DEFAULT_MAX_ROTATION_DEG,
 };
+pub use interval::{interval_variance, INTERVAL_SIGMAS};
 pub use neighbours::{fit_from_neighbourhood, Neighbour};
 pub(crate) use weak::MIRROR_MAX_DELTA_CHI2;
 pub use weak::{
@@ -114,6 +116,11 @@ pub struct RateFit {
     /// ([`RateFit::attach_neighbours`]); empty when not looked for or none found.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub neighbours: Vec<Neighbour>,
+    /// The largest factor a variance grew by when the covariance was averaged over the fit's
+    /// interval ([`RateFit::average_over_interval`], [`Stage3Config::average_over_interval`]);
+    /// `None` when it was not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval_variance_scale: Option<f64>,
 }
 
 /// The terms a fit re-estimated per band from the motion window, with the body axis it held.
@@ -451,6 +458,7 @@ fn polish(
         }),
         profiled_bounds_deg_per_frame: None,
         neighbours: vec![],
+        interval_variance_scale: None,
     }))
 }
 

@@ -110,6 +110,11 @@ pub struct Stage3Config {
     /// ([`RateFit::report_lobe_alternative`](super::RateFit::report_lobe_alternative); default
     /// `true`, docs/adr/0023). `false`: the reported model's covariance alone.
     pub cover_lobe_alternative: bool,
+    /// A band's fit (λ*, or the band that replaced it) reports along each determined
+    /// direction the mean of its local variances at p̂ and at p̂ ± 2σ, when that is the larger
+    /// ([`RateFit::average_over_interval`](super::RateFit::average_over_interval); default
+    /// `true`, docs/adr/0027). `false`: the local covariance at p̂.
+    pub average_over_interval: bool,
 }
 
 impl Default for Stage3Config {
@@ -130,6 +135,7 @@ impl Default for Stage3Config {
             polish_reach_frames: DEFAULT_POLISH_REACH_FRAMES,
             cover_neighbours: true,
             cover_lobe_alternative: true,
+            average_over_interval: true,
         }
     }
 }

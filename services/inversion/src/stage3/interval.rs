@@ -1,0 +1,124 @@
+//! A band fit's covariance averaged over its own interval (docs/adr/0027).
+//!
+//! The local covariance of a fit is the inverse of the light curve's curvature at p̂. That is
+//! the estimator's scatter only where the curvature holds over the region the estimate could
+//! have landed in. About Z it does not everywhere: near w_y = 0 a band's information has a
+//! ridge, 10–100 × the information a little way off it, and a run that stage 1's noise moves
+//! onto the ridge reports the ridge's curvature while its scatter is the region's
+//! (docs/adr/0026). Along each determined eigen-direction v of the fit's covariance, the
+//! variance reported is therefore the mean of the local variances along v at p̂ and at
+//! p̂ ± [`INTERVAL_SIGMAS`]·σ·v, when that mean is the larger. Where the curvature is the same
+//! across the interval (a model linear in p) nothing changes.
+
+use super::RateFit;
+use crate::model::RateProblem;
+use crate::observability::{analyse, CovarianceSource, ObservabilityConfig};
+use nalgebra::{Matrix3, Vector3};
+
+/// Half-width of the interval the variance is averaged over, in the fit's own σ (about 95 %).
+pub const INTERVAL_SIGMAS: f64 = 2.0;
+
+/// The variance reported along a direction: the mean of the local variances at the centre and
+/// at the interval's ends that could be evaluated (`ends`, finite ones only), or the centre's
+/// when it is the larger.
+pub fn interval_variance(centre: f64, ends: &[f64]) -> f64 {
+    let usable: Vec<f64> = ends.iter().copied().filter(|v| v.is_finite()).collect();
+    let mean = (centre + usable.iter().sum::<f64>()) / (1 + usable.len()) as f64;
+    mean.max(centre)
+}
+
+impl RateFit {
+    /// Averages the covariance over the fit's interval on `problem`, the problem it was made
+    /// on (module docs). Directions the fit does not determine are left alone, and the
+    /// observability stays the local Fisher analysis at p̂. Returns the largest factor a
+    /// variance grew by (1 when none did) and records it on the fit.
+    pub fn average_over_interval(
+        &mut self,
+        problem: &RateProblem,
+        config: &ObservabilityConfig,
+    ) -> f64 {
+        let bound = config.unobservable_bound_deg_per_frame;
+        let covariance = Matrix3::from(self.covariance_deg2_per_frame2);
+        let eigen = covariance.symmetric_eigen();
+        let p = Vector3::from(self.rate_deg_per_frame);
+        let own_scale = variance_scale(&self.covariance_source);
+        let mut out = covariance;
+        let mut largest = 1.0f64;
+        for k in 0..3 {
+            let (var, v) = (
+                eigen.eigenvalues[k],
+                eigen.eigenvectors.column(k).into_owned(),
+            );
+            if !(var > 0.0 && var.sqrt() <= bound) {
+                continue;
+            }
+            let step = INTERVAL_SIGMAS * var.sqrt();
+            let ends = [-1.0, 1.0].map(|sign| {
+                determined_variance_at(problem, (p + sign * step * v).into(), &v, config)
+                    .map_or(f64::NAN, |w| w * own_scale)
+            });
+            let want = interval_variance(
+                var,
+                &ends.map(|w| if w.sqrt() <= bound { w } else { f64::NAN }),
+            );
+            if want > var {
+                out += (want - var) * v * v.transpose();
+                largest = largest.max(want / var);
+            }
+        }
+        self.covariance_deg2_per_frame2 = out.into();
+        self.interval_variance_scale = Some(largest);
+        largest
+    }
+}
+
+/// The variance along `v` at `q` from the band's information there, over the directions it
+/// determines at `q` (the pseudo-inverse: an undetermined direction's huge variance must not
+/// leak into `v` through a slightly turned eigenvector), at unit noise scale: q is off the
+/// minimum, and its residuals' excess is the offset's, not noise.
+fn determined_variance_at(
+    problem: &RateProblem,
+    q: [f64; 3],
+    v: &Vector3<f64>,
+    config: &ObservabilityConfig,
+) -> Option<f64> {
+    let analysis = analyse(problem, q, config).ok()?;
+    let obs = &analysis.observability;
+    let bound = config.unobservable_bound_deg_per_frame;
+    let mut variance = 0.0;
+    for i in 0..3 {
+        let information = obs.information_eigenvalues[i];
+        if information > 0.0 && information.sqrt().recip() <= bound {
+            let u = Vector3::from(obs.eigenvectors[i]);
+            variance += u.dot(v).powi(2) / information;
+        }
+    }
+    Some(variance / variance_scale(&analysis.source))
+}
+
+/// The factor a covariance source scaled the noise variance by (1 unless the residuals
+/// rejected the model).
+fn variance_scale(source: &CovarianceSource) -> f64 {
+    match source {
+        CovarianceSource::GivenSigmaScaled { variance_scale, .. } => *variance_scale,
+        _ => 1.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_mean_over_the_interval_widens_only() {
+        // The curvature holds across the interval: nothing changes.
+        assert_eq!(interval_variance(4.0, &[4.0, 4.0]), 4.0);
+        // On a ridge: the ends see 9 and 25 times the centre's variance.
+        assert_eq!(interval_variance(1.0, &[9.0, 25.0]), 35.0 / 3.0);
+        // Sharper at the ends than at the centre: the centre's variance stands.
+        assert_eq!(interval_variance(4.0, &[1.0, 2.0]), 4.0);
+        // An end that could not be evaluated is left out of the mean.
+        assert_eq!(interval_variance(1.0, &[f64::NAN, 7.0]), 4.0);
+        assert_eq!(interval_variance(1.0, &[f64::NAN, f64::INFINITY]), 1.0);
+    }
+}
