@@ -59,8 +59,15 @@ pub fn fit_rates(
     let mut rate = unless_unconfirmed(fit.rate, joint_fit, |kept| {
         confirmed_by_joint(motion, stage1, model, config, kept)
     })?;
-    // The kept rate's covariance covers its distance from the joint fit (measured before the
+    // Every decision on the band is taken: its covariance is the one averaged over its
+    // interval, and that covers its distance from the joint fit (measured before the
     // widening, and reported as such).
+    if let (RateSolution::Determined(kept), Some((covariance, scale))) =
+        (&mut rate, fit.interval_average)
+    {
+        kept.covariance_deg2_per_frame2 = covariance;
+        kept.interval_variance_scale = Some(scale);
+    }
     let covariance_scale = match (&mut rate, joint_fit.and_then(RateSolution::fit)) {
         (RateSolution::Determined(kept), Some(joint)) if config.widen_to_joint => {
             Some(stage3::widen_to_joint(kept, joint, &config.observability))
@@ -183,6 +190,10 @@ pub struct BandFit {
     /// summed over the directions both determine (`stage3::disagreement_sigma`); `None`
     /// without a determined joint solution.
     pub joint_disagreement_sigma: Option<f64>,
+    /// The fit's covariance averaged over its interval, and the largest factor a variance grew
+    /// by ([`RateFit::average_over_interval`]); [`fit_rates`] reports it once every decision
+    /// is taken. `None` with [`Stage3Config::average_over_interval`] off.
+    pub interval_average: Option<([[f64; 3]; 3], f64)>,
 }
 
 /// Stage 3 at band `b` over its fit horizon. With a `joint` solution:
@@ -223,9 +234,16 @@ pub fn fit_band(
         setup = setup.with_speed_floor(joint_speed);
         (rate, problem, sense_from_joint) = search_and_polish_band(&setup, config, joint)?;
     }
-    if let (RateSolution::Determined(fit), true) = (&mut rate, config.average_over_interval) {
-        fit.average_over_interval(&problem, &config.observability);
-    }
+    // Computed on the band's own problem, reported once every decision is taken: the joint
+    // gate and the confirmation read the local covariance (docs/adr/0027).
+    let interval_average = match (&rate, config.average_over_interval) {
+        (RateSolution::Determined(fit), true) => {
+            let mut averaged = fit.clone();
+            let scale = averaged.average_over_interval(&problem, &config.observability);
+            Some((averaged.covariance_deg2_per_frame2, scale))
+        }
+        _ => None,
+    };
     rate.attach_profile_if_asked(&problem, config);
     rate.attach_neighbours_if_asked(&problem, config)?;
     let mut out = BandFit {
@@ -234,6 +252,7 @@ pub fn fit_band(
         sense_from_joint,
         rejected_by_joint: false,
         joint_disagreement_sigma: None,
+        interval_average,
     };
     let Some((_, joint_fit)) = joint else {
         return Ok(out);

@@ -1,6 +1,5 @@
 //! A band fit's covariance averaged over its own interval (docs/adr/0027): unchanged where the
-//! curvature holds across the interval, widened to the interval's mean where the covariance is
-//! sharper than the curvature around it.
+//! curvature holds across the interval, widened where it changes across it.
 
 mod common;
 
@@ -57,23 +56,25 @@ fn a_covariance_the_curvature_holds_across_is_kept() {
 }
 
 #[test]
-fn a_covariance_sharper_than_the_curvature_around_it_is_widened_to_the_mean() {
+fn an_interval_over_which_the_curvature_changes_widens_the_covariance() {
     let (mut fit, problem) = fit_and_problem();
-    let local = fit.covariance_deg2_per_frame2;
-    // A hundred times too sharp: its ±2σ ends are a tenth of the local σ from p̂, where the
-    // local variance is the centre's own, so the mean is (1/100 + 1 + 1)/3 of it.
-    fit.covariance_deg2_per_frame2 = local.map(|row| row.map(|x| x / 100.0));
+    // Stated 100 × wider (σ ≈ 0.003–0.03 deg/frame), its ±2σ ends reach where the light curve
+    // turns differently with p: the mean variance there exceeds the centre's.
+    let wide = fit
+        .covariance_deg2_per_frame2
+        .map(|row| row.map(|x| x * 1e4));
+    fit.covariance_deg2_per_frame2 = wide;
     let largest = fit.average_over_interval(&problem, &ObservabilityConfig::default());
-    let want = (0.01 + 2.0) / 3.0;
-    for (var, v) in determined(&local) {
+    assert!(largest > 1.1 && largest < 10.0, "largest ×{largest:.3}");
+    let mut grew = 0;
+    for (var, v) in determined(&wide) {
         let ratio = variance_along(&fit.covariance_deg2_per_frame2, &v) / var;
+        assert!(ratio >= 1.0 - 1e-12, "narrowed ×{ratio:.4}");
         assert!(
-            (ratio - want).abs() < 0.02 * want,
-            "{ratio:.4} against {want:.4}"
+            ratio <= largest * (1.0 + 1e-9),
+            "×{ratio:.4} beyond the recorded ×{largest:.4}"
         );
+        grew += usize::from(ratio > 1.0);
     }
-    assert!(
-        (largest - 100.0 * want).abs() < 2.0 * want,
-        "largest ×{largest:.1}"
-    );
+    assert!(grew >= 1);
 }

@@ -3,17 +3,20 @@
 //! The local covariance of a fit is the inverse of the light curve's curvature at p̂. That is
 //! the estimator's scatter only where the curvature holds over the region the estimate could
 //! have landed in. About Z it does not everywhere: near w_y = 0 a band's information has a
-//! ridge, 10–100 × the information a little way off it, and a run that stage 1's noise moves
+//! ridge, up to 70 × the median run's, and a run that stage 1's noise moves
 //! onto the ridge reports the ridge's curvature while its scatter is the region's
-//! (docs/adr/0026). Along each determined eigen-direction v of the fit's covariance, the
-//! variance reported is therefore the mean of the local variances along v at p̂ and at
-//! p̂ ± [`INTERVAL_SIGMAS`]·σ·v, when that mean is the larger. Where the curvature is the same
-//! across the interval (a model linear in p) nothing changes.
+//! (docs/adr/0026). Along each determined eigen-direction v of the fit's covariance (1σ = σ_v),
+//! the variance is therefore multiplied by the mean of the local variances along v at p̂ and at
+//! p̂ ± [`INTERVAL_SIGMAS`]·σ_v·v over the centre's, when that ratio exceeds 1. The local
+//! variances come from the band's information at each point restricted to the fit's
+//! determined directions. Where the curvature is the same across the interval (a model linear
+//! in p) nothing changes. The decisions read the local covariance: `fit_rates` reports this
+//! one once they are all taken.
 
 use super::RateFit;
 use crate::model::RateProblem;
 use crate::observability::{analyse, CovarianceSource, ObservabilityConfig};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{DMatrix, Matrix3, Vector3};
 
 /// Half-width of the interval the variance is averaged over, in the fit's own σ (about 95 %).
 pub const INTERVAL_SIGMAS: f64 = 2.0;
@@ -40,30 +43,34 @@ impl RateFit {
         let bound = config.unobservable_bound_deg_per_frame;
         let covariance = Matrix3::from(self.covariance_deg2_per_frame2);
         let eigen = covariance.symmetric_eigen();
+        let determined: Vec<(f64, Vector3<f64>)> = (0..3)
+            .map(|k| {
+                (
+                    eigen.eigenvalues[k],
+                    eigen.eigenvectors.column(k).into_owned(),
+                )
+            })
+            .filter(|(var, _)| *var > 0.0 && var.sqrt() <= bound)
+            .collect();
+        let basis: Vec<Vector3<f64>> = determined.iter().map(|(_, v)| *v).collect();
         let p = Vector3::from(self.rate_deg_per_frame);
-        let own_scale = variance_scale(&self.covariance_source);
         let mut out = covariance;
         let mut largest = 1.0f64;
-        for k in 0..3 {
-            let (var, v) = (
-                eigen.eigenvalues[k],
-                eigen.eigenvectors.column(k).into_owned(),
-            );
-            if !(var > 0.0 && var.sqrt() <= bound) {
-                continue;
-            }
+        let Some(centre) = subspace_variances_at(problem, p.into(), &basis, config) else {
+            self.interval_variance_scale = Some(largest);
+            return largest;
+        };
+        for (k, (var, v)) in determined.iter().enumerate() {
             let step = INTERVAL_SIGMAS * var.sqrt();
             let ends = [-1.0, 1.0].map(|sign| {
-                determined_variance_at(problem, (p + sign * step * v).into(), &v, config)
-                    .map_or(f64::NAN, |w| w * own_scale)
+                subspace_variances_at(problem, (p + sign * step * v).into(), &basis, config)
+                    .map_or(f64::NAN, |w| w[k])
             });
-            let want = interval_variance(
-                var,
-                &ends.map(|w| if w.sqrt() <= bound { w } else { f64::NAN }),
-            );
-            if want > var {
+            let factor = interval_variance(centre[k], &ends) / centre[k];
+            let want = var * factor;
+            if factor.is_finite() && factor > 1.0 && want.sqrt() <= bound {
                 out += (want - var) * v * v.transpose();
-                largest = largest.max(want / var);
+                largest = largest.max(factor);
             }
         }
         self.covariance_deg2_per_frame2 = out.into();
@@ -72,28 +79,37 @@ impl RateFit {
     }
 }
 
-/// The variance along `v` at `q` from the band's information there, over the directions it
-/// determines at `q` (the pseudo-inverse: an undetermined direction's huge variance must not
-/// leak into `v` through a slightly turned eigenvector), at unit noise scale: q is off the
-/// minimum, and its residuals' excess is the offset's, not noise.
-fn determined_variance_at(
+/// The variances along the orthonormal `basis` (the fit's determined directions) at `q`, from
+/// the band's information there restricted to that subspace: the directions the fit holds
+/// under its prior stay held, so their weak information does not leak into the others. At unit
+/// noise scale: q is off the minimum, and its residuals' excess is the offset's, not noise.
+fn subspace_variances_at(
     problem: &RateProblem,
     q: [f64; 3],
-    v: &Vector3<f64>,
+    basis: &[Vector3<f64>],
     config: &ObservabilityConfig,
-) -> Option<f64> {
+) -> Option<Vec<f64>> {
     let analysis = analyse(problem, q, config).ok()?;
     let obs = &analysis.observability;
-    let bound = config.unobservable_bound_deg_per_frame;
-    let mut variance = 0.0;
+    let mut information = Matrix3::zeros();
     for i in 0..3 {
-        let information = obs.information_eigenvalues[i];
-        if information > 0.0 && information.sqrt().recip() <= bound {
+        let lam = obs.information_eigenvalues[i];
+        if lam.is_finite() && lam > 0.0 {
             let u = Vector3::from(obs.eigenvectors[i]);
-            variance += u.dot(v).powi(2) / information;
+            information += lam * u * u.transpose();
         }
     }
-    Some(variance / variance_scale(&analysis.source))
+    let n = basis.len();
+    let restricted = DMatrix::from_fn(n, n, |a, b| {
+        (basis[a].transpose() * information * basis[b])[0]
+    });
+    let covariance = restricted.try_inverse()?;
+    let scale = variance_scale(&analysis.source);
+    let variances: Vec<f64> = (0..n).map(|k| covariance[(k, k)] / scale).collect();
+    variances
+        .iter()
+        .all(|v| v.is_finite() && *v > 0.0)
+        .then_some(variances)
 }
 
 /// The factor a covariance source scaled the noise variance by (1 unless the residuals
