@@ -448,7 +448,7 @@ pub fn widen_to_likelihood_intervals(problem: &RateProblem, p: [f64; 3], analysi
 
 /// The noise variance s² in the cost's units: one unit of whitened χ², or the variance the
 /// covariance was scaled by.
-fn noise_variance(source: &CovarianceSource) -> f64 {
+pub(crate) fn noise_variance(source: &CovarianceSource) -> f64 {
     match *source {
         CovarianceSource::GivenSigma => 1.0,
         CovarianceSource::GivenSigmaScaled { variance_scale, .. } => variance_scale,

@@ -15,7 +15,7 @@
 
 use super::RateFit;
 use crate::model::RateProblem;
-use crate::observability::{analyse, CovarianceSource, ObservabilityConfig};
+use crate::observability::{analyse, noise_variance, ObservabilityConfig};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 /// Half-width of the interval the variance is averaged over, in the fit's own σ (about 95 %).
@@ -82,7 +82,8 @@ impl RateFit {
 /// The variances along the orthonormal `basis` (the fit's determined directions) at `q`, from
 /// the band's information there restricted to that subspace: the directions the fit holds
 /// under its prior stay held, so their weak information does not leak into the others. At unit
-/// noise scale: q is off the minimum, and its residuals' excess is the offset's, not noise.
+/// noise variance (whatever the analysis at q took it to be): q is off the minimum, and its
+/// residuals' excess, or their correlation, is the offset's, not noise.
 fn subspace_variances_at(
     problem: &RateProblem,
     q: [f64; 3],
@@ -104,21 +105,12 @@ fn subspace_variances_at(
         (basis[a].transpose() * information * basis[b])[0]
     });
     let covariance = restricted.try_inverse()?;
-    let scale = variance_scale(&analysis.source);
+    let scale = noise_variance(&analysis.source);
     let variances: Vec<f64> = (0..n).map(|k| covariance[(k, k)] / scale).collect();
     variances
         .iter()
         .all(|v| v.is_finite() && *v > 0.0)
         .then_some(variances)
-}
-
-/// The factor a covariance source scaled the noise variance by (1 unless the residuals
-/// rejected the model).
-fn variance_scale(source: &CovarianceSource) -> f64 {
-    match source {
-        CovarianceSource::GivenSigmaScaled { variance_scale, .. } => *variance_scale,
-        _ => 1.0,
-    }
 }
 
 #[cfg(test)]
