@@ -118,16 +118,20 @@ pub fn invert(
             );
         }
     }
-    if let Some(scale) = result
-        .rate
-        .fit()
-        .and_then(|f| f.interval_variance_scale)
-        .filter(|s| *s > 1.0)
-    {
-        text += &format!(
-            "stage 3: the curvature changes across the rate's ±{}σ interval: its covariance is averaged over it (largest variance ×{scale:.1})\n",
-            glint_inversion::stage3::INTERVAL_SIGMAS
-        );
+    for (label, sol) in [
+        ("the rate", Some(&result.rate)),
+        ("the joint fit", result.joint_rate.as_ref()),
+    ] {
+        if let Some(scale) = sol
+            .and_then(|s| s.fit())
+            .and_then(|f| f.interval_variance_scale)
+            .filter(|s| *s > 1.0)
+        {
+            text += &format!(
+                "stage 3: the curvature changes across {label}'s ±{}σ interval: its covariance is averaged over it (largest variance ×{scale:.2})\n",
+                glint_inversion::stage3::INTERVAL_SIGMAS
+            );
+        }
     }
     if let Some(scale) = result.rate_covariance_scale.filter(|s| *s > 1.0) {
         text += &format!(

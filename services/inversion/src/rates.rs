@@ -61,13 +61,8 @@ pub fn fit_rates(
     })?;
     // Every decision on the band is taken: its covariance is the one averaged over its
     // interval, and that covers its distance from the joint fit (measured before the
-    // widening, and reported as such).
-    if let (RateSolution::Determined(kept), Some((covariance, scale))) =
-        (&mut rate, fit.interval_average)
-    {
-        kept.covariance_deg2_per_frame2 = covariance;
-        kept.interval_variance_scale = Some(scale);
-    }
+    // widening, and reported as such) at the joint fit's local covariance.
+    rate.report_interval_average();
     let covariance_scale = match (&mut rate, joint_fit.and_then(RateSolution::fit)) {
         (RateSolution::Determined(kept), Some(joint)) if config.widen_to_joint => {
             Some(stage3::widen_to_joint(kept, joint, &config.observability))
@@ -80,6 +75,7 @@ pub fn fit_rates(
     rate.report_profile(covariance_scale.unwrap_or(1.0));
     rate.report_neighbours();
     if let Some((joint, _)) = &mut joint_rate {
+        joint.report_interval_average();
         joint.report_profile(1.0);
         joint.report_neighbours();
         if let RateSolution::Determined(fit) = joint {
@@ -190,10 +186,6 @@ pub struct BandFit {
     /// summed over the directions both determine (`stage3::disagreement_sigma`); `None`
     /// without a determined joint solution.
     pub joint_disagreement_sigma: Option<f64>,
-    /// The fit's covariance averaged over its interval, and the largest factor a variance grew
-    /// by ([`RateFit::average_over_interval`]); [`fit_rates`] reports it once every decision
-    /// is taken. `None` with [`Stage3Config::average_over_interval`] off.
-    pub interval_average: Option<([[f64; 3]; 3], f64)>,
 }
 
 /// Stage 3 at band `b` over its fit horizon. With a `joint` solution:
@@ -236,14 +228,7 @@ pub fn fit_band(
     }
     // Computed on the band's own problem, reported once every decision is taken: the joint
     // gate and the confirmation read the local covariance (docs/adr/0027).
-    let interval_average = match (&rate, config.average_over_interval) {
-        (RateSolution::Determined(fit), true) => {
-            let mut averaged = fit.clone();
-            let scale = averaged.average_over_interval(&problem, &config.observability);
-            Some((averaged.covariance_deg2_per_frame2, scale))
-        }
-        _ => None,
-    };
+    rate.attach_interval_average_if_asked(&problem, config);
     rate.attach_profile_if_asked(&problem, config);
     rate.attach_neighbours_if_asked(&problem, config)?;
     let mut out = BandFit {
@@ -252,7 +237,6 @@ pub fn fit_band(
         sense_from_joint,
         rejected_by_joint: false,
         joint_disagreement_sigma: None,
-        interval_average,
     };
     let Some((_, joint_fit)) = joint else {
         return Ok(out);
@@ -468,6 +452,9 @@ fn reweighted_joint(
         };
     let (mut joint, problem) =
         horizon::polish_with_refit(setup, config, &searched)?.unwrap_or((searched, problem));
+    // Held until every decision is taken: the lobe test, λ*'s gate and its widening read the
+    // local covariance (docs/adr/0028).
+    joint.attach_interval_average_if_asked(&problem, config);
     joint.attach_neighbours_if_asked(&problem, config)?;
     joint.attach_profile_if_asked(&problem, config);
     Ok((joint, problem.frame_count()))

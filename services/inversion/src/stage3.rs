@@ -121,6 +121,11 @@ pub struct RateFit {
     /// `None` when it was not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub interval_variance_scale: Option<f64>,
+    /// The covariance averaged over the fit's interval and the largest factor a variance grew
+    /// by ([`RateFit::attach_interval_average`]), held until every decision is taken
+    /// ([`RateFit::report_interval_average`]); `None` once reported.
+    #[serde(skip)]
+    pub interval_average: Option<([[f64; 3]; 3], f64)>,
 }
 
 /// The terms a fit re-estimated per band from the motion window, with the body axis it held.
@@ -459,6 +464,7 @@ fn polish(
         profiled_bounds_deg_per_frame: None,
         neighbours: vec![],
         interval_variance_scale: None,
+        interval_average: None,
     }))
 }
 

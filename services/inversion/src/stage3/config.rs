@@ -110,11 +110,11 @@ pub struct Stage3Config {
     /// ([`RateFit::report_lobe_alternative`](super::RateFit::report_lobe_alternative); default
     /// `true`, docs/adr/0023). `false`: the reported model's covariance alone.
     pub cover_lobe_alternative: bool,
-    /// Once every decision is taken, a band's fit (λ*, or the band that replaced it) widens
-    /// its variance along each determined direction by the mean of its local variances at p̂
-    /// and at p̂ ± 2σ over the one at p̂, when that ratio exceeds 1
+    /// Once every decision is taken, each fit (λ*, or the band that replaced it, and the joint
+    /// fit) widens its variance along each determined direction by the mean of its local
+    /// variances at p̂ and at p̂ ± 2σ over the one at p̂, when that ratio exceeds 1
     /// ([`RateFit::average_over_interval`](super::RateFit::average_over_interval); default
-    /// `true`, docs/adr/0027). `false`: the local covariance at p̂.
+    /// `true`, docs/adr/0027, 0028). `false`: the local covariance at p̂.
     pub average_over_interval: bool,
 }
 

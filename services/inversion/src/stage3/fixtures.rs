@@ -35,6 +35,7 @@ pub(crate) fn solution(p: [f64; 3], mirror: Option<[f64; 3]>) -> RateSolution {
         profiled_bounds_deg_per_frame: None,
         neighbours: vec![],
         interval_variance_scale: None,
+        interval_average: None,
     })
 }
 

@@ -10,10 +10,11 @@
 //! p̂ ± [`INTERVAL_SIGMAS`]·σ_v·v over the centre's, when that ratio exceeds 1. The local
 //! variances come from the band's information at each point restricted to the fit's
 //! determined directions. Where the curvature is the same across the interval (a model linear
-//! in p) nothing changes. The decisions read the local covariance: `fit_rates` reports this
-//! one once they are all taken.
+//! in p) nothing changes. The decisions read the local covariance: the average is held on the
+//! fit ([`RateFit::attach_interval_average`]) and `fit_rates` reports it once they are all
+//! taken ([`RateFit::report_interval_average`]), for λ* and for the joint fit (docs/adr/0028).
 
-use super::RateFit;
+use super::{RateFit, RateSolution, Stage3Config};
 use crate::model::RateProblem;
 use crate::observability::{analyse, noise_variance, ObservabilityConfig};
 use nalgebra::{DMatrix, Matrix3, Vector3};
@@ -31,6 +32,26 @@ pub fn interval_variance(centre: f64, ends: &[f64]) -> f64 {
 }
 
 impl RateFit {
+    /// Averages the covariance over the fit's interval on `problem` ([`Self::average_over_interval`])
+    /// and holds the result on the fit until [`Self::report_interval_average`]: the covariance
+    /// the decisions read stays the local one.
+    pub fn attach_interval_average(&mut self, problem: &RateProblem, config: &ObservabilityConfig) {
+        let mut averaged = self.clone();
+        let scale = averaged.average_over_interval(problem, config);
+        self.interval_average = Some((averaged.covariance_deg2_per_frame2, scale));
+    }
+
+    /// Reports the average [`Self::attach_interval_average`] held: the covariance becomes it and
+    /// `interval_variance_scale` records its factor. Returns whether one was held.
+    pub fn report_interval_average(&mut self) -> bool {
+        let Some((covariance, scale)) = self.interval_average.take() else {
+            return false;
+        };
+        self.covariance_deg2_per_frame2 = covariance;
+        self.interval_variance_scale = Some(scale);
+        true
+    }
+
     /// Averages the covariance over the fit's interval on `problem`, the problem it was made
     /// on (module docs). Directions the fit does not determine are left alone, and the
     /// observability stays the local Fisher analysis at p̂. Returns the largest factor a
@@ -76,6 +97,27 @@ impl RateFit {
         self.covariance_deg2_per_frame2 = out.into();
         self.interval_variance_scale = Some(largest);
         largest
+    }
+}
+
+impl RateSolution {
+    /// [`RateFit::attach_interval_average`] on a determined answer, when
+    /// `config.average_over_interval` asks for it.
+    pub(crate) fn attach_interval_average_if_asked(
+        &mut self,
+        problem: &RateProblem,
+        config: &Stage3Config,
+    ) {
+        if let (true, RateSolution::Determined(fit)) = (config.average_over_interval, self) {
+            fit.attach_interval_average(problem, &config.observability);
+        }
+    }
+
+    /// [`RateFit::report_interval_average`] on a determined answer (a no-op without one held).
+    pub(crate) fn report_interval_average(&mut self) {
+        if let RateSolution::Determined(fit) = self {
+            fit.report_interval_average();
+        }
     }
 }
 
