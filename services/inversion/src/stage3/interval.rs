@@ -1,18 +1,22 @@
-//! A band fit's covariance averaged over its own interval (docs/adr/0027).
+//! A fit's covariance averaged over its own interval: λ*'s (docs/adr/0027) and the joint
+//! fit's (docs/adr/0028).
 //!
 //! The local covariance of a fit is the inverse of the light curve's curvature at p̂. That is
 //! the estimator's scatter only where the curvature holds over the region the estimate could
 //! have landed in. About Z it does not everywhere: near w_y = 0 a band's information has a
-//! ridge, up to 70 × the median run's, and a run that stage 1's noise moves
-//! onto the ridge reports the ridge's curvature while its scatter is the region's
-//! (docs/adr/0026). Along each determined eigen-direction v of the fit's covariance (1σ = σ_v),
-//! the variance is therefore multiplied by the mean of the local variances along v at p̂ and at
+//! ridge, up to 70 × the median run's, and a run that stage 1's noise moves onto the ridge
+//! reports the ridge's curvature while its scatter is the region's (docs/adr/0026). About Y
+//! the joint fit's information grows away from p₀, where the light curve is flat in w_z to
+//! first order.
+//!
+//! Along each determined eigen-direction v of the fit's covariance (1σ = σ_v), the variance is
+//! therefore multiplied by the mean of the local variances along v at p̂ and at
 //! p̂ ± [`INTERVAL_SIGMAS`]·σ_v·v over the centre's, when that ratio exceeds 1. The local
-//! variances come from the band's information at each point restricted to the fit's
-//! determined directions. Where the curvature is the same across the interval (a model linear
-//! in p) nothing changes. The decisions read the local covariance: the average is held on the
-//! fit ([`RateFit::attach_interval_average`]) and `fit_rates` reports it once they are all
-//! taken ([`RateFit::report_interval_average`]), for λ* and for the joint fit (docs/adr/0028).
+//! variances come from the fit's information at each point (on its own problem: one band, or
+//! every band) restricted to the fit's determined directions. Where the curvature is the same
+//! across the interval (a model linear in p) nothing changes. The decisions read the local
+//! covariance: the average is held on the fit ([`RateFit::attach_interval_average`]) and
+//! `fit_rates` reports it once they are all taken ([`RateFit::report_interval_average`]).
 
 use super::{RateFit, RateSolution, Stage3Config};
 use crate::model::RateProblem;
