@@ -255,3 +255,42 @@ pub fn in_plane_window(p_true: [f64; 3], frames: usize) -> Vec<Observation> {
         })
         .collect()
 }
+
+/// Eleven 10-nm bands around 650 nm of a body whose reflectance only scales with wavelength
+/// (so neighbouring bands' normalised light curves coincide), both windows carrying σ = mean /
+/// `snr`, noise added to the stable window only (seeded).
+pub fn fine_bands(snr: f64, seed: u64) -> (ObservationSet, ObservationSet) {
+    let bands: Vec<f64> = (0..11).map(|k| 600.0 + 10.0 * k as f64).collect();
+    let coeffs = |l: f64| scaled(&band_coeffs(650.0), 1.0 + 0.004 * (l - 650.0));
+    let clean = ObservationSet {
+        stable: stable_window_of(720, -40.0, 25.0, &bands, &coeffs),
+        motion: motion_window(
+            240,
+            alpha_phase15_deg(),
+            0.004_167,
+            [0.0, 0.25, 0.0],
+            glint_physics::two_facet::AttitudeConvention::Verbatim,
+            glint_inversion::PanelNormalMode::Literal,
+            &bands,
+            &coeffs,
+        ),
+        wavelengths_nm: bands,
+    };
+    let mut noisy = clean.clone();
+    let mut g = Gauss::new(seed);
+    for window in [&mut noisy.stable, &mut noisy.motion] {
+        let n = window.len() as f64;
+        let sigma: Vec<f64> = (0..11)
+            .map(|b| window.iter().map(|o| o.flux_w[b]).sum::<f64>() / n / snr)
+            .collect();
+        for o in window.iter_mut() {
+            o.sigma_w = sigma.clone();
+        }
+    }
+    for o in &mut noisy.stable {
+        for (f, s) in o.flux_w.iter_mut().zip(&o.sigma_w) {
+            *f += s * g.gaussian();
+        }
+    }
+    (clean, noisy)
+}
