@@ -46,14 +46,12 @@ impl RateFit {
     }
 
     /// Reports the average [`Self::attach_interval_average`] held: the covariance becomes it and
-    /// `interval_variance_scale` records its factor. Returns whether one was held.
-    pub fn report_interval_average(&mut self) -> bool {
-        let Some((covariance, scale)) = self.interval_average.take() else {
-            return false;
-        };
-        self.covariance_deg2_per_frame2 = covariance;
-        self.interval_variance_scale = Some(scale);
-        true
+    /// `interval_variance_scale` records its factor. A no-op when none is held.
+    pub fn report_interval_average(&mut self) {
+        if let Some((covariance, scale)) = self.interval_average.take() {
+            self.covariance_deg2_per_frame2 = covariance;
+            self.interval_variance_scale = Some(scale);
+        }
     }
 
     /// Averages the covariance over the fit's interval on `problem`, the problem it was made
