@@ -33,6 +33,7 @@ use std::f64::consts::FRAC_1_PI;
 
 mod coefficients;
 mod diagnostics;
+mod held;
 pub mod refit;
 
 use refit::{lobe_slope_of, nuisance_columns, take_widest_lobes};
@@ -132,6 +133,11 @@ pub struct RateProblem {
     glint_lobes_only: bool,
     /// Per band: Cov(x̃) of the stage-1 coefficients, normalised like `x` (22 × 22), if known.
     coeff_cov: Vec<Option<Vec<f64>>>,
+    /// Per band: the stage-1 coefficients held by their prior ([`held`]), when asked.
+    held: Vec<Option<held::Held>>,
+    /// Per band: the factor on the prior's square root that keeps its weight against the
+    /// band's re-weighted data (the product of the band scales applied).
+    held_scale: Vec<f64>,
 }
 
 /// Per-facet arrays: `[panel, body]`.
@@ -274,6 +280,8 @@ impl RateProblem {
             sigma_given,
             refit_diffuse: config.refit_diffuse,
             coeff_cov: vec![None; bands.len()],
+            held: vec![None; bands.len()],
+            held_scale: vec![1.0; bands.len()],
         })
     }
 
@@ -295,9 +303,9 @@ impl RateProblem {
         self.frames.len()
     }
 
-    /// Residual count T·B.
+    /// Residual count: T·B, and the prior rows of held coefficients ([`Self::with_held_coefficients`]).
     pub fn residual_count(&self) -> usize {
-        self.frames.len() * self.bands.len()
+        self.frames.len() * self.bands.len() + self.prior_rows()
     }
 
     /// Fitted band centres \[nm\].
@@ -308,7 +316,7 @@ impl RateProblem {
     /// sqrt(mean w²) over all residuals (1 when σ is not given).
     pub fn weight_rms(&self) -> f64 {
         let sum: f64 = self.bands.iter().flat_map(|b| &b.w).map(|w| w * w).sum();
-        (sum / self.residual_count().max(1) as f64).sqrt()
+        (sum / (self.frames.len() * self.bands.len()).max(1) as f64).sqrt()
     }
 
     /// Whether residuals are whitened by the observations' σ.
@@ -393,6 +401,11 @@ impl RateProblem {
 
     /// Residuals, cost and the nuisance coefficients per band (zeros without the re-fit).
     fn residuals_with_nuisance(&self, p: [f64; 3], r: &mut [f64]) -> (f64, Vec<[f64; NUISANCE]>) {
+        if self.holds_coefficients() {
+            let held = self.evaluate_held(p, 1, false);
+            r.copy_from_slice(&held.r);
+            return (held.cost, held.free);
+        }
         let nb = self.bands.len();
         let mut g = [[0.0; TERMS]; 2];
         let mut rows = self.nuisance_rows();
@@ -424,6 +437,9 @@ impl RateProblem {
     /// the end, so its partial sums bound nothing and it always runs to the end. A cost at or
     /// below `bound` is bit-for-bit [`RateProblem::cost_strided`]'s.
     pub fn cost_strided_within(&self, p: [f64; 3], stride: usize, bound: f64) -> f64 {
+        if self.holds_coefficients() {
+            return self.evaluate_held(p, stride, false).cost;
+        }
         let mut g = [[0.0; TERMS]; 2];
         let mut cost = 0.0;
         let mut normals = vec![Normal::default(); self.bands.len()];
@@ -473,6 +489,12 @@ impl RateProblem {
         jac: &mut [[f64; 3]],
         bound: f64,
     ) -> f64 {
+        if self.holds_coefficients() {
+            let held = self.evaluate_held(p, 1, true);
+            r.copy_from_slice(&held.r);
+            jac.copy_from_slice(&held.jac);
+            return held.cost;
+        }
         let nb = self.bands.len();
         let mut cost = 0.0;
         let mut g = [[0.0; TERMS]; 2];
@@ -525,6 +547,19 @@ impl RateProblem {
 
     /// Model flux Φ_model(t; p) \[W\] per fitted band (outer) and frame (inner).
     pub fn model_flux_w(&self, p: [f64; 3]) -> Vec<Vec<f64>> {
+        if self.holds_coefficients() {
+            // The held coefficients move with p: the model is the data less the residual.
+            let r = self.evaluate_held(p, 1, false).r;
+            let nb = self.bands.len();
+            return (0..nb)
+                .map(|b| {
+                    let band = &self.bands[b];
+                    (0..self.frames.len())
+                        .map(|t| (band.y[t] - r[t * nb + b] / band.w[t]) * band.mean_flux_w)
+                        .collect()
+                })
+                .collect();
+        }
         let mut scratch = vec![0.0; self.residual_count()];
         let (_, c) = self.residuals_with_nuisance(p, &mut scratch);
         let mut g = [[0.0; TERMS]; 2];

@@ -44,8 +44,8 @@ mod reported;
 mod weak;
 use config::validate;
 pub use config::{
-    LobeRefit, Stage3Config, StartConfig, DEFAULT_JOINT_GATE_SIGMA, DEFAULT_LOBE_TEST_CONFIDENCE,
-    DEFAULT_MAX_ROTATION_DEG,
+    HeldCoefficients, LobeRefit, Stage3Config, StartConfig, DEFAULT_JOINT_GATE_SIGMA,
+    DEFAULT_LOBE_TEST_CONFIDENCE, DEFAULT_MAX_ROTATION_DEG,
 };
 pub use interval::{interval_variance, INTERVAL_SIGMAS};
 pub use neighbours::{fit_from_neighbourhood, Neighbour};

@@ -182,3 +182,96 @@ fn coefficient_information_loss_is_the_schur_complement_of_the_full_fisher() {
     }
     assert!(largest > 1e-3 * crb.trace(), "{excess:?}");
 }
+
+/// A refitting problem on the Y window with the stage-1 covariance of the information-loss
+/// test (3 % on every coefficient in use).
+fn refitting_problem() -> RateProblem {
+    let obs = with_noise(y_window(120), 50.0, None);
+    let b = band();
+    let x = glint_inversion::stage1::coefficients_to_array(&b.coeffs);
+    let n = x.len();
+    let mut cov = vec![0.0; n * n];
+    for m in (0..n).filter(|&m| x[m] > 0.0) {
+        cov[m * n + m] = (REL * x[m]).powi(2);
+    }
+    let config = MotionModelConfig {
+        refit_diffuse: true,
+        ..MotionModelConfig::default()
+    };
+    RateProblem::new(&obs, &[b], &config)
+        .expect("problem")
+        .with_coefficient_covariance(vec![Some(cov)])
+}
+
+/// Coefficients held by their prior (docs/adr/0030): at the truth, on data the model fits
+/// exactly, the held problem's Gauss–Newton information is the information with the
+/// coefficients unknown and both windows informing them, `JᵀJ − L`, which the bound computes
+/// another way (`coefficient_information_loss`, a Schur complement checked above).
+#[test]
+fn held_coefficients_carry_the_information_the_bound_says_they_cost() {
+    let p = [0.0, 0.25, 0.0];
+    let plain = refitting_problem();
+    let held = plain.clone().with_held_coefficients();
+    assert!(held.residual_count() > plain.residual_count());
+    let jtj = |problem: &RateProblem| {
+        let n = problem.residual_count();
+        let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
+        let cost = problem.residuals_and_jacobian(p, &mut r, &mut jac);
+        let f: [[f64; 3]; 3] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| jac.iter().map(|row| row[i] * row[j]).sum())
+        });
+        (f, jac, cost)
+    };
+    let (f_plain, jac_plain, cost_plain) = jtj(&plain);
+    let (f_held, _, cost_held) = jtj(&held);
+    assert!(
+        cost_plain < 1e-12 && cost_held < 1e-12,
+        "{cost_plain} {cost_held}"
+    );
+    let loss = plain
+        .coefficient_information_loss(p, &jac_plain)
+        .expect("loss");
+    let scale = f_plain[1][1].max(f_plain[2][2]);
+    // Not vacuous: the coefficients cost a measurable share of the information.
+    assert!(
+        loss[0][0] + loss[1][1] + loss[2][2] > 1e-3 * scale,
+        "{loss:?}"
+    );
+    for i in 0..3 {
+        for j in 0..3 {
+            let expected = f_plain[i][j] - loss[i][j];
+            assert!(
+                (f_held[i][j] - expected).abs() < 1e-8 * scale,
+                "({i},{j}): held {} vs F − L {expected} (F {})",
+                f_held[i][j],
+                f_plain[i][j]
+            );
+        }
+    }
+    // The coefficients' uncertainty is in the information already, not propagated again.
+    assert!(held.coefficient_term(p, &jac_plain).is_none());
+}
+
+/// The held problem's gradient, −2 Jᵀρ, against central differences of its cost, away from
+/// the truth (the held coefficients and the free columns move with p).
+#[test]
+fn held_coefficients_gradient_matches_central_differences() {
+    let held = refitting_problem().with_held_coefficients();
+    let p = [0.01, 0.26, -0.005];
+    let n = held.residual_count();
+    let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
+    let cost = held.residuals_and_jacobian(p, &mut r, &mut jac);
+    assert!((cost - held.cost(p)).abs() <= 1e-12 * cost, "{cost}");
+    let h = 1e-6;
+    for i in 0..3 {
+        let (mut up, mut down) = (p, p);
+        up[i] += h;
+        down[i] -= h;
+        let fd = (held.cost(up) - held.cost(down)) / (2.0 * h);
+        let analytic: f64 = -2.0 * jac.iter().zip(&r).map(|(j, r)| j[i] * r).sum::<f64>();
+        assert!(
+            (fd - analytic).abs() < 1e-5 * analytic.abs().max(1.0),
+            "{i}: {fd:e} vs {analytic:e}"
+        );
+    }
+}

@@ -50,16 +50,18 @@ impl RateProblem {
 
     /// Whether coefficient m (of 22) is re-estimated by stage 3 (so its stage-1 value is not
     /// used).
-    fn refitted(&self, m: usize) -> bool {
+    pub(super) fn refitted(&self, m: usize) -> bool {
         let (f, k) = (m / TERMS, m % TERMS);
         self.refit_diffuse && (k == 0 || k == self.refit_lobes[f])
     }
 
     /// `C = Σ_b F_pb Cov(x_b) F_bp` (3 × 3) at p, with `jac` the whitened Jacobian at p. The
     /// rates' covariance including the coefficients' uncertainty is F⁻¹ + F⁻¹ C F⁻¹. `None`
-    /// when no band carries a coefficient covariance (or the diffuse re-fit replaces them).
+    /// when no band carries a coefficient covariance (or the diffuse re-fit replaces them), and
+    /// when the coefficients are held by their prior ([`Self::with_held_coefficients`]).
     pub fn coefficient_term(&self, p: [f64; 3], jac: &[[f64; 3]]) -> Option<[[f64; 3]; 3]> {
-        if !self.propagates_coefficients() {
+        // Held coefficients are in the Jacobian's prior rows already.
+        if !self.propagates_coefficients() || self.holds_coefficients() {
             return None;
         }
         let n = TERMS * 2;

@@ -10,8 +10,9 @@ impl RateProblem {
     /// larger. Used to down-weight the bands the model fits worst (see
     /// [`Self::band_mismatch_scales`]).
     pub fn with_band_scales(mut self, scales: &[f64]) -> Self {
-        for (band, s) in self.bands.iter_mut().zip(scales) {
+        for ((band, s), held) in self.bands.iter_mut().zip(scales).zip(&mut self.held_scale) {
             if *s > 0.0 && s.is_finite() {
+                *held *= s;
                 band.w.iter_mut().for_each(|w| *w /= s);
             }
         }
@@ -46,6 +47,7 @@ impl RateProblem {
         let mut lobes = self.clone();
         lobes.refit_diffuse = false;
         lobes.refit_lobes = [0; 2];
+        lobes.held = vec![None; self.bands.len()];
         let refitted = self.nuisance_fit(p);
         for (band, c) in lobes.bands.iter_mut().zip(&refitted) {
             band.x[0][0] = 0.0;
@@ -64,6 +66,8 @@ impl RateProblem {
             |jac: &[[f64; 3]]| -> f64 { jac.iter().flatten().map(|v| v * v).sum::<f64>().sqrt() };
         self.residuals_and_jacobian(p, &mut r, &mut jac);
         let total = norm(&jac);
+        let n = lobes.residual_count();
+        let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
         lobes.residuals_and_jacobian(p, &mut r, &mut jac);
         norm(&jac) / total
     }

@@ -84,8 +84,11 @@ impl<'a> FitSetup<'a> {
             },
             None => self.model.clone(),
         };
-        let problem = RateProblem::new(frames, self.bands, &model)?
+        let mut problem = RateProblem::new(frames, self.bands, &model)?
             .with_coefficient_covariance(self.coefficient_covariance.to_vec());
+        if polish.is_some_and(|c| c.held_coefficients.applies(self.bands.len())) {
+            problem = problem.with_held_coefficients();
+        }
         Ok(match self.band_scales {
             Some(scales) => problem.with_band_scales(scales),
             None => problem,

@@ -116,6 +116,11 @@ pub struct Stage3Config {
     /// ([`RateFit::average_over_interval`](super::RateFit::average_over_interval); default
     /// `true`, docs/adr/0027, 0028). `false`: the local covariance at p̂.
     pub average_over_interval: bool,
+    /// Which fits' polish holds stage 1's coefficients by their stable-window prior and
+    /// re-estimates them with the motion window: the joint likelihood of both windows on stage
+    /// 1's passive set (`crate::model::held`, docs/adr/0030; beyond the paper). Needs σ.
+    /// Default: none.
+    pub held_coefficients: HeldCoefficients,
 }
 
 impl Default for Stage3Config {
@@ -137,6 +142,7 @@ impl Default for Stage3Config {
             cover_neighbours: true,
             cover_lobe_alternative: true,
             average_over_interval: true,
+            held_coefficients: HeldCoefficients::None,
         }
     }
 }
@@ -167,6 +173,30 @@ impl LobeRefit {
             LobeRefit::None => false,
             LobeRefit::WhenNeeded | LobeRefit::Joint => bands > 1,
             LobeRefit::All => true,
+        }
+    }
+}
+
+/// Which polishes hold stage 1's coefficients by their prior ([`Stage3Config::held_coefficients`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum HeldCoefficients {
+    /// None: the polish keeps stage 1's coefficients fixed (default).
+    #[default]
+    None,
+    /// The fits of one band (λ* and the bands that replace it).
+    SingleBand,
+    /// Every fit.
+    All,
+}
+
+impl HeldCoefficients {
+    /// Whether a fit of `bands` bands holds its coefficients by their prior.
+    pub fn applies(self, bands: usize) -> bool {
+        match self {
+            HeldCoefficients::None => false,
+            HeldCoefficients::SingleBand => bands == 1,
+            HeldCoefficients::All => true,
         }
     }
 }
