@@ -193,6 +193,9 @@ pub fn invert(
                         if refit.widest_lobe { " and widest lobe" } else { "" },
                         e[0], e[1], e[2]
                     );
+                    if refit.held_coefficients {
+                        text += "; stage 1's other coefficients held by their stable-window prior";
+                    }
                     if refit.glint_lobes_only {
                         text += " (no broad lobe to re-fit: each facet's widest lobe in use is a glint lobe, kept from stage 1)";
                     } else if let Some(t) = refit.lobe_test.filter(|t| t.rate_traded) {

@@ -144,6 +144,10 @@ pub struct Refit {
     /// rate, so it stays stage 1's and only the diffuse terms are re-fitted.
     #[serde(default)]
     pub glint_lobes_only: bool,
+    /// Stage 1's other coefficients were held by their stable-window prior and re-estimated
+    /// with the motion window ([`Stage3Config::held_coefficients`]).
+    #[serde(default)]
+    pub held_coefficients: bool,
 }
 
 /// The joint fit's test of stage 1's lobes ([`LobeRefit::WhenNeeded`]): the fit re-fitting the
@@ -460,6 +464,7 @@ fn polish(
             held_direction: h.held_direction(),
             lobe_test: None,
             glint_lobes_only: problem.keeps_glint_lobes(),
+            held_coefficients: problem.holds_coefficients(),
         }),
         profiled_bounds_deg_per_frame: None,
         neighbours: vec![],

@@ -187,8 +187,8 @@ pub(super) struct Evaluation {
 }
 
 impl RateProblem {
-    /// Whether some band's coefficients are held by their prior.
-    pub(super) fn holds_coefficients(&self) -> bool {
+    /// Whether some band's coefficients are held by their prior ([`Self::with_held_coefficients`]).
+    pub fn holds_coefficients(&self) -> bool {
         self.held.iter().any(Option::is_some)
     }
 

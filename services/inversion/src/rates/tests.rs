@@ -11,6 +11,7 @@ fn refit_record(widest_lobe: bool) -> Refit {
         held_direction: [1.0, 0.0, 0.0],
         lobe_test: None,
         glint_lobes_only: false,
+        held_coefficients: false,
     }
 }
 

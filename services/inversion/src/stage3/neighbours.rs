@@ -348,6 +348,7 @@ mod tests {
                     other_weight: 0.0,
                 }),
                 glint_lobes_only: false,
+                held_coefficients: false,
             });
             fit
         };
