@@ -113,7 +113,12 @@ pub fn run_value(
         runs.push(report["inversion"]["stage3"].clone());
     }
     let stable_noisy = sp.noise_windows == NoiseWindows::Both;
-    let reference = Reference::solve(&ref_dir.join("observations.csv"), snr, stable_noisy)?;
+    let reference = Reference::solve(
+        &ref_dir.join("observations.csv"),
+        snr,
+        stable_noisy,
+        glint_inversion::node::stage3_config(sp),
+    )?;
     let single = Estimator::from_runs(&runs, &|s3| s3, reference.single.clone(), None);
     // The table's bound for the joint fit: that of the model most runs reported.
     let lobe_refits = runs
@@ -230,12 +235,18 @@ impl Reference {
     /// p₀, the estimator's noise-free solution: the noise-free run's observations solved
     /// offline with the noisy runs' σ = mean/SNR attached to the windows they make noisy (the
     /// weights, the stage-1 basis test and the joint fit's reweighting all depend on σ, so the
-    /// σ-free answer is another estimator's limit). Then the CRB of each fit at p₀ on the
-    /// frames it used.
-    fn solve(observations: &Path, snr: f64, stable_noisy: bool) -> Result<Reference> {
+    /// σ-free answer is another estimator's limit), with the scenario's stage-3 settings. Then
+    /// the CRB of each fit at p₀ on the frames it used.
+    fn solve(
+        observations: &Path,
+        snr: f64,
+        stable_noisy: bool,
+        stage3: glint_inversion::stage3::Stage3Config,
+    ) -> Result<Reference> {
         let mut file = crate::observations::read(observations)?;
         let mut config = InversionConfig {
             joint_fit: true,
+            stage3,
             ..Default::default()
         };
         attach_sigma(&mut file.set.motion, snr);

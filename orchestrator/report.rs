@@ -486,7 +486,7 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
         )?;
         // Fit plots need complete windows (a run cut short has none to solve).
         if facts.solve.iter().any(|r| r.stage == 3) {
-            if let Err(e) = crate::report_fit::plots(dir) {
+            if let Err(e) = crate::report_fit::plots(dir, sp) {
                 tracing::warn!(error = %e, "fit plots skipped");
             }
         }

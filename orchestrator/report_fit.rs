@@ -13,18 +13,20 @@ use glint_inversion::{
     solve_three_stage, InversionConfig, MotionModelConfig, RateBand, RateProblem,
 };
 use nalgebra::Vector3;
+use shared_types::scenario::SpectraScenario;
 
 use crate::plots::{line_chart, Series, BLUE, RED};
 
 /// Writes `stage1-fit.svg`, `stage3-fit.svg` and `stage3-residuals.svg` from the run's
 /// observation file. Returns whether the stage-3 plots were drawn (a determined rate).
-pub fn plots(dir: &Path) -> Result<bool> {
+pub fn plots(dir: &Path, sp: &SpectraScenario) -> Result<bool> {
     let path = dir.join("observations.csv");
     let file = crate::observations::read(&path)?;
     // As the service solves (the orchestrator always asks for the joint fit, which can decide
     // the sense of rotation at λ*).
     let config = InversionConfig {
         joint_fit: true,
+        stage3: glint_inversion::node::stage3_config(sp),
         ..Default::default()
     };
     let result =

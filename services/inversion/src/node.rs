@@ -9,7 +9,7 @@ use glint_runtime::ports::Inbox;
 use glint_runtime::rpc::{RpcServer, Solve};
 use glint_runtime::{open_node, run_loop, Exit, Housekeeping, Step, Wake};
 use nalgebra::Vector3;
-use shared_types::scenario::{AttitudeConvention, SpectraScenario};
+use shared_types::scenario::{AttitudeConvention, HeldCoefficientsName, SpectraScenario};
 use shared_types::topics::spectrum_service;
 use shared_types::{
     Heartbeat, Scenario, ServiceId, SolveRequest, SolveResponse, SolveStatus, Spectrum, TopicId,
@@ -20,7 +20,7 @@ use crate::model::MotionModelConfig;
 use crate::observability::CovarianceSource;
 use crate::rotation::AttitudeModel;
 use crate::session::{Session, StageOutcome};
-use crate::stage3::{RateSolution, Stage3Config};
+use crate::stage3::{HeldCoefficients, RateSolution, Stage3Config};
 use crate::Observation;
 
 /// The motion model the scenario's simulator used (attitude convention; n_b = +X; panel (a)).
@@ -29,6 +29,18 @@ pub fn model_config(sp: &SpectraScenario) -> MotionModelConfig {
         attitude: match sp.attitude_convention {
             AttitudeConvention::Verbatim => AttitudeModel::Verbatim,
             AttitudeConvention::Consistent => AttitudeModel::Consistent,
+        },
+        ..Default::default()
+    }
+}
+
+/// The stage-3 settings the scenario chooses (defaults but for `spectra.held_coefficients`).
+pub fn stage3_config(sp: &SpectraScenario) -> Stage3Config {
+    Stage3Config {
+        held_coefficients: match sp.held_coefficients {
+            HeldCoefficientsName::None => HeldCoefficients::None,
+            HeldCoefficientsName::SingleBand => HeldCoefficients::SingleBand,
+            HeldCoefficientsName::All => HeldCoefficients::All,
         },
         ..Default::default()
     }
@@ -255,7 +267,7 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
         sp.stable_samples as usize,
         sp.motion_frames as usize,
         model_config(sp),
-        Stage3Config::default(),
+        stage3_config(sp),
     );
     hk.state = Heartbeat::READY;
 
