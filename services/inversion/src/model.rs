@@ -508,13 +508,7 @@ impl RateProblem {
             self.basis_and_slopes(frame, &rot, &drot, &mut g, &mut slopes);
             for (b, band) in self.bands.iter().enumerate() {
                 let m = dot22(&band.x, &g);
-                let mut dm = [0.0; 3];
-                for (x, sl) in band.x.iter().zip(&slopes) {
-                    let lobe_slope: f64 = x[1..].iter().zip(&sl.lobe).map(|(a, b)| a * b).sum();
-                    for ((d, dd), dc) in dm.iter_mut().zip(&sl.d_diffuse).zip(&sl.dc) {
-                        *d += x[0] * dd + lobe_slope * dc;
-                    }
-                }
+                let dm = model_slope(&band.x, &slopes);
                 let (w, k) = (band.w[t], frame.inv_range2);
                 let wk = w * k;
                 let res = w * (band.y[t] - k * m);
@@ -522,16 +516,7 @@ impl RateProblem {
                 r[t * nb + b] = res;
                 jac[t * nb + b] = [wk * dm[0], wk * dm[1], wk * dm[2]];
                 if let Some(rows) = rows.get_mut(b) {
-                    rows[t] = Row {
-                        a: nuisance_columns(wk, &g, self.refit_lobes),
-                        da: [
-                            slopes[0].d_diffuse.map(|d| wk * d),
-                            slopes[1].d_diffuse.map(|d| wk * d),
-                            [0.0; 3],
-                            lobe_slope_of(&slopes[0], self.refit_lobes[0], wk),
-                            lobe_slope_of(&slopes[1], self.refit_lobes[1], wk),
-                        ],
-                    };
+                    rows[t] = self.nuisance_row(wk, &g, &slopes);
                 }
             }
             if cost > bound && !self.refit_diffuse {
@@ -576,6 +561,34 @@ impl RateProblem {
             }
         }
         out
+    }
+}
+
+/// `d(Σ_m x_m G_m)/dp` of coefficients x from the facets' slopes (see `basis_and_slopes`).
+fn model_slope(x: &Basis, slopes: &[FacetSlopes; 2]) -> [f64; 3] {
+    let mut dm = [0.0; 3];
+    for (x, sl) in x.iter().zip(slopes) {
+        let lobe_slope: f64 = x[1..].iter().zip(&sl.lobe).map(|(a, b)| a * b).sum();
+        for ((d, dd), dc) in dm.iter_mut().zip(&sl.d_diffuse).zip(&sl.dc) {
+            *d += x[0] * dd + lobe_slope * dc;
+        }
+    }
+    dm
+}
+
+impl RateProblem {
+    /// The nuisance columns of one residual with their slopes, `scale = w k`.
+    fn nuisance_row(&self, scale: f64, g: &Basis, slopes: &[FacetSlopes; 2]) -> Row {
+        Row {
+            a: nuisance_columns(scale, g, self.refit_lobes),
+            da: [
+                slopes[0].d_diffuse.map(|d| scale * d),
+                slopes[1].d_diffuse.map(|d| scale * d),
+                [0.0; 3],
+                lobe_slope_of(&slopes[0], self.refit_lobes[0], scale),
+                lobe_slope_of(&slopes[1], self.refit_lobes[1], scale),
+            ],
+        }
     }
 }
 

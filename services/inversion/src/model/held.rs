@@ -20,7 +20,7 @@
 //! coefficients and what the motion window adds. The propagated coefficient term is then not
 //! added again ([`RateProblem::coefficient_term`] is `None`).
 
-use super::{dot22, lobe_slope_of, nuisance_columns, FacetSlopes, RateProblem};
+use super::{dot22, model_slope, FacetSlopes, RateProblem};
 use crate::facet::TERMS;
 use crate::nuisance::{project_band, Row, NUISANCE};
 use crate::rotation::TrigStepper;
@@ -233,29 +233,14 @@ impl RateProblem {
             self.basis_and_slopes(frame, &rot, &drot, &mut g, &mut slopes);
             for (b, band) in self.bands.iter().enumerate() {
                 let m = dot22(&band.x, &g);
-                let mut dm = [0.0; 3];
-                for (x, sl) in band.x.iter().zip(&slopes) {
-                    let lobe_slope: f64 = x[1..].iter().zip(&sl.lobe).map(|(a, b)| a * b).sum();
-                    for ((d, dd), dc) in dm.iter_mut().zip(&sl.d_diffuse).zip(&sl.dc) {
-                        *d += x[0] * dd + lobe_slope * dc;
-                    }
-                }
+                let dm = model_slope(&band.x, &slopes);
                 let (w, k) = (band.w[t], frame.inv_range2);
                 let wk = w * k;
                 r[ti * nb + b] = w * (band.y[t] - k * m);
                 if with_jac {
                     jac[ti * nb + b] = [wk * dm[0], wk * dm[1], wk * dm[2]];
                 }
-                let row = Row {
-                    a: nuisance_columns(wk, &g, self.refit_lobes),
-                    da: [
-                        slopes[0].d_diffuse.map(|d| wk * d),
-                        slopes[1].d_diffuse.map(|d| wk * d),
-                        [0.0; 3],
-                        lobe_slope_of(&slopes[0], self.refit_lobes[0], wk),
-                        lobe_slope_of(&slopes[1], self.refit_lobes[1], wk),
-                    ],
-                };
+                let row = self.nuisance_row(wk, &g, &slopes);
                 match &self.held[b] {
                     Some(held) => rows[b].push(held, row, wk, &g, &slopes),
                     None => free_rows[b][ti] = row,
