@@ -17,6 +17,7 @@ use crate::plots::{line_chart, Series, BLUE, GREEN, RED};
 mod decisions;
 use decisions::{
     disagreement_phrase, lobe_other_text, lobe_test_text, set_aside_phrase, widened_phrase,
+    HELD_SENTENCE,
 };
 
 /// A number for JSON: non-finite values become `null`.
@@ -106,6 +107,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
             "fitted_frames": r.fitted_frames,
             "sense_from_joint": r.stage3_flags & SolveResponse::SENSE_FROM_JOINT != 0,
             "lambda_rejected_by_joint": r.stage3_flags & SolveResponse::LAMBDA_REJECTED != 0,
+            "held_coefficients": r.stage3_flags & SolveResponse::HELD_COEFFICIENTS != 0,
             "bands_set_aside": r.stage3_set_aside,
             "joint_disagreement_sigma": finite(r.stage3_joint_disagreement_sigma),
             "covariance_scale": finite(r.stage3_covariance_scale),
@@ -129,6 +131,7 @@ pub fn json(sp: &SpectraScenario, responses: &[SolveResponse]) -> Value {
                 "lobe_rate_traded": r.stage3_flags & SolveResponse::JOINT_LOBE_RATE_TRADED != 0,
                 "lobe_kept_off_minimum": r.stage3_flags & SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM != 0,
                 "glint_lobes_only": r.stage3_flags & SolveResponse::JOINT_GLINT_LOBES_ONLY != 0,
+                "held_coefficients": r.stage3_flags & SolveResponse::JOINT_HELD_COEFFICIENTS != 0,
                 "lobe_other_deg_per_frame": if lobe_other_ok { json!(lobe_other) } else { Value::Null },
                 "lobe_other_weight": if lobe_other_ok { finite(r.stage3_joint_lobe_other_weight) } else { Value::Null },
                 "err_paper_metric_lobe_other": if lobe_other_ok { finite(rate_error_metric(lobe_other, truth)) } else { Value::Null },
@@ -249,6 +252,9 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
                     r.wavelength_nm[r.stage3_band as usize]
                 );
             }
+            if r.stage3_flags & SolveResponse::HELD_COEFFICIENTS != 0 {
+                let _ = writeln!(s, "\n{HELD_SENTENCE}");
+            }
             let _ = writeln!(
                 s,
                 "\n![stage-1 fit](stage1-fit.svg)\n\n![stage-3 fit](stage3-fit.svg)\n\n![stage-3 residuals](stage3-residuals.svg)\n"
@@ -280,13 +286,18 @@ pub fn markdown(sp: &SpectraScenario, responses: &[SolveResponse]) -> String {
         if pj.iter().all(|v| v.is_finite()) {
             let _ = writeln!(
                 s,
-                "Joint fit over all bands: p = [{:.5}, {:.5}, {:.5}], error {:.3}.{}{}",
+                "Joint fit over all bands: p = [{:.5}, {:.5}, {:.5}], error {:.3}.{}{}{}",
                 pj[0],
                 pj[1],
                 pj[2],
                 rate_error_metric(pj, truth),
                 lobe_test_text(r),
-                lobe_other_text(r, truth)
+                lobe_other_text(r, truth),
+                if r.stage3_flags & SolveResponse::JOINT_HELD_COEFFICIENTS != 0 {
+                    format!(" {HELD_SENTENCE}")
+                } else {
+                    String::new()
+                }
             );
             let m = r.p_joint_mirror_deg_per_frame;
             if m.iter().all(|v| v.is_finite()) {

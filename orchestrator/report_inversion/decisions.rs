@@ -32,6 +32,9 @@ pub(super) fn widened_phrase(r: &SolveResponse) -> String {
     }
 }
 
+/// What a fit that held stage 1's coefficients by their prior says of it (docs/adr/0030).
+pub(super) const HELD_SENTENCE: &str = "Stage 1's coefficients held by their stable-window prior and re-estimated with the motion window (`spectra.held_coefficients`, docs/adr/0030).";
+
 /// The joint fit's test of stage 1's widest lobes, as a sentence (empty when not tested).
 pub(super) fn lobe_test_text(r: &SolveResponse) -> String {
     let chi2 = r.stage3_joint_lobe_test_chi2;

@@ -90,6 +90,9 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
                 }
             }
             out.cost = fit.cost;
+            if fit.refit.is_some_and(|r| r.held_coefficients) {
+                out.stage3_flags |= SolveResponse::HELD_COEFFICIENTS;
+            }
             if let Some(m) = fit.mirror_deg_per_frame {
                 out.p_mirror_deg_per_frame = m;
             }
@@ -141,6 +144,9 @@ fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSo
             }
             if refit.glint_lobes_only {
                 out.stage3_flags |= SolveResponse::JOINT_GLINT_LOBES_ONLY;
+            }
+            if refit.held_coefficients {
+                out.stage3_flags |= SolveResponse::JOINT_HELD_COEFFICIENTS;
             }
             if let Some(test) = refit.lobe_test {
                 out.stage3_joint_lobe_test_chi2 = test.chi2;

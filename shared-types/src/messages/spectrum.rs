@@ -245,7 +245,8 @@ pub struct SolveResponse {
     pub separation_band: u32,
     /// Stage 3 flags: [`SolveResponse::SENSE_FROM_JOINT`], [`SolveResponse::LAMBDA_REJECTED`],
     /// [`SolveResponse::JOINT_LOBE_REFIT`], [`SolveResponse::JOINT_LOBE_RATE_TRADED`],
-    /// [`SolveResponse::JOINT_GLINT_LOBES_ONLY`], [`SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM`].
+    /// [`SolveResponse::JOINT_GLINT_LOBES_ONLY`], [`SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM`],
+    /// [`SolveResponse::HELD_COEFFICIENTS`], [`SolveResponse::JOINT_HELD_COEFFICIENTS`].
     pub stage3_flags: u32,
     /// Stage 2: the lobes' share of the stage-1 coefficients per band.
     pub specular_share: [f64; MAX_BANDS],
@@ -385,13 +386,20 @@ impl SolveResponse {
     /// neighbouring minimum that fits clearly better (Δχ² < −4): it is not its own model's best
     /// fit, whatever the lobe test's χ².
     pub const JOINT_LOBE_KEPT_OFF_MINIMUM: u32 = 32;
+    /// The λ* fit held stage 1's coefficients by their stable-window prior (the scenario's
+    /// `spectra.held_coefficients`).
+    pub const HELD_COEFFICIENTS: u32 = 64;
+    /// The joint fit did.
+    pub const JOINT_HELD_COEFFICIENTS: u32 = 128;
     /// Every `stage3_flags` bit defined above.
     pub const STAGE3_FLAGS_KNOWN: u32 = Self::SENSE_FROM_JOINT
         | Self::LAMBDA_REJECTED
         | Self::JOINT_LOBE_REFIT
         | Self::JOINT_LOBE_RATE_TRADED
         | Self::JOINT_GLINT_LOBES_ONLY
-        | Self::JOINT_LOBE_KEPT_OFF_MINIMUM;
+        | Self::JOINT_LOBE_KEPT_OFF_MINIMUM
+        | Self::HELD_COEFFICIENTS
+        | Self::JOINT_HELD_COEFFICIENTS;
 
     /// `stage3_held_axes`: a held direction that is not a body axis (bits 0–2 are x, y, z).
     pub const HELD_OTHER: u32 = 8;
