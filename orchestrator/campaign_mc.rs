@@ -294,7 +294,8 @@ impl Reference {
                 .collect();
             let problem = RateProblem::new(&frames, &rate_bands, &model_for(fit))?
                 .with_coefficient_covariance(covariance);
-            crb(&problem, fit.map(|f| f.rate_deg_per_frame))
+            let held = config.stage3.held_coefficients.applies(bands.len());
+            crb(&problem, held, fit.map(|f| f.rate_deg_per_frame))
         };
         let single = bound(
             result.rate.fit(),
@@ -360,7 +361,12 @@ fn attach_sigma(window: &mut [Observation], snr: f64) {
     }
 }
 
-fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
+/// The bound of the fit whose plug-in model is `problem` (with the stage-1 covariance), at its
+/// noise-free answer p0. With `held` the fit held stage 1's coefficients by their prior
+/// (docs/adr/0030): its own model carries their freedom in its cost, so its information is the
+/// bound's F − L directly, and its copies and HCR are its own model's; the known-coefficient
+/// and two-stage bounds stay the plug-in model's.
+fn crb(problem: &RateProblem, held: bool, p0: Option<[f64; 3]>) -> Result<Bound> {
     let Some(p) = p0 else {
         return Ok(Bound {
             p0: None,
@@ -372,15 +378,28 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
             copy: None,
         });
     };
-    let n = problem.residual_count();
-    let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
-    problem.residuals_and_jacobian(p, &mut r, &mut jac);
-    let (fisher, _) = normal_equations(&jac, &r);
-    let loss = problem
-        .coefficient_information_loss(p, &jac)
-        .unwrap_or([[0.0; 3]; 3]);
-    let reduced: [[f64; 3]; 3] =
-        std::array::from_fn(|i| std::array::from_fn(|j| fisher[i][j] - loss[i][j]));
+    let information = |problem: &RateProblem| {
+        let n = problem.residual_count();
+        let (mut r, mut jac) = (vec![0.0; n], vec![[0.0; 3]; n]);
+        problem.residuals_and_jacobian(p, &mut r, &mut jac);
+        (normal_equations(&jac, &r).0, jac)
+    };
+    let (fisher, jac) = information(problem);
+    let own = held.then(|| {
+        problem
+            .clone()
+            .with_held_coefficients()
+            .with_coefficient_covariance(vec![])
+    });
+    let reduced: [[f64; 3]; 3] = match &own {
+        Some(own) => information(own).0,
+        None => {
+            let loss = problem
+                .coefficient_information_loss(p, &jac)
+                .unwrap_or([[0.0; 3]; 3]);
+            std::array::from_fn(|i| std::array::from_fn(|j| fisher[i][j] - loss[i][j]))
+        }
+    };
     let (info, vecs) = symmetric_eigen(&reduced)?;
     let (known_info, known_vecs) = symmetric_eigen(&fisher)?;
     // (JᵀWJ)⁺ along each direction v of the scenario's bound: Σ_k (v·u_k)²/λ_k over the
@@ -412,7 +431,8 @@ fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
         known_variances[d] + quad
     });
     let variances = info.map(|l| if l > 0.0 { 1.0 / l } else { f64::INFINITY });
-    let (hcr_variances, copy) = chapman_robbins_variances(problem, p, &variances, &vecs)?;
+    let (hcr_variances, copy) =
+        chapman_robbins_variances(own.as_ref().unwrap_or(problem), p, &variances, &vecs)?;
     Ok(Bound {
         p0,
         variances,
