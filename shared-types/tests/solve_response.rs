@@ -32,11 +32,11 @@ fn codes_outside_their_tables_are_rejected_with_the_field_named() {
         r.validate().unwrap_err().field,
         "solve_response.stage3_held_axes"
     );
-    // The stage-3 flags: the six defined bits, no others.
+    // The stage-3 flags: the eight defined bits, no others.
     let mut r = ok();
-    r.stage3_flags = 0b11_1111;
+    r.stage3_flags = 0b1111_1111;
     assert!(r.validate().is_ok());
-    r.stage3_flags = 0b100_0000;
+    r.stage3_flags = 0b1_0000_0000;
     assert_eq!(
         r.validate().unwrap_err().field,
         "solve_response.stage3_flags"
