@@ -23,7 +23,7 @@
 
 use crate::error::InversionError;
 use crate::facet::{FacetGeometry, LOBES, TERMS};
-use crate::nuisance::{Normal, Row, NUISANCE};
+use crate::nuisance::{Normal, NUISANCE};
 use crate::observation::Observation;
 use crate::rotation::{AttitudeModel, TrigStepper};
 use glint_physics::two_facet::{panel_normal, TwoFacetCoefficients};
@@ -36,7 +36,7 @@ mod diagnostics;
 mod held;
 pub mod refit;
 
-use refit::{lobe_slope_of, nuisance_columns, take_widest_lobes};
+use refit::{nuisance_columns, take_widest_lobes};
 
 /// Panel normal during the motion window (§1.6 \[ASSUMP\]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -394,6 +394,20 @@ impl RateProblem {
         }
     }
 
+    /// [`Self::basis_and_slopes`] at `frame` for the rate `trig` steps through.
+    fn basis_and_slopes_at(
+        &self,
+        frame: &Frame,
+        trig: &mut TrigStepper,
+        g: &mut Basis,
+        slopes: &mut [FacetSlopes; 2],
+    ) {
+        let (rot, drot) = self
+            .attitude
+            .matrix_and_partials_from_trig(&trig.at(frame.t_frames), frame.t_frames);
+        self.basis_and_slopes(frame, &rot, &drot, g, slopes);
+    }
+
     /// Writes residuals `r` (length T·B) and returns the cost Σ r².
     pub fn residuals(&self, p: [f64; 3], r: &mut [f64]) -> f64 {
         self.residuals_with_nuisance(p, r).0
@@ -502,10 +516,7 @@ impl RateProblem {
         let mut rows = self.nuisance_rows();
         let mut trig = TrigStepper::new(p);
         for (t, frame) in self.frames.iter().enumerate() {
-            let (rot, drot) = self
-                .attitude
-                .matrix_and_partials_from_trig(&trig.at(frame.t_frames), frame.t_frames);
-            self.basis_and_slopes(frame, &rot, &drot, &mut g, &mut slopes);
+            self.basis_and_slopes_at(frame, &mut trig, &mut g, &mut slopes);
             for (b, band) in self.bands.iter().enumerate() {
                 let m = dot22(&band.x, &g);
                 let dm = model_slope(&band.x, &slopes);
@@ -574,22 +585,6 @@ fn model_slope(x: &Basis, slopes: &[FacetSlopes; 2]) -> [f64; 3] {
         }
     }
     dm
-}
-
-impl RateProblem {
-    /// The nuisance columns of one residual with their slopes, `scale = w k`.
-    fn nuisance_row(&self, scale: f64, g: &Basis, slopes: &[FacetSlopes; 2]) -> Row {
-        Row {
-            a: nuisance_columns(scale, g, self.refit_lobes),
-            da: [
-                slopes[0].d_diffuse.map(|d| scale * d),
-                slopes[1].d_diffuse.map(|d| scale * d),
-                [0.0; 3],
-                lobe_slope_of(&slopes[0], self.refit_lobes[0], scale),
-                lobe_slope_of(&slopes[1], self.refit_lobes[1], scale),
-            ],
-        }
-    }
 }
 
 fn dot22(x: &Basis, g: &Basis) -> f64 {

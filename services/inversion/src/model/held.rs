@@ -227,10 +227,7 @@ impl RateProblem {
         let mut trig = TrigStepper::new(p);
         for (ti, &t) in frames.iter().enumerate() {
             let frame = &self.frames[t];
-            let (rot, drot) = self
-                .attitude
-                .matrix_and_partials_from_trig(&trig.at(frame.t_frames), frame.t_frames);
-            self.basis_and_slopes(frame, &rot, &drot, &mut g, &mut slopes);
+            self.basis_and_slopes_at(frame, &mut trig, &mut g, &mut slopes);
             for (b, band) in self.bands.iter().enumerate() {
                 let m = dot22(&band.x, &g);
                 let dm = model_slope(&band.x, &slopes);

@@ -42,6 +42,20 @@ impl RateProblem {
         self.residuals_with_nuisance(p, &mut scratch).1
     }
 
+    /// The nuisance columns of one residual with their slopes, `scale = w k`.
+    pub(super) fn nuisance_row(&self, scale: f64, g: &Basis, slopes: &[FacetSlopes; 2]) -> Row {
+        Row {
+            a: nuisance_columns(scale, g, self.refit_lobes),
+            da: [
+                slopes[0].d_diffuse.map(|d| scale * d),
+                slopes[1].d_diffuse.map(|d| scale * d),
+                [0.0; 3],
+                lobe_slope_of(&slopes[0], self.refit_lobes[0], scale),
+                lobe_slope_of(&slopes[1], self.refit_lobes[1], scale),
+            ],
+        }
+    }
+
     /// Empty per-band rows for the nuisance projection (none without the re-fit).
     pub(super) fn nuisance_rows(&self) -> Vec<Vec<Row>> {
         if self.refit_diffuse {
@@ -142,7 +156,7 @@ pub(super) fn nuisance_columns(scale: f64, g: &Basis, lobes: [usize; 2]) -> [f64
 }
 
 /// ∂(scale·G_k)/∂p of facet slopes `sl` for lobe k (zeros when k = 0).
-pub(super) fn lobe_slope_of(sl: &FacetSlopes, k: usize, scale: f64) -> [f64; 3] {
+fn lobe_slope_of(sl: &FacetSlopes, k: usize, scale: f64) -> [f64; 3] {
     if k == 0 {
         return [0.0; 3];
     }
