@@ -127,3 +127,90 @@ fn a_held_axis_wander_costs_the_straight_nees_not_the_curvilinear_one() {
     assert!((nees - straight * straight).abs() < 1e-3 * nees, "{e}");
     assert!(e["nees_mean_curvilinear"].as_f64().unwrap() < 1e-12, "{e}");
 }
+
+/// The bound of a fit that held stage 1's coefficients by their prior (docs/adr/0030) comes from
+/// the held model's own information; the plug-in path computes it as F − L (a Schur
+/// complement). On motion data the model fits exactly, at the rate that made them, the two are
+/// the same matrix, so `crb` must give the same bound either way, while the known-coefficient
+/// and two-stage bounds, the plug-in model's in both, stay equal. Not vacuous: the
+/// coefficients cost the bound a measurable share of the information.
+#[test]
+fn a_held_fit_is_bounded_by_the_information_its_coefficients_leave() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/y-snr50-seed7-400nm.csv");
+    let file = crate::observations::read(&path).expect("observation file");
+    let config = InversionConfig::default();
+    let stage1 = glint_inversion::stage1::run_stage1_full(
+        &file.set.stable,
+        &file.set.wavelengths_nm,
+        config.model.body_normal.into(),
+        None,
+        &config.stage1,
+    )
+    .expect("stage 1");
+    let band = &stage1.bands[0];
+    let covariance = band.coeff_covariance.clone();
+    assert!(
+        covariance.is_some(),
+        "the noisy stable window gives a covariance"
+    );
+    let rate_bands = [RateBand {
+        band_index: 0,
+        wavelength_nm: band.wavelength_nm,
+        coeffs: band.coeffs,
+    }];
+    let mut frames: Vec<Observation> = file.set.motion.clone();
+    frames.sort_by_key(|o| o.frame_index);
+    frames.truncate(100);
+    let model = MotionModelConfig {
+        epoch_frame: frames.first().map(|o| o.frame_index),
+        refit_diffuse: true,
+        ..MotionModelConfig::default()
+    };
+    let p = [0.0, 0.25, 0.0];
+    // The motion window replaced by the plug-in model's own light curve at p.
+    let exact = RateProblem::new(&frames, &rate_bands, &model)
+        .expect("problem")
+        .model_flux_w(p);
+    for (t, o) in frames.iter_mut().enumerate() {
+        o.flux_w[0] = exact[0][t];
+    }
+    let problem = RateProblem::new(&frames, &rate_bands, &model)
+        .expect("problem")
+        .with_coefficient_covariance(vec![covariance]);
+    // χ² in noise variances: the data are the model to far below the noise.
+    assert!(problem.cost(p) < 1e-6, "exact data: {}", problem.cost(p));
+
+    let plain = crb(&problem, false, Some(p)).expect("plug-in bound");
+    let held = crb(&problem, true, Some(p)).expect("held bound");
+    for d in 0..3 {
+        let (a, b) = (plain.variances[d], held.variances[d]);
+        assert!(
+            (a - b).abs() <= 1e-6 * a,
+            "direction {d}: plug-in {a:e}, held {b:e}"
+        );
+        let along: f64 = (0..3)
+            .map(|i| plain.directions[d][i] * held.directions[d][i])
+            .sum();
+        assert!(along.abs() > 1.0 - 1e-6, "direction {d}: {along}");
+        // The plug-in model's bounds, along each bound's own (equal) directions.
+        for (a, b) in [
+            (plain.known_variances[d], held.known_variances[d]),
+            (plain.two_stage_variances[d], held.two_stage_variances[d]),
+        ] {
+            assert!((a - b).abs() <= 1e-6 * a, "direction {d}: {a:e} vs {b:e}");
+        }
+    }
+    let observable = plain.observable();
+    assert!(
+        observable.iter().filter(|o| **o).count() >= 2,
+        "{observable:?}"
+    );
+    let cost_share = (0..3)
+        .filter(|&d| observable[d])
+        .map(|d| plain.variances[d] / plain.known_variances[d])
+        .fold(0.0_f64, f64::max);
+    assert!(
+        cost_share > 1.01,
+        "the coefficients cost nothing: {cost_share}"
+    );
+}
