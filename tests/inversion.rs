@@ -295,8 +295,9 @@ fn with_only_glint_lobes_the_joint_fit_keeps_them_and_meets_the_noise_free_targe
 fn without_a_glint_the_chain_answers_unobservable_with_its_reason() {
     // Paper-like materials (no diffuse or broad lobes on body and panel) at phase 40°: the paper
     // finds "no body or panel glint" and no solution; the inversion says so instead of a number.
-    // At 30° the motion window is as flat (0.15 % over the first frames, docs/attitude-solve.md): the joint fit
-    // says so too, where re-fitting the widest lobe made a glint of that drift (24.2).
+    // At 30° the motion window is as flat (0.15 % over the first frames, docs/attitude-solve.md):
+    // the joint fit says so too, where re-fitting the widest lobe made a glint of that drift
+    // (24.2).
     for phase in ["30.0", "40.0"] {
         let dir = temp_dir(&format!("no-glint-{phase}"));
         let file = scenario_variant(
