@@ -5,19 +5,16 @@
 //! Exit codes: 0 success, 1 the run failed (a service died, a message was lost, …),
 //! 2 bad input (scenario file, arguments).
 
-mod campaign;
-mod campaign_mc;
-mod campaign_mc_summary;
 mod consume;
 mod deploy;
+mod invert;
+#[cfg(feature = "lab")]
+mod lab;
 mod observations;
 mod plots;
 mod png;
 mod progress;
 mod report;
-mod report_debris;
-mod report_fit;
-mod report_inversion;
 mod run;
 mod score_debris;
 mod sequence;
@@ -57,16 +54,15 @@ enum Cmd {
         /// Override the scenario's seed.
         #[arg(long)]
         seed: Option<u64>,
-        /// Re-score a Monte-Carlo campaign already in `--out` from its deployments' reports,
-        /// without deploying again (after a change to the scoring).
-        #[arg(long, requires = "out")]
-        rescore: bool,
     },
     /// Check a scenario file; report every problem with its field and allowed range.
     Validate { scenario: PathBuf },
-    /// The three-stage attitude solve on an observation file (format: README).
+    /// The three-stage attitude solve on an observation file (format: docs/observations.md).
     Invert {
         observations: PathBuf,
+        /// Also print how the three stages got there.
+        #[arg(long, short)]
+        verbose: bool,
         /// Write `inversion.json` here (default: print only).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -80,6 +76,13 @@ enum Cmd {
         /// Also fit stage 3 at every band and rank the chosen band against them.
         #[arg(long)]
         band_sweep: bool,
+    },
+    /// Estimator analysis beside the product: campaigns over a parameter and Monte-Carlo
+    /// scoring against the Cramér–Rao bound.
+    #[cfg(feature = "lab")]
+    Lab {
+        #[command(subcommand)]
+        lab: LabCmd,
     },
     /// Offline tools: algorithm stages on files, no IPC.
     Tool {
@@ -96,6 +99,26 @@ enum Cmd {
         /// The resolved scenario file of the run.
         #[arg(long)]
         scenario: PathBuf,
+    },
+}
+
+#[cfg(feature = "lab")]
+#[derive(Subcommand)]
+enum LabCmd {
+    /// Run a campaign scenario (a `[campaign]` section): one deployment per value (and per
+    /// seed), the table beside the paper, the Monte-Carlo scoring.
+    Campaign {
+        scenario: PathBuf,
+        /// Campaign directory (default: runs/<name>-<UTC timestamp>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override the scenario's seed.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Re-score a Monte-Carlo campaign already in `--out` from its deployments' reports,
+        /// without deploying again (after a change to the scoring).
+        #[arg(long, requires = "out")]
+        rescore: bool,
     },
 }
 
@@ -130,6 +153,40 @@ fn load(path: Option<&PathBuf>) -> Result<(Scenario, String), ScenarioError> {
     }
 }
 
+/// The scenario (or the default) with `seed` applied; exit code 2 with the error printed.
+fn load_with_seed(
+    path: Option<&PathBuf>,
+    seed: Option<u64>,
+) -> Result<(Scenario, String), ExitCode> {
+    let (mut sc, file) = load(path).map_err(|e| {
+        eprintln!("error: {e}");
+        ExitCode::from(2)
+    })?;
+    if let Some(seed) = seed {
+        sc.seed = seed;
+    }
+    Ok((sc, file))
+}
+
+/// Prints where the summary is and maps the outcome to the exit code.
+fn finish(result: anyhow::Result<(PathBuf, bool)>) -> ExitCode {
+    match result {
+        Ok((dir, ok)) => {
+            println!("{}", dir.join("summary.md").display());
+            if ok {
+                ExitCode::SUCCESS
+            } else {
+                eprintln!("run failed: see {}", dir.join("summary.md").display());
+                ExitCode::from(1)
+            }
+        }
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
@@ -153,50 +210,50 @@ fn main() -> ExitCode {
             scenario,
             out,
             seed,
-            rescore,
         } => {
             glint_runtime::init_tracing("orchestrator");
-            let (mut sc, file) = match load(scenario.as_ref()) {
+            let (sc, file) = match load_with_seed(scenario.as_ref(), seed) {
                 Ok(x) => x,
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    return ExitCode::from(2);
-                }
+                Err(code) => return code,
             };
-            if let Some(seed) = seed {
-                sc.seed = seed;
+            if sc.campaign.is_some() {
+                eprintln!(
+                    "error: {file}: a [campaign] scenario runs with `glint lab campaign {file}`"
+                );
+                return ExitCode::from(2);
             }
-            let progress = std::io::stderr().is_terminal();
-            let monte_carlo = sc.campaign.as_ref().is_some_and(|c| c.seeds > 1);
-            if rescore && !monte_carlo {
+            finish(run::run(run::RunOptions {
+                scenario: sc,
+                scenario_file: file,
+                out_dir: out,
+                progress: std::io::stderr().is_terminal(),
+            }))
+        }
+        #[cfg(feature = "lab")]
+        Cmd::Lab {
+            lab:
+                LabCmd::Campaign {
+                    scenario,
+                    out,
+                    seed,
+                    rescore,
+                },
+        } => {
+            glint_runtime::init_tracing("orchestrator");
+            let (sc, file) = match load_with_seed(Some(&scenario), seed) {
+                Ok(x) => x,
+                Err(code) => return code,
+            };
+            let Some(campaign) = &sc.campaign else {
+                eprintln!("error: {file}: no [campaign] section (run it with `glint run {file}`)");
+                return ExitCode::from(2);
+            };
+            if rescore && campaign.seeds <= 1 {
                 eprintln!("error: {file}: --rescore needs a [campaign] with seeds > 1");
                 return ExitCode::from(2);
             }
-            let result = if sc.campaign.is_some() {
-                campaign::run(&sc, &file, out, progress, rescore)
-            } else {
-                run::run(run::RunOptions {
-                    scenario: sc,
-                    scenario_file: file,
-                    out_dir: out,
-                    progress,
-                })
-            };
-            match result {
-                Ok((dir, ok)) => {
-                    println!("{}", dir.join("summary.md").display());
-                    if ok {
-                        ExitCode::SUCCESS
-                    } else {
-                        eprintln!("run failed: see {}", dir.join("summary.md").display());
-                        ExitCode::from(1)
-                    }
-                }
-                Err(e) => {
-                    eprintln!("error: {e:#}");
-                    ExitCode::from(1)
-                }
-            }
+            let progress = std::io::stderr().is_terminal();
+            finish(lab::run(&sc, &file, out, progress, rescore))
         }
         Cmd::Invert {
             observations,
@@ -204,7 +261,16 @@ fn main() -> ExitCode {
             no_joint,
             config,
             band_sweep,
-        } => match tools::invert(&observations, !no_joint, config.as_deref(), band_sweep) {
+            verbose,
+        } => match invert::invert(
+            &observations,
+            &invert::InvertOptions {
+                joint: !no_joint,
+                config: config.as_deref(),
+                band_sweep,
+                verbose,
+            },
+        ) {
             Ok((json, text)) => {
                 print!("{text}");
                 if let Some(dir) = out {

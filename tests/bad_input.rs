@@ -99,3 +99,23 @@ fn shipped_scenarios_validate() {
         );
     }
 }
+
+#[test]
+fn campaigns_run_through_glint_lab_and_plain_runs_through_glint_run() {
+    // A campaign is lab work: `glint run` says where it belongs, with exit code 2.
+    let campaign = scenario("campaign-axis.toml");
+    let out = glint().arg("run").arg(&campaign).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("glint lab campaign"), "{err}");
+    // And a plain scenario is no campaign.
+    let plain = scenario("geo-hover-yspin.toml");
+    let out = glint()
+        .args(["lab", "campaign"])
+        .arg(&plain)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("no [campaign] section"), "{err}");
+}

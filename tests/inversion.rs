@@ -4,7 +4,6 @@
 
 mod common;
 
-use common::offline::assert_carries_the_offline_neighbours;
 use common::*;
 
 #[test]
@@ -69,49 +68,92 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
         .fold(f64::INFINITY, f64::min);
     let own = at_chosen["err_paper_metric"].as_f64().unwrap();
     assert!(own <= 1.1 * lowest, "λ* error {own}, lowest {lowest}");
-    if s3["status"] == "ok" {
-        let p_service = &s3["p_deg_per_frame"];
-        let p_offline = &off["rate"]["rate_deg_per_frame"];
-        assert_eq!(
-            p_service, p_offline,
-            "service {p_service} vs offline {p_offline}"
-        );
-    }
-    // The joint fit's test of stage 1's widest lobes travels with the answer: the service's
-    // decision and χ² are the offline solve's (none when the joint fit kept its search's rate).
+    // glint's answer (the joint fit): the service's rate, covariance and mirror are the
+    // offline solve's, to the bit, and so is λ*'s rate beside it.
+    assert_eq!(s3["fit"], "joint", "{s3}");
+    let answer = &off["answer"];
+    assert_eq!(s3["p_deg_per_frame"], answer["rate_deg_per_frame"], "{s3}");
+    let flat: Vec<serde_json::Value> = answer["covariance_deg2_per_frame2"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|row| row.as_array().unwrap().clone())
+        .collect();
+    assert_eq!(s3["covariance"], serde_json::Value::Array(flat));
+    assert_eq!(
+        s3["lambda_star"]["p_deg_per_frame"],
+        off["rate"]["rate_deg_per_frame"]
+    );
+    assert_eq!(s3["fitted_frames"], answer["fitted_frames"]);
+    // The joint fit's test of stage 1's widest lobes travels with the answer.
     let refit = &off["joint_rate"]["refit"];
     assert_eq!(
-        s3["joint"]["widest_lobe_refit"].as_bool(),
+        s3["widest_lobe_refit"].as_bool(),
         Some(refit["widest_lobe"].as_bool().unwrap_or(false)),
         "{refit}"
     );
-    assert_eq!(
-        s3["joint"]["lobe_test_chi2"].as_f64(),
-        refit["lobe_test"]["chi2"].as_f64()
-    );
-    // With the other lobe model's rate and the weight the joint covariance gives it
-    // (docs/adr/0023).
-    let other = &refit["lobe_test"]["other_rate_deg_per_frame"];
-    assert_eq!(s3["joint"]["lobe_other_deg_per_frame"], *other, "{s3}");
-    if other.is_array() {
-        assert_eq!(
-            s3["joint"]["lobe_other_weight"],
-            refit["lobe_test"]["other_weight"]
-        );
-    }
-    // So does its mirror: a rate about Y is nearly its own mirror (−w_x, w_y, −w_z), which fits
-    // all bands as well, and the answer names it; both meet the target.
-    let mirror = &s3["joint"]["mirror_deg_per_frame"];
-    assert_eq!(mirror, &off["joint_rate"]["mirror_deg_per_frame"]);
+    // A rate about Y is nearly its own mirror (−w_x, w_y, −w_z), which fits all bands as
+    // well: the answer says the sense is not determined and names it; both meet the target.
+    let mirror = &s3["mirror_deg_per_frame"];
+    assert_eq!(mirror, &answer["mirror_deg_per_frame"]);
     assert!(mirror.is_array(), "{s3}");
-    let err = s3["joint"]["err_paper_metric_mirror"].as_f64().unwrap();
+    assert_eq!(s3["sense_determined"], false);
+    let err = s3["err_paper_metric_mirror"].as_f64().unwrap();
     assert!(err <= 0.5, "mirror error {err}: {s3}");
-    // And the minima a frame's shift away that each covariance carries (docs/adr/0019): the
-    // likeliest travels with the answer, and the mirror, a minimum a frame's shift away here
-    // too, is not among them: it is named apart, and the covariance stays about the sense
-    // reported. The covariance is the offline solve's, to the bit; λ*'s likewise.
-    assert_carries_the_offline_neighbours(&s3["joint"], &off["joint_rate"], mirror);
-    assert_carries_the_offline_neighbours(s3, &off["rate"], &s3["mirror_deg_per_frame"]);
+    // The direction the data do not determine (the sun–observer bisector, nearest body X) is
+    // named with the prior that held it.
+    assert_eq!(s3["held_at_prior"], serde_json::json!(["w_x"]), "{s3}");
+    let directions = s3["directions"].as_array().unwrap();
+    assert_eq!(directions.len(), 3);
+    assert_eq!(
+        directions
+            .iter()
+            .filter(|d| d["determined"] == true)
+            .count(),
+        2,
+        "{s3}"
+    );
+    // The summary leads with the answer: the first bold line after the title is the rate
+    // and its error.
+    let summary = std::fs::read_to_string(dir.join("summary.md")).unwrap();
+    let first = summary
+        .lines()
+        .find(|l| l.starts_with("**"))
+        .expect("a bold answer line");
+    assert!(
+        first.starts_with("**p = [")
+            && first.contains(&format!(
+                "error {:.3}",
+                s3["err_paper_metric"].as_f64().unwrap()
+            )),
+        "{first}"
+    );
+    assert!(
+        summary.find("## Attitude rate").unwrap() < summary.find("## Services").unwrap(),
+        "the answer comes first"
+    );
+    // And `glint invert` prints it in a few lines, its diagnostics behind --verbose.
+    let out = glint()
+        .arg("invert")
+        .arg(dir.join("observations.csv"))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.lines().count() <= 10, "{text}");
+    assert!(text.contains("answer: p = ["), "{text}");
+    assert!(text.contains("sense of rotation: NOT determined"), "{text}");
+    let verbose = glint()
+        .args(["invert", "--verbose"])
+        .arg(dir.join("observations.csv"))
+        .output()
+        .unwrap();
+    let verbose = String::from_utf8_lossy(&verbose.stdout);
+    assert!(
+        verbose.contains("stage 1: max reconstruction error"),
+        "{verbose}"
+    );
+    assert!(verbose.contains("stage 3 at λ*"), "{verbose}");
     for pic in [
         "inversion-sigma.svg",
         "light-curve.svg",
@@ -195,6 +237,10 @@ fn a_campaign_runs_one_deployment_per_value_and_tabulates_them() {
         let sub = read_json(&dir.join(format!("{i:02}/report.json")));
         assert_eq!(
             sub["inversion"]["stage3"]["err_paper_metric"],
+            r["joint_err_paper_metric"]
+        );
+        assert_eq!(
+            sub["inversion"]["stage3"]["lambda_star"]["err_paper_metric"],
             r["err_paper_metric"]
         );
     }
@@ -225,8 +271,7 @@ fn the_chain_recovers_the_exact_rate_when_the_satellite_is_the_two_facet_model()
     // Fitted exactly on the frames within the 25° horizon (0.25°/frame: frames 0–100).
     assert_eq!(s3["fitted_frames"], 101, "{s3}");
     // The weakest eigen-direction is the sun–observer bisector, ≈ body X (math.md §1.6).
-    let v = s3["fisher"]["eigenvectors_columns"].as_array().unwrap();
-    let weakest_x = v[0].as_f64().unwrap().abs();
+    let weakest_x = s3["directions"][0]["axis"][0].as_f64().unwrap().abs();
     assert!(weakest_x > 0.95, "{s3}");
     for b in r.report["inversion"]["stage1"]["bands"].as_array().unwrap() {
         assert!(b["recon_err"].as_f64().unwrap() < 1e-9, "{b}");
@@ -234,12 +279,10 @@ fn the_chain_recovers_the_exact_rate_when_the_satellite_is_the_two_facet_model()
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Start phase 30° about Z ([000] Table 5: the paper's 9.05, the target ≤ 5), met at λ* and by
-/// the joint fit. λ*'s search finds a slow rate (0.09 deg/frame) on its first window; were its
-/// window to grow to that rate's horizon (279 frames) it would stay there (error 25.5). It may
-/// not grow past the joint rate's horizon, where the model holds for both.
+/// Start phase 30° about Z ([000] Table 5: the paper's 9.05, the target ≤ 5): glint's answer,
+/// the joint fit over every band, meets it.
 #[test]
-fn phase_thirty_degrees_meets_its_target_at_lambda_star_and_jointly() {
+fn phase_thirty_degrees_meets_its_target() {
     let dir = temp_dir("phase-30");
     let file = scenario_variant(
         "geo-hover-zspin.toml",
@@ -249,9 +292,9 @@ fn phase_thirty_degrees_meets_its_target_at_lambda_star_and_jointly() {
     let r = run_ok(Some(&file), &dir.join("out"), &[]);
     let s3 = &r.report["inversion"]["stage3"];
     assert_eq!(s3["status"], "ok", "{s3}");
+    assert_eq!(s3["fit"], "joint", "{s3}");
     let err = s3["err_paper_metric"].as_f64().unwrap();
-    let joint = s3["joint"]["err_paper_metric"].as_f64().unwrap();
-    assert!(err <= 5.0 && joint <= 5.0, "λ* {err}, joint {joint}: {s3}");
+    assert!(err <= 5.0, "error {err}: {s3}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -279,14 +322,11 @@ fn with_only_glint_lobes_the_joint_fit_keeps_them_and_meets_the_noise_free_targe
             &dir,
         );
         let r = run_ok(Some(&file), &dir.join("out"), &[]);
-        let joint = &r.report["inversion"]["stage3"]["joint"];
-        assert_eq!(joint["glint_lobes_only"], true, "{joint}");
+        let joint = &r.report["inversion"]["stage3"];
+        assert_eq!(joint["fit"], "joint", "{joint}");
         assert_eq!(joint["widest_lobe_refit"], false, "{joint}");
-        assert!(joint["lobe_test_chi2"].is_null(), "{joint}");
         let err = joint["err_paper_metric"].as_f64().unwrap();
         assert!(err <= 0.5, "{phase}°: joint error {err}: {joint}");
-        let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
-        assert!(summary.contains("is a glint lobe"), "{summary}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
@@ -316,7 +356,7 @@ fn without_a_glint_the_chain_answers_unobservable_with_its_reason() {
         assert_eq!(s3["status"], "unobservable", "{phase}: {s3}");
         for why in [
             &s3["unobservable_reason"],
-            &s3["joint"]["unobservable_reason"],
+            &s3["lambda_star"]["unobservable_reason"],
         ] {
             assert!(
                 why.as_str().unwrap_or("").starts_with("no glint"),
@@ -324,9 +364,9 @@ fn without_a_glint_the_chain_answers_unobservable_with_its_reason() {
             );
         }
         assert!(s3["p_deg_per_frame"].is_null(), "{s3}");
-        assert!(s3["joint"]["p_deg_per_frame"].is_null(), "{s3}");
+        assert!(s3["lambda_star"]["p_deg_per_frame"].is_null(), "{s3}");
         let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
-        assert!(summary.contains("no rate is reported"), "{summary}");
+        assert!(summary.contains("**No rate: unobservable**"), "{summary}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
@@ -355,7 +395,7 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
         let run = read_json(&root.join(format!("00/s{k:03}/report.json")));
         assert_eq!(run["inversion"]["windows"]["snr"], 20.0);
         assert_eq!(run["seed"], 1000 + k);
-        assert!(run["inversion"]["stage3"]["joint"]["widest_lobe_refit"].is_boolean());
+        assert!(run["inversion"]["stage3"]["widest_lobe_refit"].is_boolean());
     }
     // Each run is measured from the noise-free solution of the lobe model it reported.
     assert!(
@@ -367,8 +407,8 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
     // is the service's noise-free answer (to rounding); so is the joint one here, where the
     // two-facet body leaves no mismatch for the weights to act on.
     for (fit, service) in [
-        ("single", &reference["inversion"]["stage3"]),
-        ("joint", &reference["inversion"]["stage3"]["joint"]),
+        ("single", &reference["inversion"]["stage3"]["lambda_star"]),
+        ("joint", &reference["inversion"]["stage3"]),
     ] {
         let gap = (0..3)
             .map(|i| {
@@ -384,11 +424,14 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
         let e = &mc[fit];
         assert_eq!(e["determined"], 3, "{e}");
         assert!(e["efficiency"].as_f64().unwrap().is_finite(), "{e}");
-        let [lo, hi] = [0, 1].map(|i| e["nees_bounds_95"][i].as_f64().unwrap());
-        assert!(lo > 0.0 && hi > lo, "{e}");
-        // The diagnostic NEES in speed and axis is scored from the same runs.
-        let curvilinear = e["nees_mean_curvilinear"].as_f64().unwrap();
-        assert!(curvilinear.is_finite() && curvilinear > 0.0, "{e}");
+        // NEES scores the answer's covariance; λ*'s rate travels without one.
+        if fit == "joint" {
+            let [lo, hi] = [0, 1].map(|i| e["nees_bounds_95"][i].as_f64().unwrap());
+            assert!(lo > 0.0 && hi > lo, "{e}");
+            // The diagnostic NEES in speed and axis is scored from the same runs.
+            let curvilinear = e["nees_mean_curvilinear"].as_f64().unwrap();
+            assert!(curvilinear.is_finite() && curvilinear > 0.0, "{e}");
+        }
         // The Hammersley–Chapman–Robbins bound tends to the CRB at small offsets (profiled over
         // the determined directions: within a few per cent of the bound with coefficients known).
         let [crb, hcr] = [
@@ -508,14 +551,13 @@ fn the_held_axis_is_judged_where_the_prior_puts_the_fit() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Y rotation at SNR 10, seed 29: the noise leaves 640 nm's stage-1 coefficients (pooled over
+/// ±20 nm) ranked first by stage 2, and that band's own cost is lowest at the reversed rotation
+/// (error ≈ 45). glint's answer is the joint fit over every band, near the truth; λ*'s own fit
+/// is reported beside it as the paper computes it.
 #[test]
-fn a_lambda_star_solution_in_another_minimum_is_set_aside_by_the_joint_fit() {
-    // Y rotation at SNR 10, seed 29: the noise leaves 640 nm's stage-1 coefficients (pooled
-    // over ±20 nm) ranked first by stage 2, and the band's own cost is lowest at the reversed
-    // rotation [0, −0.189, −0.083] (error ≈ 45). The joint fit (all bands) is 0.02 from the
-    // truth and rejects that solution as another minimum; stage 3 falls back to the next
-    // candidate.
-    let dir = temp_dir("lambda-rejected");
+fn the_answer_is_the_joint_fit_where_lambda_star_alone_lands_in_another_minimum() {
+    let dir = temp_dir("lambda-other-minimum");
     let file = scenario_variant(
         "geo-hover-yspin.toml",
         &[
@@ -531,53 +573,20 @@ fn a_lambda_star_solution_in_another_minimum_is_set_aside_by_the_joint_fit() {
     let inv = &r.report["inversion"];
     let s3 = &inv["stage3"];
     assert_eq!(inv["stage2"]["chosen_nm"], 640.0, "{}", inv["stage2"]);
-    assert_eq!(s3["lambda_rejected_by_joint"], true, "{s3}");
-    assert_ne!(s3["band_nm"], 640.0, "{s3}");
-    // Against the truth: the fallback band's rate is near it, and so is the joint fit's.
+    let lambda = &s3["lambda_star"];
+    assert_eq!(lambda["band_nm"], 640.0, "{s3}");
+    assert!(
+        lambda["err_paper_metric"].as_f64().unwrap() > 40.0,
+        "λ* alone: {lambda}"
+    );
+    assert_eq!(s3["fit"], "joint");
     let err = s3["err_paper_metric"].as_f64().unwrap();
     assert!(err < 2.0, "error {err}: {s3}");
-    // The band that replaced λ* agrees with the joint fit within the gate.
-    let apart = s3["joint_disagreement_sigma"].as_f64().expect("reported");
-    assert!(apart < 6.0, "{s3}");
-    // Its covariance is widened by the Birge ratio of that distance, as the service says it
-    // is; and the same widening offline.
-    // (k, the directions compared, is 1–3).
-    let scale = s3["covariance_scale"].as_f64().expect("reported");
-    let birge = |k: f64| (apart * apart / k).max(1.0);
-    assert!(
-        [1.0, 2.0, 3.0]
-            .iter()
-            .any(|&k| (birge(k) - scale).abs() <= 1e-9 * scale),
-        "{s3}"
-    );
-    assert!(
-        s3["joint"]["err_paper_metric"].as_f64().unwrap() < 2.0,
-        "{s3}"
-    );
-    let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
-    assert!(summary.contains("The joint fit rejected the solution at λ* = 640 nm"));
-
-    // Offline, the same file: the same answer; and with the check switched off, λ* at 640 nm
-    // lands in the reversed rotation that was set aside.
-    let obs = r.dir.join("observations.csv");
-    let offline = invert_ok(&obs, &dir.join("offline"), &[]);
-    let fitted = offline["rate_band_index"].as_u64().unwrap() as usize;
-    assert_eq!(offline["stage1"][fitted]["wavelength_nm"], s3["band_nm"]);
-    assert_eq!(offline["rate"]["rate_deg_per_frame"], s3["p_deg_per_frame"]);
-    assert_eq!(offline["rate_covariance_scale"].as_f64(), Some(scale));
-    let config = dir.join("no-gate.toml");
-    std::fs::write(&config, "[stage3]\njoint_gate_sigma = inf\n").unwrap();
-    let config_arg = config.to_str().unwrap();
-    let ungated = invert_ok(&obs, &dir.join("ungated"), &["--config", config_arg]);
+    // Offline, the same file: the same answer.
+    let offline = invert_ok(&r.dir.join("observations.csv"), &dir.join("offline"), &[]);
     assert_eq!(
-        ungated["rate_band_index"].as_u64(),
-        ungated["stage2"]["chosen_index"].as_u64()
-    );
-    let p = &ungated["rate"]["rate_deg_per_frame"];
-    assert!(p[1].as_f64().unwrap() < 0.0, "{p}");
-    assert!(
-        ungated["stage3_err_paper_metric"].as_f64().unwrap() > 40.0,
-        "{p}"
+        offline["answer"]["rate_deg_per_frame"],
+        s3["p_deg_per_frame"]
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -117,7 +117,7 @@ fn sigterm_stops_a_campaign_instead_of_starting_the_next_deployment() {
     );
     let out = dir.join("out");
     let child = glint()
-        .arg("run")
+        .args(["lab", "campaign"])
         .arg(&file)
         .arg("--out")
         .arg(&out)

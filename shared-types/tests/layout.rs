@@ -160,6 +160,8 @@ fn type_names_carry_the_contract_version() {
             <Detections as ZeroCopySend>::type_name(),
             <TrackEstimate as ZeroCopySend>::type_name(),
             <Tracks as ZeroCopySend>::type_name(),
+            <SolveRequest as ZeroCopySend>::type_name(),
+            <SolveResponse as ZeroCopySend>::type_name(),
         ]
     };
     for name in names {
@@ -217,65 +219,33 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, request_id), 32);
     assert_eq!(offset_of!(SolveRequest, stage), 40);
     assert_eq!(offset_of!(SolveRequest, flags), 44);
+    // The answer, ≤ 1 KiB: no lab notes on the wire.
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (2688, 8)
+        (848, 8)
     );
+    assert!(size_of::<SolveResponse>() <= 1024);
+    assert_eq!(offset_of!(SolveResponse, request_id), 32);
+    assert_eq!(offset_of!(SolveResponse, stage), 40);
     assert_eq!(offset_of!(SolveResponse, status), 44);
+    assert_eq!(offset_of!(SolveResponse, n_bands), 48);
     assert_eq!(offset_of!(SolveResponse, chosen_band), 52);
-    assert_eq!(offset_of!(SolveResponse, wavelength_nm), 56);
-    assert_eq!(offset_of!(SolveResponse, recon_err), 568);
-    assert_eq!(offset_of!(SolveResponse, separation), 1080);
-    assert_eq!(offset_of!(SolveResponse, p_deg_per_frame), 1592);
-    assert_eq!(offset_of!(SolveResponse, p_covariance), 1616);
-    assert_eq!(offset_of!(SolveResponse, p_joint_deg_per_frame), 1688);
-    assert_eq!(offset_of!(SolveResponse, fisher_eigenvalues), 1784);
-    assert_eq!(offset_of!(SolveResponse, bound_1sigma_deg_per_frame), 1880);
-    assert_eq!(offset_of!(SolveResponse, cost), 1904);
-    assert_eq!(offset_of!(SolveResponse, motion_samples), 1928);
-    assert_eq!(offset_of!(SolveResponse, fitted_frames), 1932);
-    assert_eq!(offset_of!(SolveResponse, p_mirror_deg_per_frame), 1936);
-    assert_eq!(offset_of!(SolveResponse, unobservable_reason), 1960);
-    assert_eq!(offset_of!(SolveResponse, joint_unobservable_reason), 1964);
-    assert_eq!(offset_of!(SolveResponse, separation_band), 1968);
-    assert_eq!(offset_of!(SolveResponse, specular_share), 1976);
-    assert_eq!(offset_of!(SolveResponse, stage1_widest_lobe_mu), 2488);
-    assert_eq!(offset_of!(SolveResponse, stage1_lobes_kept), 2508);
-    assert_eq!(offset_of!(SolveResponse, stage3_band), 2512);
-    assert_eq!(offset_of!(SolveResponse, stage3_set_aside), 2516);
-    assert_eq!(offset_of!(SolveResponse, stage1_spectral_window_nm), 2520);
-    assert_eq!(
-        offset_of!(SolveResponse, stage1_spectral_bias_to_noise),
-        2528
-    );
-    assert_eq!(
-        offset_of!(SolveResponse, stage3_joint_disagreement_sigma),
-        2536
-    );
-    assert_eq!(offset_of!(SolveResponse, stage3_covariance_scale), 2544);
-    assert_eq!(offset_of!(SolveResponse, stage3_joint_lobe_test_chi2), 2552);
-    assert_eq!(
-        offset_of!(SolveResponse, p_joint_mirror_deg_per_frame),
-        2560
-    );
-    assert_eq!(offset_of!(SolveResponse, stage3_held_axes), 2584);
-    assert_eq!(offset_of!(SolveResponse, stage3_covariance_source), 2588);
-    assert_eq!(
-        offset_of!(SolveResponse, p_joint_neighbour_deg_per_frame),
-        2592
-    );
-    assert_eq!(
-        offset_of!(SolveResponse, stage3_joint_neighbour_delta_chi2),
-        2616
-    );
-    assert_eq!(offset_of!(SolveResponse, p_neighbour_deg_per_frame), 2624);
-    assert_eq!(offset_of!(SolveResponse, stage3_neighbour_delta_chi2), 2648);
-    assert_eq!(
-        offset_of!(SolveResponse, p_joint_lobe_other_deg_per_frame),
-        2656
-    );
-    assert_eq!(
-        offset_of!(SolveResponse, stage3_joint_lobe_other_weight),
-        2680
-    );
+    assert_eq!(offset_of!(SolveResponse, stable_samples), 56);
+    assert_eq!(offset_of!(SolveResponse, motion_samples), 60);
+    assert_eq!(offset_of!(SolveResponse, recon_err), 64);
+    assert_eq!(offset_of!(SolveResponse, separation), 320);
+    assert_eq!(offset_of!(SolveResponse, flags), 576);
+    assert_eq!(offset_of!(SolveResponse, unobservable_reason), 580);
+    assert_eq!(offset_of!(SolveResponse, held_axes), 584);
+    assert_eq!(offset_of!(SolveResponse, observable_mask), 588);
+    assert_eq!(offset_of!(SolveResponse, fitted_frames), 592);
+    assert_eq!(offset_of!(SolveResponse, iterations), 596);
+    assert_eq!(offset_of!(SolveResponse, rate_deg_per_frame), 600);
+    assert_eq!(offset_of!(SolveResponse, covariance), 624);
+    assert_eq!(offset_of!(SolveResponse, fisher_eigenvectors), 696);
+    assert_eq!(offset_of!(SolveResponse, bound_1sigma_deg_per_frame), 768);
+    assert_eq!(offset_of!(SolveResponse, mirror_deg_per_frame), 792);
+    assert_eq!(offset_of!(SolveResponse, band_status), 816);
+    assert_eq!(offset_of!(SolveResponse, band_unobservable_reason), 820);
+    assert_eq!(offset_of!(SolveResponse, band_rate_deg_per_frame), 824);
 }

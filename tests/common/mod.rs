@@ -7,8 +7,6 @@ use std::process::{Command, Output};
 
 use serde_json::Value;
 
-pub mod offline;
-
 pub fn glint() -> Command {
     Command::new(env!("CARGO_BIN_EXE_glint"))
 }
@@ -97,10 +95,10 @@ pub fn read_json(path: &Path) -> Value {
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
-/// `glint run CAMPAIGN --out dir`, which must succeed; returns its `campaign.json`.
+/// `glint lab campaign CAMPAIGN --out dir`, which must succeed; returns its `campaign.json`.
 pub fn run_campaign_ok(scenario: &Path, dir: &Path) -> Value {
     let out = glint()
-        .arg("run")
+        .args(["lab", "campaign"])
         .arg(scenario)
         .arg("--out")
         .arg(dir)
@@ -110,10 +108,11 @@ pub fn run_campaign_ok(scenario: &Path, dir: &Path) -> Value {
     read_json(&dir.join("campaign.json"))
 }
 
-/// `glint run SCENARIO --rescore --out DIR`: re-scores a Monte-Carlo campaign in `dir`.
+/// `glint lab campaign SCENARIO --rescore --out DIR`: re-scores a Monte-Carlo campaign in
+/// `dir`.
 pub fn rescore(scenario: &Path, dir: &Path) -> std::process::Output {
     glint()
-        .arg("run")
+        .args(["lab", "campaign"])
         .arg(scenario)
         .arg("--rescore")
         .arg("--out")

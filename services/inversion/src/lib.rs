@@ -8,21 +8,24 @@
 //!    λ* = argmax σ.
 //! 3. [`stage3`]: LM fit of the rates p = [w_x, w_y, w_z] \[deg/frame\] to the motion window at
 //!    λ* (eq 20, analytic Jacobian, multi-start), covariance and observability; optionally the
-//!    joint fit of all bands with one p. [`rates`] runs it as the solve does: over the fit
-//!    horizon, the joint fit first, then λ*, checked against it (a band whose solution is
-//!    another minimum is set aside for the next of stage 2's ranking).
+//!    joint fit of all bands with one p. [`rates`] runs it as the solve does: each fit over
+//!    its horizon, the joint fit reweighted by each band's mismatch and testing stage 1's
+//!    widest lobes.
+//! 4. [`answer`]: glint's answer — the joint fit when it ran, else λ*'s — with its 1σ along
+//!    each Fisher direction, the directions the prior held and the mirror when it fits as well.
 //!
 //! Entry point: [`solve_three_stage`]`(&ObservationSet, &InversionConfig)`. The stages are also
 //! usable alone: [`nnls::nnls`], [`stage1::run_stage1`], [`stage2::run_stage2`],
-//! [`RateProblem`] + [`stage3::fit_multistart`] / [`stage3::fit_single_start`],
-//! [`observability::cramer_rao_bound`]. Benchmark: `benches/solve.rs` (8 bands, 720 + 360
-//! frames).
+//! [`RateProblem`] + [`stage3::fit_multistart`] / [`stage3::fit_single_start`], and the Fisher
+//! analysis [`observability::analyse`]. Benchmark: `benches/solve.rs` (8 bands, 720 + 360
+//! frames). The estimator's bounds (Cramér–Rao, Hammersley–Chapman–Robbins) are in the
+//! `glint-lab` crate, beside the solve.
 //!
 //! Units: the per-band pupil factor E_sun Δλ A_ap is absorbed in the stage-1 coefficients
 //! (see [`stage1`]); stage 3 normalises each band by its mean observed flux. The error metric
 //! of the paper is [`rate_error_metric`] = 100·‖p̂ − p*‖ (deg/frame, printed as "%").
 
-pub mod chapman_robbins;
+pub mod answer;
 pub mod error;
 pub mod facet;
 pub mod lm;
@@ -40,12 +43,11 @@ pub mod stage1;
 pub mod stage2;
 pub mod stage3;
 
+pub use answer::{Answer, AnswerFit, Direction};
 pub use error::{InversionError, NnlsError};
 pub use model::{MotionModelConfig, PanelNormalMode, RateBand, RateProblem};
 pub use observation::{Observation, ObservationSet};
-pub use rates::{
-    confirmed_by_joint, fit_band, fit_joint, fit_rates, fit_within_horizon, BandFit, RateFits,
-};
+pub use rates::{fit_band, fit_joint, fit_rates, fit_within_horizon, BandFit, RateFits};
 pub use rotation::AttitudeModel;
 pub use stage1::{BasisChoice, SpectralPooling, Stage1Band, Stage1Config, Stage1Output};
 pub use stage2::{BandSelection, Stage2Config, Stage2Result};
@@ -91,30 +93,17 @@ pub struct InversionResult {
     pub stage2: Stage2Result,
     /// λ* \[nm\].
     pub chosen_wavelength_nm: f64,
-    /// Stage 3 at λ* (or at `rate_band_index` when the joint fit rejected λ*'s solution).
+    /// glint's answer: the joint fit when it ran, else the fit at λ* ([`answer`]).
+    pub answer: Answer,
+    /// Stage 3 at λ* (the paper's answer).
     pub rate: RateSolution,
-    /// The band `rate` was fitted at.
-    #[serde(default)]
-    pub rate_band_index: usize,
-    /// Bands whose solution the joint fit rejected ([`RateFits::set_aside`]).
-    #[serde(default)]
-    pub set_aside: Vec<usize>,
     /// Joint fit over all bands, when enabled.
     pub joint_rate: Option<RateSolution>,
-    /// Motion frames stage 3 fitted (the fit horizon, see [`Stage3Config::max_rotation_deg`]).
+    /// Motion frames stage 3 fitted at λ* (the fit horizon, see
+    /// [`Stage3Config::max_rotation_deg`]).
     pub fitted_frames: usize,
     /// Motion frames of the joint fit (its own horizon), when run.
     pub joint_fitted_frames: Option<usize>,
-    /// The λ* data fit p̂ and its mirror equally well; the joint fit decided the sense.
-    #[serde(default)]
-    pub sense_from_joint: bool,
-    /// `rate`'s distance from the joint solution in σ ([`RateFits::joint_disagreement_sigma`]).
-    #[serde(default)]
-    pub joint_disagreement_sigma: Option<f64>,
-    /// The factor `rate`'s covariance was widened by to cover that distance
-    /// ([`RateFits::covariance_scale`]).
-    #[serde(default)]
-    pub rate_covariance_scale: Option<f64>,
 }
 
 impl InversionResult {
@@ -163,6 +152,7 @@ pub fn solve_three_stage(
         pooled,
         pooling: spectral_pooling,
     } = stage1;
+    let answer = fits.answer(stage2.chosen_wavelength_nm);
     Ok(InversionResult {
         chosen_wavelength_nm: stage2.chosen_wavelength_nm,
         stage1: stage1_bands,
@@ -170,14 +160,10 @@ pub fn solve_three_stage(
         stage1_pooled: pooled,
         spectral_pooling,
         stage2,
+        answer,
         rate: fits.rate,
-        rate_band_index: fits.band_index,
-        set_aside: fits.set_aside,
         joint_rate: fits.joint_rate,
         fitted_frames: fits.fitted_frames,
         joint_fitted_frames: fits.joint_fitted_frames,
-        sense_from_joint: fits.sense_from_joint,
-        joint_disagreement_sigma: fits.joint_disagreement_sigma,
-        rate_covariance_scale: fits.covariance_scale,
     })
 }

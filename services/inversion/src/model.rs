@@ -33,7 +33,6 @@ use std::f64::consts::FRAC_1_PI;
 
 mod coefficients;
 mod diagnostics;
-mod held;
 pub mod refit;
 
 use refit::{nuisance_columns, take_widest_lobes};
@@ -133,11 +132,6 @@ pub struct RateProblem {
     glint_lobes_only: bool,
     /// Per band: Cov(x̃) of the stage-1 coefficients, normalised like `x` (22 × 22), if known.
     coeff_cov: Vec<Option<Vec<f64>>>,
-    /// Per band: the stage-1 coefficients held by their prior ([`held`]), when asked.
-    held: Vec<Option<held::Held>>,
-    /// Per band: the factor on the prior's square root that keeps its weight against the
-    /// band's re-weighted data (the product of the band scales applied).
-    held_scale: Vec<f64>,
 }
 
 /// Per-facet arrays: `[panel, body]`.
@@ -280,8 +274,6 @@ impl RateProblem {
             sigma_given,
             refit_diffuse: config.refit_diffuse,
             coeff_cov: vec![None; bands.len()],
-            held: vec![None; bands.len()],
-            held_scale: vec![1.0; bands.len()],
         })
     }
 
@@ -303,9 +295,9 @@ impl RateProblem {
         self.frames.len()
     }
 
-    /// Residual count: T·B, and the prior rows of held coefficients ([`Self::with_held_coefficients`]).
+    /// Residual count: T·B.
     pub fn residual_count(&self) -> usize {
-        self.frames.len() * self.bands.len() + self.prior_rows()
+        self.frames.len() * self.bands.len()
     }
 
     /// Fitted band centres \[nm\].
@@ -415,11 +407,6 @@ impl RateProblem {
 
     /// Residuals, cost and the nuisance coefficients per band (zeros without the re-fit).
     fn residuals_with_nuisance(&self, p: [f64; 3], r: &mut [f64]) -> (f64, Vec<[f64; NUISANCE]>) {
-        if self.holds_coefficients() {
-            let held = self.evaluate_held(p, 1, false);
-            r.copy_from_slice(&held.r);
-            return (held.cost, held.free);
-        }
         let nb = self.bands.len();
         let mut g = [[0.0; TERMS]; 2];
         let mut rows = self.nuisance_rows();
@@ -451,9 +438,6 @@ impl RateProblem {
     /// the end, so its partial sums bound nothing and it always runs to the end. A cost at or
     /// below `bound` is bit-for-bit [`RateProblem::cost_strided`]'s.
     pub fn cost_strided_within(&self, p: [f64; 3], stride: usize, bound: f64) -> f64 {
-        if self.holds_coefficients() {
-            return self.evaluate_held(p, stride, false).cost;
-        }
         let mut g = [[0.0; TERMS]; 2];
         let mut cost = 0.0;
         let mut normals = vec![Normal::default(); self.bands.len()];
@@ -503,12 +487,6 @@ impl RateProblem {
         jac: &mut [[f64; 3]],
         bound: f64,
     ) -> f64 {
-        if self.holds_coefficients() {
-            let held = self.evaluate_held(p, 1, true);
-            r.copy_from_slice(&held.r);
-            jac.copy_from_slice(&held.jac);
-            return held.cost;
-        }
         let nb = self.bands.len();
         let mut cost = 0.0;
         let mut g = [[0.0; TERMS]; 2];
@@ -543,19 +521,6 @@ impl RateProblem {
 
     /// Model flux Φ_model(t; p) \[W\] per fitted band (outer) and frame (inner).
     pub fn model_flux_w(&self, p: [f64; 3]) -> Vec<Vec<f64>> {
-        if self.holds_coefficients() {
-            // The held coefficients move with p: the model is the data less the residual.
-            let r = self.evaluate_held(p, 1, false).r;
-            let nb = self.bands.len();
-            return (0..nb)
-                .map(|b| {
-                    let band = &self.bands[b];
-                    (0..self.frames.len())
-                        .map(|t| (band.y[t] - r[t * nb + b] / band.w[t]) * band.mean_flux_w)
-                        .collect()
-                })
-                .collect();
-        }
         let mut scratch = vec![0.0; self.residual_count()];
         let (_, c) = self.residuals_with_nuisance(p, &mut scratch);
         let mut g = [[0.0; TERMS]; 2];
@@ -587,10 +552,21 @@ fn model_slope(x: &Basis, slopes: &[FacetSlopes; 2]) -> [f64; 3] {
     dm
 }
 
+/// Σ x·g over the 22 terms, in four interleaved partial sums: independent chains the compiler
+/// keeps in SIMD lanes (a single running sum is one dependent chain of 22 adds, and this dot
+/// product is the inner loop of every cost and Jacobian evaluation).
+#[inline]
 fn dot22(x: &Basis, g: &Basis) -> f64 {
-    x.iter()
-        .flatten()
-        .zip(g.iter().flatten())
-        .map(|(a, b)| a * b)
-        .sum()
+    let (x, g) = (x.as_flattened(), g.as_flattened());
+    let mut acc = [0.0f64; 4];
+    for (xs, gs) in x.chunks_exact(4).zip(g.chunks_exact(4)) {
+        for l in 0..4 {
+            acc[l] += xs[l] * gs[l];
+        }
+    }
+    let tail = x.len() - x.len() % 4;
+    for k in tail..x.len() {
+        acc[k % 4] += x[k] * g[k];
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
 }

@@ -9,7 +9,7 @@ use glint_runtime::ports::Inbox;
 use glint_runtime::rpc::{RpcServer, Solve};
 use glint_runtime::{open_node, run_loop, Exit, Housekeeping, Step, Wake};
 use nalgebra::Vector3;
-use shared_types::scenario::{AttitudeConvention, HeldCoefficientsName, SpectraScenario};
+use shared_types::scenario::{AttitudeConvention, SpectraScenario};
 use shared_types::topics::spectrum_service;
 use shared_types::{
     Heartbeat, Scenario, ServiceId, SolveRequest, SolveResponse, SolveStatus, Spectrum, TopicId,
@@ -17,11 +17,10 @@ use shared_types::{
 };
 
 use crate::model::MotionModelConfig;
-use crate::observability::CovarianceSource;
 use crate::rotation::AttitudeModel;
 use crate::session::{Session, StageOutcome};
-use crate::stage3::{HeldCoefficients, RateSolution, Stage3Config};
-use crate::Observation;
+use crate::stage3::{RateSolution, Stage3Config};
+use crate::{Answer, AnswerFit, Observation};
 
 /// The motion model the scenario's simulator used (attitude convention; n_b = +X; panel (a)).
 pub fn model_config(sp: &SpectraScenario) -> MotionModelConfig {
@@ -34,16 +33,9 @@ pub fn model_config(sp: &SpectraScenario) -> MotionModelConfig {
     }
 }
 
-/// The stage-3 settings the scenario chooses (defaults but for `spectra.held_coefficients`).
-pub fn stage3_config(sp: &SpectraScenario) -> Stage3Config {
-    Stage3Config {
-        held_coefficients: match sp.held_coefficients {
-            HeldCoefficientsName::None => HeldCoefficients::None,
-            HeldCoefficientsName::SingleBand => HeldCoefficients::SingleBand,
-            HeldCoefficientsName::All => HeldCoefficients::All,
-        },
-        ..Default::default()
-    }
+/// The stage-3 settings of a deployment: the defaults.
+pub fn stage3_config(_sp: &SpectraScenario) -> Stage3Config {
+    Stage3Config::default()
 }
 
 /// One received spectrum as an observation of the solve.
@@ -66,7 +58,7 @@ pub fn observation(sp: &Spectrum) -> Observation {
     }
 }
 
-/// `SolveResponse::stage3_held_axes` of the directions a prior held.
+/// `SolveResponse::held_axes` of the directions a prior held.
 fn held_axes(directions: &[[f64; 3]]) -> u32 {
     directions
         .iter()
@@ -79,101 +71,45 @@ fn held_axes(directions: &[[f64; 3]]) -> u32 {
         .fold(0, |bits, b| bits | b)
 }
 
-fn fill_rate(out: &mut SolveResponse, rate: &RateSolution, joint: Option<&RateSolution>) {
-    let obs = match rate {
-        RateSolution::Determined(fit) => {
-            out.status = SolveStatus::Ok as u32;
-            out.p_deg_per_frame = fit.rate_deg_per_frame;
-            for r in 0..3 {
-                for c in 0..3 {
-                    out.p_covariance[3 * r + c] = fit.covariance_deg2_per_frame2[r][c];
-                }
-            }
-            out.cost = fit.cost;
-            if fit.refit.is_some_and(|r| r.held_coefficients) {
-                out.stage3_flags |= SolveResponse::HELD_COEFFICIENTS;
-            }
-            if let Some(m) = fit.mirror_deg_per_frame {
-                out.p_mirror_deg_per_frame = m;
-            }
-            if let Some(n) = fit.neighbours.first() {
-                out.p_neighbour_deg_per_frame = n.rate_deg_per_frame;
-                out.stage3_neighbour_delta_chi2 = n.delta_chi2;
-            }
-            out.iterations = fit.total_iterations as u32;
-            out.starts = fit.starts_polished as u32;
-            out.stage3_held_axes = held_axes(&fit.held_directions);
-            out.stage3_covariance_source = match fit.covariance_source {
-                CovarianceSource::GivenSigma => 1,
-                CovarianceSource::GivenSigmaScaled { .. } => 2,
-                CovarianceSource::ResidualVariance { .. } => 3,
-            };
-            &fit.observability
-        }
-        RateSolution::Unobservable {
-            observability,
-            reason,
-            ..
-        } => {
-            out.status = SolveStatus::Unobservable as u32;
-            out.unobservable_reason = reason.code();
-            observability
-        }
-    };
-    out.fisher_eigenvalues = obs.information_eigenvalues;
-    for (i, v) in obs.eigenvectors.iter().enumerate() {
-        for (r, component) in v.iter().enumerate() {
+/// Stage 3 on the wire: glint's answer, and λ*'s fit beside it.
+fn fill_answer(out: &mut SolveResponse, answer: &Answer, band: &RateSolution) {
+    out.status = match answer.rate_deg_per_frame {
+        Some(_) => SolveStatus::Ok,
+        None => SolveStatus::Unobservable,
+    } as u32;
+    if matches!(answer.from, AnswerFit::Joint { .. }) {
+        out.flags |= SolveResponse::JOINT;
+    }
+    if let Some(p) = answer.rate_deg_per_frame {
+        out.rate_deg_per_frame = p;
+    }
+    if let Some(c) = answer.covariance_deg2_per_frame2 {
+        out.covariance = std::array::from_fn(|k| c[k / 3][k % 3]);
+    }
+    if let Some(m) = answer.mirror_deg_per_frame {
+        out.mirror_deg_per_frame = m;
+        out.flags |= SolveResponse::SENSE_UNDETERMINED;
+    }
+    out.unobservable_reason = answer.unobservable.map_or(0, |r| r.code());
+    out.held_axes = held_axes(&answer.held_axes);
+    out.fitted_frames = answer.fitted_frames as u32;
+    for (i, d) in answer.directions.iter().enumerate() {
+        for (r, component) in d.axis.iter().enumerate() {
             out.fisher_eigenvectors[3 * r + i] = *component;
         }
+        out.bound_1sigma_deg_per_frame[i] = d.sigma_deg_per_frame;
+        if d.determined {
+            out.observable_mask |= 1 << i;
+        }
     }
-    out.bound_1sigma_deg_per_frame = obs.bounds_1sigma_deg_per_frame;
-    out.observable_mask = obs
-        .unobservable
-        .iter()
-        .enumerate()
-        .filter(|(_, u)| !**u)
-        .map(|(i, _)| 1u32 << i)
-        .sum();
-    if let Some(RateSolution::Unobservable { reason, .. }) = joint {
-        out.joint_unobservable_reason = reason.code();
-    }
-    if let Some(RateSolution::Determined(fit)) = joint {
-        if let Some(refit) = fit.refit {
-            if refit.widest_lobe {
-                out.stage3_flags |= SolveResponse::JOINT_LOBE_REFIT;
-            }
-            if refit.glint_lobes_only {
-                out.stage3_flags |= SolveResponse::JOINT_GLINT_LOBES_ONLY;
-            }
-            if refit.held_coefficients {
-                out.stage3_flags |= SolveResponse::JOINT_HELD_COEFFICIENTS;
-            }
-            if let Some(test) = refit.lobe_test {
-                out.stage3_joint_lobe_test_chi2 = test.chi2;
-                if let Some(other) = test.other_rate_deg_per_frame {
-                    out.p_joint_lobe_other_deg_per_frame = other;
-                    out.stage3_joint_lobe_other_weight = test.other_weight;
-                }
-                if test.rate_traded {
-                    out.stage3_flags |= SolveResponse::JOINT_LOBE_RATE_TRADED;
-                }
-                if test.kept_off_minimum {
-                    out.stage3_flags |= SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM;
-                }
-            }
+    match band {
+        RateSolution::Determined(fit) => {
+            out.band_status = SolveStatus::Ok as u32;
+            out.band_rate_deg_per_frame = fit.rate_deg_per_frame;
         }
-        out.p_joint_deg_per_frame = fit.rate_deg_per_frame;
-        if let Some(m) = fit.mirror_deg_per_frame {
-            out.p_joint_mirror_deg_per_frame = m;
-        }
-        if let Some(n) = fit.neighbours.first() {
-            out.p_joint_neighbour_deg_per_frame = n.rate_deg_per_frame;
-            out.stage3_joint_neighbour_delta_chi2 = n.delta_chi2;
-        }
-        for r in 0..3 {
-            for c in 0..3 {
-                out.p_joint_covariance[3 * r + c] = fit.covariance_deg2_per_frame2[r][c];
-            }
+        RateSolution::Unobservable { reason, .. } => {
+            out.band_status = SolveStatus::Unobservable as u32;
+            out.band_unobservable_reason = reason.code();
         }
     }
 }
@@ -188,13 +124,6 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
         motion_samples: session.set.motion.len() as u32,
         ..Default::default()
     };
-    for (slot, w) in out
-        .wavelength_nm
-        .iter_mut()
-        .zip(&session.set.wavelengths_nm)
-    {
-        *slot = *w;
-    }
     let outcome = match req.stage {
         1 => session.stage1(),
         2 => session.stage2(),
@@ -215,43 +144,36 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
     }
     if let Some(s1) = &session.stage1 {
         for (slot, b) in out.recon_err.iter_mut().zip(&s1.bands) {
-            *slot = b.recon_err;
+            *slot = b.recon_err as f32;
         }
-        let pooling = &s1.pooling;
-        out.stage1_spectral_window_nm = if pooling.applied {
-            pooling.window_nm
-        } else {
-            0.0
-        };
-        out.stage1_spectral_bias_to_noise = pooling.bias_to_noise.unwrap_or(f64::NAN);
-        let basis = &s1.basis;
-        out.stage1_widest_lobe_mu = basis.widest_lobe_mu;
-        out.stage1_basis_delta_chi2 = basis.delta_chi2;
-        out.stage1_basis_dof = basis.dof as u32;
-        out.stage1_lobes_kept = basis.lobes_kept as u32;
     }
     if let Some(s2) = &session.stage2 {
-        for (i, b) in s2.bands.iter().enumerate().take(out.separation.len()) {
-            out.separation[i] = b.sigma;
-            out.specular_share[i] = b.specular_share;
+        for (slot, b) in out.separation.iter_mut().zip(&s2.bands) {
+            *slot = b.sigma as f32;
         }
         out.chosen_band = s2.chosen_index as u32;
-        out.separation_band = s2.separation_index as u32;
     }
     if req.stage == 3 {
-        if let Some(rate) = &session.rate {
-            fill_rate(&mut out, rate, session.joint_rate.as_ref());
-            out.fitted_frames = session.fitted_frames as u32;
-            if session.sense_from_joint {
-                out.stage3_flags |= SolveResponse::SENSE_FROM_JOINT;
-            }
-            out.stage3_band = session.rate_band as u32;
-            out.stage3_set_aside = session.set_aside.len() as u32;
-            out.stage3_joint_disagreement_sigma =
-                session.joint_disagreement_sigma.unwrap_or(f64::NAN);
-            out.stage3_covariance_scale = session.covariance_scale.unwrap_or(f64::NAN);
-            if !session.set_aside.is_empty() {
-                out.stage3_flags |= SolveResponse::LAMBDA_REJECTED;
+        if let (Some(answer), Some(fits)) = (&session.answer, &session.fits) {
+            fill_answer(&mut out, answer, &fits.rate);
+            out.iterations = match fits
+                .joint_rate
+                .as_ref()
+                .filter(|_| out.flags & SolveResponse::JOINT != 0)
+            {
+                Some(joint) => joint.fit().map_or(0, |f| f.total_iterations as u32),
+                None => fits.rate.fit().map_or(0, |f| f.total_iterations as u32),
+            };
+            if let Some(refit) = fits
+                .joint_rate
+                .as_ref()
+                .filter(|_| out.flags & SolveResponse::JOINT != 0)
+                .and_then(|j| j.fit())
+                .and_then(|f| f.refit)
+            {
+                if refit.widest_lobe {
+                    out.flags |= SolveResponse::LOBE_REFIT;
+                }
             }
         }
     }

@@ -39,9 +39,6 @@ use faer::{Mat, Side};
 use serde::{Deserialize, Serialize};
 use std::cmp::Ordering;
 
-mod profile;
-pub use profile::profiled_bounds;
-
 /// Where the covariance scale comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -122,15 +119,6 @@ pub enum UnobservableReason {
         /// Where the best start ended \[deg/frame\].
         rate_deg_per_frame: [f64; 3],
     },
-    /// A single band's rate that the joint fit does not confirm: over all bands the joint fit
-    /// determines no rate, and neither the joint model polished from this band's rate nor the
-    /// joint search on the same frames ends within the joint gate of it. One band of the data
-    /// does not determine what all of them together do not; at SNR 1 such answers lay 5–88
-    /// (paper metric) from the truth, some with bounds of 1e-3 deg/frame (ADR 0014).
-    NotConfirmedByJoint {
-        /// The band's rate, not reported \[deg/frame\].
-        rate_deg_per_frame: [f64; 3],
-    },
 }
 
 impl UnobservableReason {
@@ -142,7 +130,6 @@ impl UnobservableReason {
             Self::AllDirectionsAboveThreshold => 3,
             Self::NoGlint { .. } => 4,
             Self::OutsideSearchBox { .. } => 5,
-            Self::NotConfirmedByJoint { .. } => 6,
         }
     }
 }
@@ -488,27 +475,6 @@ fn half_width(rise: impl Fn(f64) -> f64, start: f64, cap: f64, s2: f64) -> f64 {
         }
     }
     hi
-}
-
-/// Cramér–Rao bound `sqrt(diag((JᵀWJ)⁻¹))` \[deg/frame\] at the true rates, using the
-/// observations' σ (which the problem must carry).
-pub fn cramer_rao_bound(
-    problem: &RateProblem,
-    p_true_deg_per_frame: [f64; 3],
-) -> Result<[f64; 3], InversionError> {
-    if !problem.sigma_given() {
-        return Err(InversionError::MissingSigma {
-            what: "the Cramér–Rao bound",
-        });
-    }
-    let n = problem.residual_count();
-    let mut r = vec![0.0; n];
-    let mut jac = vec![[0.0; 3]; n];
-    problem.residuals_and_jacobian(p_true_deg_per_frame, &mut r, &mut jac);
-    let (fisher, _) = normal_equations(&jac, &r);
-    let (vals, vecs) = symmetric_eigen(&fisher)?;
-    let cov = inverse_from_eigen(&vals, &vecs);
-    Ok([0, 1, 2].map(|i| cov[i][i].sqrt()))
 }
 
 #[cfg(test)]

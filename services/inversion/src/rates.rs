@@ -1,24 +1,24 @@
-//! Stage 3 as the solve runs it: the fit horizon, the joint fit over all bands, the fit at λ*
-//! and its check against the joint fit (the fallback along stage 2's ranking).
+//! Stage 3 as the solve runs it: the fit at λ* (the paper's stage 3) and the joint fit over all
+//! bands, each over its fit horizon; the joint fit reweights the bands by their mismatch and
+//! tests stage 1's widest lobes.
 
+use crate::answer::{Answer, AnswerFit};
 use crate::error::InversionError;
 use crate::model::refit::broad_lobe_in_use;
 use crate::model::{MotionModelConfig, RateBand, RateProblem};
 use crate::observability::UnobservableReason;
 use crate::observation::Observation;
 use crate::stage1::Stage1Band;
-use crate::stage3::{self, LobeRefit, RateFit, RateSolution, Stage3Config, MIRROR_MAX_DELTA_CHI2};
+use crate::stage3::{self, LobeRefit, RateFit, RateSolution, Stage3Config};
 
 mod horizon;
 mod lobe;
-use horizon::{horizon_frames, speed, FitSetup};
+use horizon::{speed, FitSetup};
 
-/// Stage 3 at the first band of stage 2's `ranking` (λ*) and, with `joint`, one p for all
-/// bands, each over its fit horizon. A λ* solution the joint fit rejects ([`fit_band`]) is set
-/// aside for the next band of the ranking the joint fit accepts. The joint fit uses every
-/// band's own coefficients (`stage1`), the single-band fits those of `single_band` (the
-/// spectrally pooled ones when stage 1 pooled, [`crate::stage1::Stage1Output`]).
-#[allow(clippy::too_many_arguments)]
+/// Stage 3 at the first band of stage 2's `ranking` (λ*, the paper's stage 3) and, with
+/// `joint`, one p for all bands, each over its fit horizon. λ* uses `single_band`'s
+/// coefficients (the spectrally pooled ones when stage 1 pooled,
+/// [`crate::stage1::Stage1Output`]); the joint fit every band's own (`stage1`).
 pub fn fit_rates(
     motion: &[Observation],
     stage1: &[Stage1Band],
@@ -28,139 +28,22 @@ pub fn fit_rates(
     config: &Stage3Config,
     joint: bool,
 ) -> Result<RateFits, InversionError> {
-    let mut joint_rate = if joint {
+    let Some(&chosen) = ranking.first() else {
+        return Err(InversionError::NoSeparableBand);
+    };
+    let joint_rate = if joint {
         Some(fit_joint(motion, stage1, model, config)?)
     } else {
         None
     };
-    let joint_fit = joint_rate.as_ref().map(|j| &j.0);
-    let Some((&chosen, others)) = ranking.split_first() else {
-        return Err(InversionError::NoSeparableBand);
-    };
-    let mut fit = fit_band(motion, single_band, chosen, model, config, joint_fit)?;
-    let mut band_index = chosen;
-    let mut set_aside = Vec::new();
-    if fit.rejected_by_joint {
-        set_aside.push(chosen);
-        for &b in others {
-            let next = fit_band(motion, single_band, b, model, config, joint_fit)?;
-            if !next.rejected_by_joint {
-                fit = next;
-                band_index = b;
-                break;
-            }
-            set_aside.push(b);
-        }
-        // Every candidate rejected: λ*'s own answer stands, flagged.
-        if band_index == chosen {
-            set_aside = vec![chosen];
-        }
-    }
-    let mut rate = unless_unconfirmed(fit.rate, joint_fit, |kept| {
-        confirmed_by_joint(motion, stage1, model, config, kept)
-    })?;
-    // Every decision on the band is taken: its covariance is the one averaged over its
-    // interval, and that covers its distance from the joint fit (measured before the
-    // widening, and reported as such) at the joint fit's local covariance.
-    rate.report_interval_average();
-    let covariance_scale = match (&mut rate, joint_fit.and_then(RateSolution::fit)) {
-        (RateSolution::Determined(kept), Some(joint)) if config.widen_to_joint => {
-            Some(stage3::widen_to_joint(kept, joint, &config.observability))
-        }
-        _ => None,
-    };
-    // Every decision is taken: the answers report their profile-likelihood intervals (when
-    // `profile_intervals` attached them) and carry their neighbouring minima (when
-    // `cover_neighbours` found them).
-    rate.report_profile(covariance_scale.unwrap_or(1.0));
-    rate.report_neighbours();
-    if let Some((joint, _)) = &mut joint_rate {
-        joint.report_interval_average();
-        joint.report_profile(1.0);
-        joint.report_neighbours();
-        if let RateSolution::Determined(fit) = joint {
-            if config.cover_lobe_alternative {
-                fit.report_lobe_alternative();
-            }
-        }
-    }
+    let fit = fit_band(motion, single_band, chosen, model, config)?;
     Ok(RateFits {
-        rate,
-        covariance_scale,
-        band_index,
-        set_aside,
+        rate: fit.rate,
+        band_index: chosen,
         fitted_frames: fit.fitted_frames,
         joint_fitted_frames: joint_rate.as_ref().map(|j| j.1),
         joint_rate: joint_rate.map(|j| j.0),
-        sense_from_joint: fit.sense_from_joint,
-        joint_disagreement_sigma: fit.joint_disagreement_sigma,
     })
-}
-
-/// A joint fit with no rate confirms none: `rate` stands only if `confirmed` (the joint cost
-/// has a determined minimum near it), else it is unobservable, not confirmed. A joint fit with
-/// a rate (or none asked for) leaves `rate` as it is.
-fn unless_unconfirmed(
-    rate: RateSolution,
-    joint: Option<&RateSolution>,
-    confirmed: impl FnOnce(&RateFit) -> Result<bool, InversionError>,
-) -> Result<RateSolution, InversionError> {
-    let (Some(RateSolution::Unobservable { .. }), RateSolution::Determined(kept)) = (joint, &rate)
-    else {
-        return Ok(rate);
-    };
-    if confirmed(kept)? {
-        return Ok(rate);
-    }
-    Ok(RateSolution::Unobservable {
-        reason: UnobservableReason::NotConfirmedByJoint {
-            rate_deg_per_frame: kept.rate_deg_per_frame,
-        },
-        bounds_deg_per_frame: kept.observability.bounds_1sigma_deg_per_frame,
-        observability: kept.observability.clone(),
-        wavelengths_nm: kept.wavelengths_nm.clone(),
-    })
-}
-
-/// Whether the joint cost (every band, each with its own stage-1 coefficients) finds `fit`'s
-/// rate: the joint model polished from that rate (with the diffuse terms re-fitted when
-/// [`Stage3Config::refit_diffuse`]) ends within [`Stage3Config::joint_gate_sigma`] of it, and
-/// so does the joint search (grid, screen, polish) on the frames of that rate's horizon with
-/// the rate among its starts: the joint data hold the rate and prefer it. Always true with the
-/// gate off.
-pub fn confirmed_by_joint(
-    motion: &[Observation],
-    stage1: &[Stage1Band],
-    model: &MotionModelConfig,
-    config: &Stage3Config,
-    fit: &RateFit,
-) -> Result<bool, InversionError> {
-    let Some(gate) = config.joint_gate_sigma else {
-        return Ok(true);
-    };
-    let bands: Vec<RateBand> = (0..stage1.len()).map(|b| rate_band(stage1, b)).collect();
-    let covs: Vec<Option<Vec<f64>>> = stage1.iter().map(|s| s.coeff_covariance.clone()).collect();
-    let setup = FitSetup::new(motion, &bands, &covs, None, model);
-    let polished = if config.refit_diffuse {
-        let start = RateSolution::Determined(fit.clone());
-        match horizon::polish_with_refit(&setup, config, &start)? {
-            Some((polished, _)) => polished,
-            None => return Ok(false),
-        }
-    } else {
-        horizon::polish_at(&setup, config, fit.rate_deg_per_frame)?
-    };
-    let near = |sol: &RateSolution| {
-        sol.fit()
-            .is_some_and(|j| stage3::disagreement_sigma(fit, j, &config.observability) <= gate)
-    };
-    if !near(&polished) {
-        return Ok(false);
-    }
-    // A minimum the joint cost holds but does not prefer is not confirmed either: the joint
-    // search on the same frames, with the band's rate among its starts, must end near it.
-    let searched = horizon::search_at(&setup, config, fit.rate_deg_per_frame)?;
-    Ok(near(&searched))
 }
 
 fn rate_band(stage1: &[Stage1Band], b: usize) -> RateBand {
@@ -178,160 +61,30 @@ pub struct BandFit {
     pub rate: RateSolution,
     /// Motion frames fitted (the band's fit horizon).
     pub fitted_frames: usize,
-    /// p̂ and its mirror fit the band equally well and the joint fit decided the sense.
-    pub sense_from_joint: bool,
-    /// The joint fit rejects p̂ as another minimum ([`Stage3Config::joint_gate_sigma`]).
-    pub rejected_by_joint: bool,
-    /// How far p̂ is from the joint solution, in standard deviations of the two covariances
-    /// summed over the directions both determine (`stage3::disagreement_sigma`); `None`
-    /// without a determined joint solution.
-    pub joint_disagreement_sigma: Option<f64>,
 }
 
-/// Stage 3 at band `b` over its fit horizon. With a `joint` solution:
-/// - when p̂ and its mirror fit this band equally well, the sense of rotation is the joint
-///   fit's (`stage3::sense_from`);
-/// - p̂ is checked against it ([`Stage3Config::joint_gate_sigma`]): rejected when the two are
-///   more than the gate's standard deviations apart *and* the band's own cost has a separate
-///   minimum on the joint solution's side (re-polished from the joint solution, LM does not
-///   slide back to p̂). A bias of the band — one minimum, shifted — is not rejected.
-///
-/// With [`Stage3Config::cover_neighbours`] the minima a frame's shift from p̂ are looked for
-/// and held on the fit; [`fit_rates`] has its covariance carry them once every decision is
-/// taken (docs/adr/0020).
+/// Stage 3 at band `b` over its fit horizon: the search on the stage-1 coefficients, then the
+/// polish with the diffuse terms re-fitted ([`Stage3Config::refit_diffuse`]).
 pub fn fit_band(
     motion: &[Observation],
     stage1: &[Stage1Band],
     b: usize,
     model: &MotionModelConfig,
     config: &Stage3Config,
-    joint: Option<&RateSolution>,
 ) -> Result<BandFit, InversionError> {
     let covariance = vec![stage1[b].coeff_covariance.clone()];
     let bands = [rate_band(stage1, b)];
-    let joint = joint.zip(joint.and_then(RateSolution::fit));
-    let mut setup = FitSetup::new(motion, &bands, &covariance, None, model);
-    let (mut rate, mut problem, mut sense_from_joint) =
-        search_and_polish_band(&setup, config, joint)?;
-    // A rate found slow on the search's first window is judged on frames far beyond a faster
-    // rate's horizon, where the model no longer holds for that rate, and stays slow (Z at phase
-    // 30°: 0.09 deg/frame over 279 frames, against the joint fit's 0.25 over 100). When the
-    // band's rate ends below half the joint's, it is fitted again with its windows no longer
-    // than the joint rate's horizon.
-    let joint_speed = joint.map_or(0.0, |(_, j)| speed(j.rate_deg_per_frame));
-    if rate
-        .fit()
-        .is_some_and(|f| speed(f.rate_deg_per_frame) < SLOW_FRACTION * joint_speed)
-    {
-        setup = setup.with_speed_floor(joint_speed);
-        (rate, problem, sense_from_joint) = search_and_polish_band(&setup, config, joint)?;
-    }
-    // Computed on the band's own problem, reported once every decision is taken: the joint
-    // gate and the confirmation read the local covariance (docs/adr/0027).
-    rate.attach_interval_average_if_asked(&problem, config);
-    rate.attach_profile_if_asked(&problem, config);
-    rate.attach_neighbours_if_asked(&problem, config)?;
-    let mut out = BandFit {
-        rate,
+    let setup = FitSetup::new(motion, &bands, &covariance, None, model);
+    let (rate, problem) = horizon::search_and_polish(&setup, config)?;
+    Ok(BandFit {
+        rate: rate.finalize(&problem, config)?,
         fitted_frames: problem.frame_count(),
-        sense_from_joint,
-        rejected_by_joint: false,
-        joint_disagreement_sigma: None,
-    };
-    let Some((_, joint_fit)) = joint else {
-        return Ok(out);
-    };
-    out.joint_disagreement_sigma = out
-        .rate
-        .fit()
-        .map(|fit| stage3::disagreement_sigma(fit, joint_fit, &config.observability));
-    out.rejected_by_joint = match (config.joint_gate_sigma, out.rate.fit()) {
-        (Some(gate), Some(fit)) if out.joint_disagreement_sigma.is_some_and(|d| d > gate) => {
-            // Compared on the frames both rates model: the faster one's horizon (often the
-            // frames already fitted, then `problem` serves).
-            let faster = speed(fit.rate_deg_per_frame).max(speed(joint_fit.rate_deg_per_frame));
-            let frames = setup.frames_within(horizon_frames(config, faster));
-            let common = if frames.len() == problem.frame_count() {
-                None
-            } else {
-                Some(setup.problem(&frames, problem.refits_diffuse().then_some(config))?)
-            };
-            separate_minimum(common.as_ref().unwrap_or(&problem), fit, joint_fit, config)
-        }
-        _ => false,
-    };
-    Ok(out)
+    })
 }
 
-/// The band's search, its sense from the joint fit when the band cannot tell (decided on the
-/// stage-1 coefficients, before any diffuse re-fit), and the polish.
-fn search_and_polish_band(
-    setup: &FitSetup,
-    config: &Stage3Config,
-    joint: Option<(&RateSolution, &RateFit)>,
-) -> Result<(RateSolution, RateProblem, bool), InversionError> {
-    let (mut rate, mut problem) = horizon::search(setup, config)?;
-    let mut sense_from_joint = false;
-    if let Some((joint, joint_fit)) = joint {
-        if let Some(flipped) = flip_to_joint(&problem, &rate, joint, joint_fit, config) {
-            rate = RateSolution::Determined(flipped);
-            sense_from_joint = true;
-        }
-    }
-    if let Some((polished, refit_problem)) = horizon::polish_with_refit(setup, config, &rate)? {
-        (rate, problem) = (polished, refit_problem);
-    }
-    Ok((rate, problem, sense_from_joint))
-}
-
-/// A band's rate below this fraction of the joint rate is fitted again within the joint
-/// rate's horizon ([`fit_band`]).
+/// A band's rate below this fraction of another is a different motion: a re-fit of the
+/// widest lobe that ends below half the kept rate traded the rate for the lobe.
 const SLOW_FRACTION: f64 = 0.5;
-
-/// When p̂ and its mirror fit equally well, the fit re-polished from the mirror on the joint
-/// fit's side (if it does end there).
-fn flip_to_joint(
-    problem: &RateProblem,
-    rate: &RateSolution,
-    joint: &RateSolution,
-    joint_fit: &RateFit,
-    config: &Stage3Config,
-) -> Option<RateFit> {
-    let first = rate.fit()?;
-    let start = stage3::sense_from(rate, joint)?;
-    let to_joint = |p: [f64; 3]| stage3::distance(p, joint_fit.rate_deg_per_frame);
-    let RateSolution::Determined(mut flipped) =
-        stage3::fit_from_starts(problem, &[start], config).ok()?
-    else {
-        return None;
-    };
-    if to_joint(flipped.rate_deg_per_frame) >= to_joint(first.rate_deg_per_frame) {
-        return None;
-    }
-    // The record covers the whole search: the first multi-start and the re-polish.
-    flipped.total_iterations += first.total_iterations;
-    flipped.starts_polished += first.starts_polished;
-    flipped.grid_points = first.grid_points;
-    flipped.starts_screened = first.starts_screened;
-    Some(flipped)
-}
-
-/// Whether the band's cost (over `problem`'s frames) has a minimum apart from p̂ near the joint
-/// solution: LM from the joint solution ends nearer it than half-way back to p̂.
-fn separate_minimum(
-    problem: &RateProblem,
-    fit: &RateFit,
-    joint_fit: &RateFit,
-    config: &Stage3Config,
-) -> bool {
-    let (p, pj) = (fit.rate_deg_per_frame, joint_fit.rate_deg_per_frame);
-    match stage3::fit_from_starts(problem, &[pj], config) {
-        Ok(RateSolution::Determined(local)) => {
-            stage3::distance(local.rate_deg_per_frame, p) > 0.5 * stage3::distance(pj, p)
-        }
-        _ => false,
-    }
-}
 
 /// One p for all bands over its fit horizon; returns the solution and the frames fitted.
 ///
@@ -362,15 +115,28 @@ pub fn fit_joint(
         && config.refit_widest_lobe.applies(bands.len())
         && broad_lobe_in_use(&bands);
     if !tested {
-        return reweighted_joint(&setup, config, &searched);
+        let ((joint, frames), problem) = reweighted_joint(&setup, config, &searched)?;
+        return Ok((joint.finalize(&problem, config)?, frames));
     }
     let keeping = Stage3Config {
         refit_widest_lobe: LobeRefit::None,
         ..config.clone()
     };
-    let kept = reweighted_joint(&setup, &keeping, &searched)?;
-    let refitted = reweighted_joint(&setup, config, &searched)?;
-    Ok(choose_lobes(kept, refitted, config.lobe_test_confidence))
+    let ((kept, kept_frames), kept_problem) = reweighted_joint(&setup, &keeping, &searched)?;
+    let ((refitted, refitted_frames), refitted_problem) =
+        reweighted_joint(&setup, config, &searched)?;
+    // The test reads the kept fit's final covariance and mirror.
+    let kept = kept.finalize(&kept_problem, config)?;
+    let chosen = choose_lobes(
+        (kept, kept_frames),
+        (refitted, refitted_frames),
+        config.lobe_test_confidence,
+        |k| stage3::off_own_minimum(&kept_problem, k, config),
+    )?;
+    Ok(match chosen {
+        Lobes::Kept(kept) => kept,
+        Lobes::Refitted((joint, frames)) => (joint.finalize(&refitted_problem, config)?, frames),
+    })
 }
 
 /// [`LobeRefit::WhenNeeded`]: the fit keeping stage 1's lobes unless the fit re-fitting them
@@ -381,9 +147,10 @@ fn choose_lobes(
     kept: (RateSolution, usize),
     refitted: (RateSolution, usize),
     confidence: f64,
-) -> (RateSolution, usize) {
+    kept_off_own_minimum: impl FnOnce(&RateFit) -> Result<bool, InversionError>,
+) -> Result<Lobes, InversionError> {
     // Stage 1's lobes show no glint in the motion window: a re-fitted widest lobe cannot
-    // supply one. Its amplitude trades against the rate (ADR 0011), and with the paper-like
+    // supply one. Its amplitude trades against the rate, and with the paper-like
     // materials at phase 30° the re-fit made a glint of a 0.15 % drift (24.2, confidently).
     let no_glint = matches!(
         kept.0,
@@ -393,13 +160,13 @@ fn choose_lobes(
         }
     );
     if no_glint {
-        return kept;
+        return Ok(Lobes::Kept(kept));
     }
     let (Some(k), Some(r)) = (kept.0.fit(), refitted.0.fit()) else {
-        return refitted;
+        return Ok(Lobes::Refitted(refitted));
     };
     let Some(held) = r.refit.filter(|x| x.widest_lobe).map(|x| x.held_direction) else {
-        return refitted;
+        return Ok(Lobes::Refitted(refitted));
     };
     let mut test = lobe::lobe_test(k, r, held, confidence);
     // A re-fit that ends below half the kept rate traded the rate for the lobe: with only narrow
@@ -407,11 +174,8 @@ fn choose_lobes(
     // not identifiable (paper-like materials at phase 20°: 0.10 against 0.25 deg/frame).
     test.rate_traded = speed(r.rate_deg_per_frame) < SLOW_FRACTION * speed(k.rate_deg_per_frame);
     // A kept fit with a clearly better neighbouring minimum is not its model's best fit: its
-    // region is no reference for the test (docs/adr/0022).
-    test.kept_off_minimum = test.chi2 <= test.threshold
-        && k.neighbours
-            .iter()
-            .any(|n| n.delta_chi2 < -MIRROR_MAX_DELTA_CHI2);
+    // region is no reference for the test.
+    test.kept_off_minimum = test.chi2 <= test.threshold && kept_off_own_minimum(k)?;
     let refit_wins = test.chi2 > test.threshold || test.kept_off_minimum;
     let reports_refit = refit_wins && !test.rate_traded;
     test.other_rate_deg_per_frame = Some(if reports_refit {
@@ -419,13 +183,36 @@ fn choose_lobes(
     } else {
         r.rate_deg_per_frame
     });
-    let (mut chosen, frames) = if reports_refit { refitted } else { kept };
-    if let RateSolution::Determined(fit) = &mut chosen {
+    let mut chosen = if reports_refit {
+        Lobes::Refitted(refitted)
+    } else {
+        Lobes::Kept(kept)
+    };
+    let (Lobes::Kept((solution, _)) | Lobes::Refitted((solution, _))) = &mut chosen;
+    if let RateSolution::Determined(fit) = solution {
         if let Some(refit) = &mut fit.refit {
             refit.lobe_test = Some(test);
         }
     }
-    (chosen, frames)
+    Ok(chosen)
+}
+
+/// The joint fit [`choose_lobes`] reports, with its frames.
+#[derive(Debug)]
+enum Lobes {
+    /// Stage 1's lobes kept.
+    Kept((RateSolution, usize)),
+    /// Each facet's widest lobe re-fitted.
+    Refitted((RateSolution, usize)),
+}
+
+impl Lobes {
+    #[cfg(test)]
+    fn into_inner(self) -> (RateSolution, usize) {
+        match self {
+            Lobes::Kept(x) | Lobes::Refitted(x) => x,
+        }
+    }
 }
 
 /// The joint fit from the search on the stage-1 coefficients: the polish, each band's noise
@@ -435,12 +222,13 @@ fn reweighted_joint(
     setup: &FitSetup,
     config: &Stage3Config,
     (searched, searched_problem): &(RateSolution, RateProblem),
-) -> Result<(RateSolution, usize), InversionError> {
+) -> Result<((RateSolution, usize), RateProblem), InversionError> {
     // The bands' mismatch is measured with the model the fit ends with.
     let (j, problem) = horizon::polish_with_refit(setup, config, searched)?
         .unwrap_or_else(|| (searched.clone(), searched_problem.clone()));
     let Some(first) = j.fit().map(|f| f.rate_deg_per_frame) else {
-        return Ok((j, problem.frame_count()));
+        let frames = problem.frame_count();
+        return Ok(((j, frames), problem));
     };
     let scales = problem.band_mismatch_scales(first);
     let reweighted_setup = setup.with_band_scales(&scales);
@@ -450,14 +238,10 @@ fn reweighted_joint(
             Some(j2) => (j2, reweighted_problem, &reweighted_setup),
             None => (j, problem, setup),
         };
-    let (mut joint, problem) =
+    let (joint, problem) =
         horizon::polish_with_refit(setup, config, &searched)?.unwrap_or((searched, problem));
-    // Held until every decision is taken: the lobe test, λ*'s gate and its widening read the
-    // local covariance (docs/adr/0028).
-    joint.attach_interval_average_if_asked(&problem, config);
-    joint.attach_neighbours_if_asked(&problem, config)?;
-    joint.attach_profile_if_asked(&problem, config);
-    Ok((joint, problem.frame_count()))
+    let frames = problem.frame_count();
+    Ok(((joint, frames), problem))
 }
 
 /// Multi-start fit on the frames within the fit horizon: the first window is valid for every
@@ -471,9 +255,6 @@ fn reweighted_joint(
 /// model's validity pull the fit towards slower rates, a slower rate would admit more such
 /// frames, and the window would run away (the Z case at phase 20° crept from 0.21 to 0.11
 /// deg/frame over 184 frames that way).
-///
-/// With [`Stage3Config::profile_intervals`] the answer reports its profile-likelihood intervals
-/// ([`RateFit::report_profile`]).
 pub fn fit_within_horizon(
     motion: &[Observation],
     bands: &[RateBand],
@@ -482,40 +263,40 @@ pub fn fit_within_horizon(
     config: &Stage3Config,
 ) -> Result<(RateSolution, usize), InversionError> {
     let setup = FitSetup::new(motion, bands, coefficient_covariance, None, model);
-    let (mut rate, problem) = horizon::search_and_polish(&setup, config)?;
-    rate.attach_profile_if_asked(&problem, config);
-    rate.report_profile(1.0);
-    Ok((rate, problem.frame_count()))
+    let (rate, problem) = horizon::search_and_polish(&setup, config)?;
+    Ok((rate.finalize(&problem, config)?, problem.frame_count()))
 }
 
-/// Stage-3 results and the window they were fitted on.
+impl RateFits {
+    /// glint's answer: the joint fit when it ran, else the fit at λ* (`wavelength_nm`).
+    pub fn answer(&self, wavelength_nm: f64) -> Answer {
+        match (&self.joint_rate, self.joint_fitted_frames) {
+            (Some(joint), Some(frames)) => {
+                let bands = joint.wavelengths_nm().len();
+                Answer::of(AnswerFit::Joint { bands }, joint, frames)
+            }
+            _ => Answer::of(
+                AnswerFit::Band { wavelength_nm },
+                &self.rate,
+                self.fitted_frames,
+            ),
+        }
+    }
+}
+
+/// Stage-3 results and the windows they were fitted on.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RateFits {
-    /// At λ* (or the band that replaced it, `band_index`).
+    /// At λ* (`band_index`): the paper's stage 3.
     pub rate: RateSolution,
-    /// The band `rate` was fitted at: λ*, unless the joint fit rejected λ*'s solution.
+    /// The band `rate` was fitted at: λ*.
     pub band_index: usize,
-    /// Bands whose solution the joint fit rejected, in the order tried
-    /// ([`Stage3Config::joint_gate_sigma`]); when it holds every candidate, `rate` is λ*'s
-    /// and this is `[λ*]`.
-    pub set_aside: Vec<usize>,
     /// All bands jointly, when asked.
     pub joint_rate: Option<RateSolution>,
     /// Motion frames fitted at λ* (those within its horizon).
     pub fitted_frames: usize,
     /// Motion frames of the joint fit.
     pub joint_fitted_frames: Option<usize>,
-    /// The λ* data could not tell p̂ from its mirror and the joint fit decided the sense of
-    /// rotation (see [`fit_rates`]).
-    pub sense_from_joint: bool,
-    /// `rate`'s distance from the joint solution in σ ([`BandFit::joint_disagreement_sigma`]).
-    /// Beyond the gate with `rate` kept, the band has no minimum near the joint solution, and
-    /// its own covariance does not cover the difference.
-    pub joint_disagreement_sigma: Option<f64>,
-    /// The factor `rate`'s covariance was widened by to cover its distance from the joint
-    /// solution ([`Stage3Config::widen_to_joint`]; 1 when the two agree within their errors);
-    /// `None` without a determined joint solution or with the widening off.
-    pub covariance_scale: Option<f64>,
 }
 
 #[cfg(test)]

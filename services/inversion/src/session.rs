@@ -7,8 +7,8 @@ use nalgebra::Vector3;
 use crate::model::MotionModelConfig;
 use crate::stage1::{run_stage1_full, Stage1Config, Stage1Output};
 use crate::stage2::{run_stage2, Stage2Result};
-use crate::stage3::{RateSolution, Stage3Config};
-use crate::{fit_rates, InversionError, Observation, ObservationSet};
+use crate::stage3::Stage3Config;
+use crate::{fit_rates, Answer, InversionError, Observation, ObservationSet, RateFits};
 
 /// Why a stage cannot run yet.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -29,20 +29,10 @@ pub struct Session {
     /// Stage 1: every band on its own, and on the pooled window when pooling applied.
     pub stage1: Option<Stage1Output>,
     pub stage2: Option<Stage2Result>,
-    pub rate: Option<RateSolution>,
-    pub joint_rate: Option<RateSolution>,
-    /// Motion frames stage 3 fitted (within its horizon).
-    pub fitted_frames: usize,
-    /// The joint fit decided the sense of rotation at λ* (see `fit_rates`).
-    pub sense_from_joint: bool,
-    /// The band stage 3 fitted: λ*, unless the joint fit set it aside (see `fit_rates`).
-    pub rate_band: usize,
-    /// Bands whose solution the joint fit rejected.
-    pub set_aside: Vec<usize>,
-    /// The rate's distance from the joint solution in σ (see `fit_rates`).
-    pub joint_disagreement_sigma: Option<f64>,
-    /// The factor the rate's covariance was widened by (see `fit_rates`).
-    pub covariance_scale: Option<f64>,
+    /// Stage 3: λ*'s fit and the joint fit.
+    pub fits: Option<RateFits>,
+    /// glint's answer ([`crate::Answer`]).
+    pub answer: Option<Answer>,
 }
 
 pub enum StageOutcome {
@@ -71,14 +61,8 @@ impl Session {
             stage1_config: Stage1Config::default(),
             stage1: None,
             stage2: None,
-            rate: None,
-            joint_rate: None,
-            fitted_frames: 0,
-            sense_from_joint: false,
-            rate_band: 0,
-            set_aside: Vec::new(),
-            joint_disagreement_sigma: None,
-            covariance_scale: None,
+            fits: None,
+            answer: None,
         }
     }
 
@@ -139,14 +123,8 @@ impl Session {
             &self.stage3_config,
             joint,
         )?;
-        self.rate = Some(fits.rate);
-        self.joint_rate = fits.joint_rate;
-        self.fitted_frames = fits.fitted_frames;
-        self.sense_from_joint = fits.sense_from_joint;
-        self.rate_band = fits.band_index;
-        self.set_aside = fits.set_aside;
-        self.joint_disagreement_sigma = fits.joint_disagreement_sigma;
-        self.covariance_scale = fits.covariance_scale;
+        self.answer = Some(fits.answer(s2.chosen_wavelength_nm));
+        self.fits = Some(fits);
         Ok(StageOutcome::Done)
     }
 }

@@ -30,7 +30,8 @@ use crate::error::InversionError;
 use crate::lm::{levenberg_marquardt, levenberg_marquardt_with, LmConfig, LmOutcome, StopReason};
 use crate::model::RateProblem;
 use crate::observability::{
-    analyse, widen_to_likelihood_intervals, CovarianceSource, Observability, UnobservableReason,
+    analyse, widen_to_likelihood_intervals, Analysis, CovarianceSource, Observability,
+    UnobservableReason,
 };
 use serde::{Deserialize, Serialize};
 
@@ -38,23 +39,16 @@ mod bisector;
 mod config;
 #[cfg(test)]
 pub(crate) mod fixtures;
-mod interval;
 mod neighbours;
-mod reported;
 mod weak;
 use config::validate;
 pub use config::{
-    HeldCoefficients, LobeRefit, Stage3Config, StartConfig, DEFAULT_JOINT_GATE_SIGMA,
-    DEFAULT_LOBE_TEST_CONFIDENCE, DEFAULT_MAX_ROTATION_DEG,
+    LobeRefit, Stage3Config, StartConfig, DEFAULT_LOBE_TEST_CONFIDENCE, DEFAULT_MAX_ROTATION_DEG,
 };
-pub use interval::{interval_variance, INTERVAL_SIGMAS};
-pub use neighbours::{fit_from_neighbourhood, Neighbour};
-pub(crate) use weak::MIRROR_MAX_DELTA_CHI2;
-pub use weak::{
-    disagreement, disagreement_sigma, distance, has_sense, mirror, nearest_body_axis,
-    widen_to_joint, WeakPrior, RATE_NAMES,
-};
-pub(crate) use weak::{keep_sense, sense_from};
+pub(crate) use neighbours::off_own_minimum;
+pub use neighbours::{neighbouring_minima, Neighbour};
+pub(crate) use weak::keep_sense;
+pub use weak::{distance, has_sense, mirror, nearest_body_axis, WeakPrior, RATE_NAMES};
 
 /// Duplicate screened starts closer than this are merged \[deg/frame\].
 const SAME_START_DEG_PER_FRAME: f64 = 1e-2;
@@ -103,29 +97,14 @@ pub struct RateFit {
     /// data distinguish them (or p̂ is its own mirror).
     #[serde(default)]
     pub mirror_deg_per_frame: Option<[f64; 3]>,
+    /// The first start of the polish that held the bisector (the hold is weighted at it);
+    /// `None` when no hold applied.
+    #[serde(skip)]
+    pub hold_start_deg_per_frame: Option<[f64; 3]>,
     /// Which coefficients stage 3 re-estimated from the motion window (the polish of
     /// [`Stage3Config::refit_diffuse`]); `None`: every coefficient from stage 1.
     #[serde(default)]
     pub refit: Option<Refit>,
-    /// The determined directions' profile-likelihood half-widths \[deg/frame\]
-    /// ([`RateFit::attach_profile`]), held until every decision is taken
-    /// ([`RateFit::report_profile`]); `None` once reported.
-    #[serde(skip)]
-    pub profiled_bounds_deg_per_frame: Option<[f64; 3]>,
-    /// The minima one and two frames' shift from the rate, lowest Δχ² first
-    /// ([`RateFit::attach_neighbours`]); empty when not looked for or none found.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub neighbours: Vec<Neighbour>,
-    /// The largest factor a variance grew by when the covariance was averaged over the fit's
-    /// interval ([`RateFit::average_over_interval`], [`Stage3Config::average_over_interval`]);
-    /// `None` when it was not.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub interval_variance_scale: Option<f64>,
-    /// The covariance averaged over the fit's interval and the largest factor a variance grew
-    /// by ([`RateFit::attach_interval_average`]), held until every decision is taken
-    /// ([`RateFit::report_interval_average`]); `None` once reported.
-    #[serde(skip)]
-    pub interval_average: Option<([[f64; 3]; 3], f64)>,
 }
 
 /// The terms a fit re-estimated per band from the motion window, with the body axis it held.
@@ -144,10 +123,6 @@ pub struct Refit {
     /// rate, so it stays stage 1's and only the diffuse terms are re-fitted.
     #[serde(default)]
     pub glint_lobes_only: bool,
-    /// Stage 1's other coefficients were held by their stable-window prior and re-estimated
-    /// with the motion window ([`Stage3Config::held_coefficients`]).
-    #[serde(default)]
-    pub held_coefficients: bool,
 }
 
 /// The joint fit's test of stage 1's lobes ([`LobeRefit::WhenNeeded`]): the fit re-fitting the
@@ -168,35 +143,13 @@ pub struct LobeTest {
     /// The fit keeping stage 1's lobes has a minimum a frame's shift away that fits better by
     /// more than Δχ² = 4 ([`RateFit::neighbours`]): it is not its own model's best fit, so its
     /// region is no reference, and the re-fit is reported whatever `chi2` says (unless
-    /// `rate_traded`; docs/adr/0022).
+    /// `rate_traded`).
     #[serde(default)]
     pub kept_off_minimum: bool,
     /// The rate of the fit not reported: the re-fit's when stage 1's lobes are kept, the
     /// kept fit's when the lobe is re-fitted.
     #[serde(default)]
     pub other_rate_deg_per_frame: Option<[f64; 3]>,
-    /// The weight the reported covariance gives `other_rate_deg_per_frame`
-    /// ([`RateFit::report_lobe_alternative`]); 0 when it carries none.
-    #[serde(default)]
-    pub other_weight: f64,
-}
-
-impl LobeTest {
-    /// How near the decision was to going the other way, as the pseudo-Δχ² of the lobe model
-    /// not reported against the one reported (`reported_refit`: the re-fit was reported): the
-    /// threshold minus χ² when stage 1's lobes were kept, χ² minus the threshold when χ²
-    /// re-fitted them. `None` when the other model is no alternative: the re-fit traded the
-    /// rate, the kept fit was off its own minimum, or χ² is not finite.
-    pub fn alternative_excess(&self, reported_refit: bool) -> Option<f64> {
-        if self.rate_traded || self.kept_off_minimum || !self.chi2.is_finite() {
-            return None;
-        }
-        Some(if reported_refit {
-            self.chi2 - self.threshold
-        } else {
-            self.threshold - self.chi2
-        })
-    }
 }
 
 /// Stage-3 outcome: a rate, or the statement that the data do not determine it.
@@ -222,6 +175,14 @@ pub enum RateSolution {
 }
 
 impl RateSolution {
+    /// The bands fitted \[nm\].
+    pub fn wavelengths_nm(&self) -> &[f64] {
+        match self {
+            Self::Determined(f) => &f.wavelengths_nm,
+            Self::Unobservable { wavelengths_nm, .. } => wavelengths_nm,
+        }
+    }
+
     /// The fit, if determined.
     pub fn fit(&self) -> Option<&RateFit> {
         match self {
@@ -332,7 +293,9 @@ pub fn screen_candidates(
     Ok(chosen)
 }
 
-/// Polishes every start with LM, keeps the lowest cost and classifies the result.
+/// Polishes every start with LM, keeps the lowest cost and classifies the result: the raw
+/// polish, without the likelihood intervals and the mirror ([`RateSolution::finalize`]), as
+/// the solve's intermediate fits need it.
 pub fn fit_from_starts(
     problem: &RateProblem,
     starts: &[[f64; 3]],
@@ -424,9 +387,6 @@ fn polish(
             });
         }
     }
-    if analysis.unobservable.is_none() {
-        widen_to_likelihood_intervals(problem, best.p_deg_per_frame, &mut analysis);
-    }
     if let Some(reason) = analysis.unobservable {
         return Ok(RateSolution::Unobservable {
             reason,
@@ -435,14 +395,6 @@ fn polish(
             wavelengths_nm,
         });
     }
-    let mirror_deg_per_frame = weak::mirror_if_ambiguous(
-        problem,
-        best.p_deg_per_frame,
-        best.cost,
-        &analysis.observability,
-        config,
-        hold.as_ref(),
-    )?;
     Ok(RateSolution::Determined(RateFit {
         wavelengths_nm,
         rate_deg_per_frame: best.p_deg_per_frame,
@@ -458,40 +410,87 @@ fn polish(
         start_deg_per_frame: start,
         observability: analysis.observability,
         held_directions,
-        mirror_deg_per_frame,
+        mirror_deg_per_frame: None,
+        hold_start_deg_per_frame: hold.as_ref().and(starts.first().copied()),
         refit: hold.as_ref().map(|h| Refit {
             widest_lobe: problem.refits_widest_lobe(),
             held_direction: h.held_direction(),
             lobe_test: None,
             glint_lobes_only: problem.keeps_glint_lobes(),
-            held_coefficients: problem.holds_coefficients(),
         }),
-        profiled_bounds_deg_per_frame: None,
-        neighbours: vec![],
-        interval_variance_scale: None,
-        interval_average: None,
     }))
 }
 
-/// LM from one explicit start (e.g. the seed's p₀ = 0), no grid.
+impl RateSolution {
+    /// The answer's last word on a fit of `problem`: each determined direction's 1σ widened to
+    /// its likelihood interval where the cost rises slower than its curvature says
+    /// ([`widen_to_likelihood_intervals`]), and the mirror (−w_x, w_y, −w_z) named when it fits
+    /// as well ([`RateFit::mirror_deg_per_frame`]). Run once per reported fit (and on the fit a
+    /// decision reads), not on every intermediate polish.
+    pub fn finalize(
+        mut self,
+        problem: &RateProblem,
+        config: &Stage3Config,
+    ) -> Result<Self, InversionError> {
+        if let RateSolution::Determined(fit) = &mut self {
+            fit.finalize(problem, config)?;
+        }
+        Ok(self)
+    }
+}
+
+impl RateFit {
+    /// [`RateSolution::finalize`] of a determined fit.
+    pub fn finalize(
+        &mut self,
+        problem: &RateProblem,
+        config: &Stage3Config,
+    ) -> Result<(), InversionError> {
+        let mut analysis = Analysis {
+            covariance: self.covariance_deg2_per_frame2,
+            source: self.covariance_source,
+            observability: self.observability.clone(),
+            unobservable: None,
+        };
+        widen_to_likelihood_intervals(problem, self.rate_deg_per_frame, &mut analysis);
+        self.covariance_deg2_per_frame2 = analysis.covariance;
+        self.observability = analysis.observability;
+        let hold = self
+            .hold_start_deg_per_frame
+            .map(|p0| bisector::BisectorHold::new(problem, p0, config));
+        self.mirror_deg_per_frame = weak::mirror_if_ambiguous(
+            problem,
+            self.rate_deg_per_frame,
+            self.cost,
+            &self.observability,
+            config,
+            hold.as_ref(),
+        )?;
+        Ok(())
+    }
+}
+
+/// LM from one explicit start (e.g. the seed's p₀ = 0), no grid; the fit as reported
+/// ([`RateSolution::finalize`]).
 pub fn fit_single_start(
     problem: &RateProblem,
     p0_deg_per_frame: [f64; 3],
     config: &Stage3Config,
 ) -> Result<RateSolution, InversionError> {
-    fit_from_starts(problem, &[p0_deg_per_frame], config)
+    fit_from_starts(problem, &[p0_deg_per_frame], config)?.finalize(problem, config)
 }
 
-/// Grid → screen → polish (the default stage-3 solve).
+/// Grid → screen → polish (the default stage-3 solve on one problem); the fit as reported
+/// ([`RateSolution::finalize`]).
 pub fn fit_multistart(
     problem: &RateProblem,
     config: &Stage3Config,
 ) -> Result<RateSolution, InversionError> {
-    fit_multistart_with(problem, config, &[])
+    fit_multistart_with(problem, config, &[])?.finalize(problem, config)
 }
 
 /// Grid → screen → polish, with `extra` starts (e.g. a solution on a shorter window) polished
-/// after the screened ones.
+/// after the screened ones; the raw polish ([`fit_from_starts`]).
 pub fn fit_multistart_with(
     problem: &RateProblem,
     config: &Stage3Config,

@@ -102,17 +102,6 @@ fn rejects_invalid_input_and_config() {
             })
         ));
     }
-    config = InversionConfig::default();
-    config.stage3.polish_reach_frames = 11;
-    assert!(matches!(
-        config.stage3.validate(),
-        Err(InversionError::InvalidConfig {
-            field: "polish_reach_frames",
-            ..
-        })
-    ));
-    config.stage3.polish_reach_frames = 10;
-    assert!(config.stage3.validate().is_ok());
 }
 
 #[test]
@@ -309,58 +298,6 @@ fn stage_one_pools_neighbouring_bands_only_for_the_single_band_fit_and_only_with
     assert!(ratio < 0.85, "pooled/alone rebuild error {ratio}");
 }
 
-/// The kept rate's covariance is its own times the Birge ratio max(1, d²/k) of its distance
-/// from the joint fit (`stage3.widen_to_joint`): checked against the same solve with the
-/// widening off, on noisy seeds (SNR 2) where the two fits agree (seeds 1–5) and where they do
-/// not (seed 6, d² ≈ 1900).
-#[test]
-fn kept_rate_covariance_is_widened_by_the_birge_ratio_of_the_joint_fit() {
-    let on = InversionConfig {
-        joint_fit: true,
-        ..InversionConfig::default()
-    };
-    let mut off = on.clone();
-    off.stage3.widen_to_joint = false;
-    // The widening reads the joint fit's local covariance, before it carries the other lobe
-    // model (docs/adr/0023) or is averaged over its interval (docs/adr/0028): compare against
-    // that one, from a solve that reports it.
-    off.stage3.cover_lobe_alternative = false;
-    let mut local = off.clone();
-    local.stage3.average_over_interval = false;
-    let mut widened = 0;
-    for seed in 1..=6 {
-        let (_, noisy) = fine_bands(2.0, seed);
-        let a = solve_three_stage(&noisy, &on).expect("widened");
-        let b = solve_three_stage(&noisy, &off).expect("own");
-        let c = solve_three_stage(&noisy, &local).expect("local joint");
-        let (fa, fb) = (a.rate.fit().expect("rate"), b.rate.fit().expect("rate"));
-        let joint = c.joint_rate.as_ref().and_then(|j| j.fit()).expect("joint");
-        assert_eq!(fa.rate_deg_per_frame, fb.rate_deg_per_frame);
-        assert!(b.rate_covariance_scale.is_none());
-        let (d2, k) = glint_inversion::stage3::disagreement(fb, joint, &on.stage3.observability);
-        let want = (d2 / k as f64).max(1.0);
-        let scale = a.rate_covariance_scale.expect("scale");
-        assert!(
-            (scale - want).abs() <= 1e-12 * want,
-            "seed {seed}: {scale} vs {want}"
-        );
-        for i in 0..3 {
-            for j in 0..3 {
-                let (ca, cb) = (
-                    fa.covariance_deg2_per_frame2[i][j],
-                    fb.covariance_deg2_per_frame2[i][j],
-                );
-                assert!(
-                    (ca - scale * cb).abs() <= 1e-12 * (scale * cb).abs(),
-                    "{ca} vs {cb}"
-                );
-            }
-        }
-        widened += usize::from(scale > 1.0);
-    }
-    assert!((1..6).contains(&widened), "widened in {widened} of 6 seeds");
-}
-
 /// Diffuse light that does not turn with the body, as about Z the cube's observed face and the
 /// side face turning into view sum to a constant: over the stable window it is the observed
 /// face's diffuse column, which stage 1 cannot tell from the panel's, so the paper's model
@@ -466,58 +403,6 @@ fn the_joint_fit_re_fits_the_widest_lobe_only_when_the_test_asks() {
         decisions.iter().all(|&n| n > 0),
         "kept, re-fitted: {decisions:?}"
     );
-}
-
-/// λ*'s covariance carries the minima a frame's shift from its rate (docs/adr/0020), once
-/// every decision is taken: with `stage3.cover_neighbours` the answer, its joint check and the
-/// widening to the joint fit are those without it, to the bit, and the covariance is the
-/// widened one plus Σ w_i d_i d_iᵀ, w_i = e^(−Δχ²_i/2) / (1 + Σ_j e^(−Δχ²_j/2)), over the
-/// neighbours it names (the closed form). About Z with the stable window at SNR 10, λ* has a
-/// neighbour.
-#[test]
-fn lambda_star_s_covariance_carries_its_neighbours_after_the_widening() {
-    let mut set = scenario(720, 360, [0.0, 0.0, 0.25]);
-    add_stable_noise(&mut set, 10.0, 1);
-    let mut config = InversionConfig {
-        joint_fit: true,
-        ..InversionConfig::default()
-    };
-    assert!(config.stage3.cover_neighbours);
-    let on = solve_three_stage(&set, &config).expect("solve");
-    config.stage3.cover_neighbours = false;
-    let off = solve_three_stage(&set, &config).expect("solve");
-    let (a, b) = (on.rate.fit().expect("rate"), off.rate.fit().expect("rate"));
-    assert!(!a.neighbours.is_empty(), "no neighbour: {a:?}");
-    assert!(b.neighbours.is_empty());
-    assert_eq!(a.rate_deg_per_frame, b.rate_deg_per_frame);
-    assert_eq!(on.rate_covariance_scale, off.rate_covariance_scale);
-    assert_eq!(on.joint_disagreement_sigma, off.joint_disagreement_sigma);
-    let weights: Vec<f64> = a
-        .neighbours
-        .iter()
-        .map(|n| (-0.5 * n.delta_chi2).exp())
-        .collect();
-    let total = 1.0 + weights.iter().sum::<f64>();
-    let p = a.rate_deg_per_frame;
-    for i in 0..3 {
-        for j in 0..3 {
-            let carried: f64 = a
-                .neighbours
-                .iter()
-                .zip(&weights)
-                .map(|(n, w)| {
-                    let q = n.rate_deg_per_frame;
-                    w / total * (q[i] - p[i]) * (q[j] - p[j])
-                })
-                .sum();
-            let expected = b.covariance_deg2_per_frame2[i][j] + carried;
-            let got = a.covariance_deg2_per_frame2[i][j];
-            assert!(
-                (got - expected).abs() <= 1e-12 * expected.abs() + 1e-24,
-                "[{i}][{j}]: {got:e} against {expected:e}"
-            );
-        }
-    }
 }
 
 /// Gaussian noise at `snr` (σ = mean flux / SNR per band) on `set`'s stable window only.

@@ -7,7 +7,7 @@ use super::*;
 /// User header of a camera frame; the payload is `[u16]` of `width_px * height_px` pixels,
 /// row-major, rendered in place in the loaned shared-memory sample.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("glint.v1.FrameHeader")]
+#[type_name("glint.v2.FrameHeader")]
 #[repr(C)]
 pub struct FrameHeader {
     pub meta: Meta,
@@ -59,7 +59,7 @@ pub const MAX_TRACKS: usize = 16;
 
 /// One detected object in a frame ([002] §3.3–3.5).
 #[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("glint.v1.Detection")]
+#[type_name("glint.v2.Detection")]
 #[repr(C)]
 pub struct Detection {
     /// Persistent id assigned by the inter-frame matcher.
@@ -95,7 +95,7 @@ impl Detection {
 
 /// The detector's output for one frame: matched objects only (false targets are rejected).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("glint.v1.Detections")]
+#[type_name("glint.v2.Detections")]
 #[repr(C)]
 pub struct Detections {
     pub meta: Meta,
@@ -158,7 +158,7 @@ impl Detections {
 
 /// One track's estimate after a frame ([002] §3.6–3.8).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("glint.v1.TrackEstimate")]
+#[type_name("glint.v2.TrackEstimate")]
 #[repr(C)]
 pub struct TrackEstimate {
     pub track_id: u32,
@@ -218,7 +218,7 @@ impl Default for TrackEstimate {
 
 /// The tracker's output for one frame.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("glint.v1.Tracks")]
+#[type_name("glint.v2.Tracks")]
 #[repr(C)]
 pub struct Tracks {
     pub meta: Meta,

@@ -42,7 +42,7 @@ impl DropReason {
 
 /// Per-topic counters of one consumer, carried in a [`Heartbeat`].
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("glint.v1.TopicCounters")]
+#[type_name("glint.v2.TopicCounters")]
 #[repr(C)]
 pub struct TopicCounters {
     /// [`crate::TopicId`] as u32, or `u32::MAX` for an unused slot.
@@ -60,7 +60,7 @@ pub struct TopicCounters {
 
 /// Periodic liveness and counters of a service.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("glint.v1.Heartbeat")]
+#[type_name("glint.v2.Heartbeat")]
 #[repr(C)]
 pub struct Heartbeat {
     pub meta: Meta,
@@ -91,7 +91,7 @@ impl Heartbeat {
 /// Per-message acknowledgement from a consumer to a producer: credit for lockstep flow control
 /// in sim-clock mode (the producer never has more than the subscriber buffer in flight).
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("glint.v1.Ack")]
+#[type_name("glint.v2.Ack")]
 #[repr(C)]
 pub struct Ack {
     pub meta: Meta,
@@ -130,7 +130,7 @@ impl Command {
 
 /// A control message; `target` is a [`crate::ServiceId`] as u32 or [`Control::ALL`].
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("glint.v1.Control")]
+#[type_name("glint.v2.Control")]
 #[repr(C)]
 pub struct Control {
     pub meta: Meta,

@@ -40,7 +40,7 @@ pub const MAX_TOPICS: usize = 8;
 
 /// Header common to every message.
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("glint.v1.Meta")]
+#[type_name("glint.v2.Meta")]
 #[repr(C)]
 pub struct Meta {
     /// Per-producer, per-topic sequence number, starting at 0, without gaps.

@@ -6,7 +6,7 @@ use super::*;
 
 /// A laser-range request: fire along (azimuth, elevation) at simulated time `meta.t_ns`.
 #[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("glint.v1.RangeRequest")]
+#[type_name("glint.v2.RangeRequest")]
 #[repr(C)]
 pub struct RangeRequest {
     pub meta: Meta,
@@ -48,7 +48,7 @@ pub enum RangeStatus {
 
 /// The rangefinder's answer; `meta.t_ns` is the time of the echo (request time + delay).
 #[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("glint.v1.RangeResponse")]
+#[type_name("glint.v2.RangeResponse")]
 #[repr(C)]
 pub struct RangeResponse {
     pub meta: Meta,

@@ -26,7 +26,7 @@ impl Window {
 
 /// One time sample of the target's spectrum plus the geometry the inversion needs.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("glint.v1.Spectrum")]
+#[type_name("glint.v2.Spectrum")]
 #[repr(C)]
 pub struct Spectrum {
     pub meta: Meta,
@@ -132,7 +132,7 @@ impl Spectrum {
 
 /// A solve call to the inversion ([000] three-stage solve).
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
-#[type_name("glint.v1.SolveRequest")]
+#[type_name("glint.v2.SolveRequest")]
 #[repr(C)]
 pub struct SolveRequest {
     pub meta: Meta,
@@ -193,124 +193,62 @@ impl SolveStatus {
     }
 }
 
-/// The inversion's answer; every stage fills what it computed (NaN elsewhere).
+/// The answer to one solve call: the stage's figures and, for stage 3, glint's answer (the
+/// joint fit over every band when it was asked for, else the fit at λ*) with its covariance,
+/// the Fisher directions, what the data leave open, and λ*'s fit beside it (the paper's
+/// stage 3). Per-band figures are `f32`: relative errors and degrees of separation, printed to
+/// four digits.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("glint.v1.SolveResponse")]
+#[type_name("glint.v2.SolveResponse")]
 #[repr(C)]
 pub struct SolveResponse {
     pub meta: Meta,
+    /// The request answered.
     pub request_id: u64,
+    /// 1, 2 or 3.
     pub stage: u32,
-    /// [`SolveStatus`] as u32.
+    /// [`SolveStatus`].
     pub status: u32,
+    /// Bands of the spectra.
     pub n_bands: u32,
-    /// Index of the chosen band λ* (stage 2 and 3).
+    /// Stage 2: λ*'s band index.
     pub chosen_band: u32,
-    pub wavelength_nm: [f64; MAX_BANDS],
-    /// Stage 1: relative reconstruction error per band.
-    pub recon_err: [f64; MAX_BANDS],
-    /// Stage 2: separation degree σ(λ) per band.
-    pub separation: [f64; MAX_BANDS],
-    /// Stage 3 at λ*: rates [deg/frame] and their covariance (row-major).
-    pub p_deg_per_frame: [f64; 3],
-    pub p_covariance: [f64; 9],
-    /// Stage 3 on all bands jointly (NaN when not requested).
-    pub p_joint_deg_per_frame: [f64; 3],
-    pub p_joint_covariance: [f64; 9],
-    /// Fisher information at the solution: eigenvalues (ascending) and eigenvectors (columns).
-    pub fisher_eigenvalues: [f64; 3],
-    pub fisher_eigenvectors: [f64; 9],
-    /// 1σ bound along each eigen-direction [deg/frame].
-    pub bound_1sigma_deg_per_frame: [f64; 3],
-    /// Final normalised cost, LM iterations, starts tried.
-    pub cost: f64,
-    pub iterations: u32,
-    pub starts: u32,
-    /// Bit i set when eigen-direction i is observable (its bound below the threshold).
-    pub observable_mask: u32,
+    /// Samples the stable window had.
     pub stable_samples: u32,
+    /// Frames the motion window had.
     pub motion_samples: u32,
-    /// Stage 3: motion frames fitted at λ* (those within the fit horizon).
-    pub fitted_frames: u32,
-    /// Stage 3: the mirror solution (−w_x, w_y, −w_z) when it fits the data as well as p — the
-    /// sense of rotation about X and Z is then not observable; NaN when the data tell them apart.
-    pub p_mirror_deg_per_frame: [f64; 3],
-    /// Stage 3: why no rate is reported at λ* (status `Unobservable`), see
-    /// [`SolveResponse::REASON_NAMES`]; 0 otherwise.
+    /// Stage 1: reconstruction error ε_rec per band.
+    pub recon_err: [f32; MAX_BANDS],
+    /// Stage 2: separation degree σ(λ) per band.
+    pub separation: [f32; MAX_BANDS],
+    /// Stage 3: [`Self::JOINT`], [`Self::SENSE_UNDETERMINED`], [`Self::LOBE_REFIT`].
+    pub flags: u32,
+    /// Why the answer has no rate ([`Self::REASON_NAMES`]; 0 with a rate).
     pub unobservable_reason: u32,
-    /// The same for the joint fit.
-    pub joint_unobservable_reason: u32,
-    /// Stage 2: index of argmax σ(λ), the paper's choice (λ* may differ, see the inversion's
-    /// band-selection rule).
-    pub separation_band: u32,
-    /// Stage 3 flags: [`SolveResponse::SENSE_FROM_JOINT`], [`SolveResponse::LAMBDA_REJECTED`],
-    /// [`SolveResponse::JOINT_LOBE_REFIT`], [`SolveResponse::JOINT_LOBE_RATE_TRADED`],
-    /// [`SolveResponse::JOINT_GLINT_LOBES_ONLY`], [`SolveResponse::JOINT_LOBE_KEPT_OFF_MINIMUM`],
-    /// [`SolveResponse::HELD_COEFFICIENTS`], [`SolveResponse::JOINT_HELD_COEFFICIENTS`].
-    pub stage3_flags: u32,
-    /// Stage 2: the lobes' share of the stage-1 coefficients per band.
-    pub specular_share: [f64; MAX_BANDS],
-    /// Stage 1: width μ of the widest lobe kept by the basis test (NaN before stage 1).
-    pub stage1_widest_lobe_mu: f64,
-    /// Stage 1: Δχ² of the accepted basis reduction and its parameter count k.
-    pub stage1_basis_delta_chi2: f64,
-    pub stage1_basis_dof: u32,
-    /// Stage 1: lobes kept per facet, of 10.
-    pub stage1_lobes_kept: u32,
-    /// Stage 3: index of the band the rate was fitted at: λ* (`chosen_band`), unless the joint
-    /// fit rejected λ*'s solution as another minimum ([`SolveResponse::LAMBDA_REJECTED`]).
-    pub stage3_band: u32,
-    /// Stage 3: bands whose solution the joint fit rejected before `stage3_band` was accepted
-    /// (with every candidate rejected, 1 and `stage3_band == chosen_band`).
-    pub stage3_set_aside: u32,
-    /// Stage 1: half-width \[nm\] of the spectral window stage 2 and the single-band fit used
-    /// (0: every band on its own).
-    pub stage1_spectral_window_nm: f64,
-    /// Stage 1: the pooled curves' RMS bias in units of the noise, the pooling test's statistic
-    /// (NaN when not tested: no σ, or no band within the window of another).
-    pub stage1_spectral_bias_to_noise: f64,
-    /// Stage 3: the rate's distance from the joint solution in standard deviations (the two
-    /// covariances summed, over the directions both determine); NaN without both.
-    pub stage3_joint_disagreement_sigma: f64,
-    /// Stage 3: the factor `p_covariance` was widened by to cover the rate's distance from the
-    /// joint solution (1: they agree within their errors); NaN without both.
-    pub stage3_covariance_scale: f64,
-    /// Stage 3: the joint fit's test of stage 1's widest lobes, χ² of the fit re-fitting them
-    /// in the covariance of the fit keeping them (re-fitted when above its 99 % point, see
-    /// [`SolveResponse::JOINT_LOBE_REFIT`]); NaN when not tested.
-    pub stage3_joint_lobe_test_chi2: f64,
-    /// Stage 3: the joint fit's mirror solution (−w_x, w_y, −w_z) when it fits all bands as
-    /// well as `p_joint_deg_per_frame` (the joint fit cannot tell the sense of rotation); NaN
-    /// when the data tell them apart or without a joint rate.
-    pub p_joint_mirror_deg_per_frame: [f64; 3],
-    /// Stage 3 at λ*: the directions the stated prior held at zero, bit k for body axis k
-    /// (x, y, z) and [`SolveResponse::HELD_OTHER`] for one that is not a body axis. A direction
-    /// `observable_mask` leaves out but not held here sits where the fit ended.
-    pub stage3_held_axes: u32,
-    /// Stage 3 at λ*: where the covariance's noise level came from, see
-    /// [`SolveResponse::COVARIANCE_SOURCE_NAMES`] (0 without a rate).
-    pub stage3_covariance_source: u32,
-    /// Stage 3: the likeliest of the joint fit's minima one or two frames' shift from
-    /// `p_joint_deg_per_frame`, which `p_joint_covariance` carries weighted by its likelihood;
-    /// NaN when none was found.
-    pub p_joint_neighbour_deg_per_frame: [f64; 3],
-    /// Stage 3: that minimum's cost minus the joint fit's, in noise variances (negative: it
-    /// fits better); NaN without one.
-    pub stage3_joint_neighbour_delta_chi2: f64,
-    /// Stage 3 at λ*: the likeliest of the fit's minima one or two frames' shift from
-    /// `p_deg_per_frame`, which `p_covariance` carries weighted by its likelihood; NaN when
-    /// none was found.
-    pub p_neighbour_deg_per_frame: [f64; 3],
-    /// Stage 3 at λ*: that minimum's cost minus the fit's, in noise variances (negative: it
-    /// fits better); NaN without one.
-    pub stage3_neighbour_delta_chi2: f64,
-    /// Stage 3: the joint fit's rate under the lobe model its lobe test did not report (the
-    /// re-fit's when stage 1's lobes were kept, the kept fit's when re-fitted); NaN when the
-    /// lobes were not tested.
-    pub p_joint_lobe_other_deg_per_frame: [f64; 3],
-    /// Stage 3: the weight `p_joint_covariance` gives that rate (½ at the test's threshold, 0
-    /// when it carries none); NaN when the lobes were not tested.
-    pub stage3_joint_lobe_other_weight: f64,
+    /// Body axes the prior held: bit 0 X, 1 Y, 2 Z, 3 another direction.
+    pub held_axes: u32,
+    /// Bit i: Fisher direction i is determined.
+    pub observable_mask: u32,
+    /// Motion frames the answer fitted (its horizon).
+    pub fitted_frames: u32,
+    /// LM iterations of the answer's fit.
+    pub iterations: u32,
+    /// p̂ \[deg/frame\] (NaN without a rate).
+    pub rate_deg_per_frame: [f64; 3],
+    /// Cov(p̂), row-major \[(deg/frame)²\].
+    pub covariance: [f64; 9],
+    /// The Fisher eigen-directions as columns, least informed first.
+    pub fisher_eigenvectors: [f64; 9],
+    /// 1σ along each of them \[deg/frame\].
+    pub bound_1sigma_deg_per_frame: [f64; 3],
+    /// The mirror that fits as well, with [`Self::SENSE_UNDETERMINED`] (NaN otherwise).
+    pub mirror_deg_per_frame: [f64; 3],
+    /// λ*'s fit: [`SolveStatus`] (`Ok` or `Unobservable`).
+    pub band_status: u32,
+    /// λ*'s fit: its unobservable reason.
+    pub band_unobservable_reason: u32,
+    /// λ*'s fit: p̂ \[deg/frame\] (NaN without a rate).
+    pub band_rate_deg_per_frame: [f64; 3],
 }
 
 impl Default for SolveResponse {
@@ -322,108 +260,50 @@ impl Default for SolveResponse {
             status: SolveStatus::Failed as u32,
             n_bands: 0,
             chosen_band: 0,
-            wavelength_nm: [0.0; MAX_BANDS],
-            recon_err: [f64::NAN; MAX_BANDS],
-            separation: [f64::NAN; MAX_BANDS],
-            p_deg_per_frame: [f64::NAN; 3],
-            p_covariance: [f64::NAN; 9],
-            p_joint_deg_per_frame: [f64::NAN; 3],
-            p_joint_covariance: [f64::NAN; 9],
-            fisher_eigenvalues: [f64::NAN; 3],
-            fisher_eigenvectors: [f64::NAN; 9],
-            bound_1sigma_deg_per_frame: [f64::NAN; 3],
-            cost: f64::NAN,
-            iterations: 0,
-            starts: 0,
-            observable_mask: 0,
             stable_samples: 0,
             motion_samples: 0,
-            fitted_frames: 0,
-            p_mirror_deg_per_frame: [f64::NAN; 3],
+            recon_err: [f32::NAN; MAX_BANDS],
+            separation: [f32::NAN; MAX_BANDS],
+            flags: 0,
             unobservable_reason: 0,
-            joint_unobservable_reason: 0,
-            separation_band: 0,
-            stage3_flags: 0,
-            specular_share: [f64::NAN; MAX_BANDS],
-            stage1_widest_lobe_mu: f64::NAN,
-            stage1_basis_delta_chi2: f64::NAN,
-            stage1_basis_dof: 0,
-            stage1_lobes_kept: 0,
-            stage3_band: 0,
-            stage3_set_aside: 0,
-            stage1_spectral_window_nm: 0.0,
-            stage1_spectral_bias_to_noise: f64::NAN,
-            stage3_joint_disagreement_sigma: f64::NAN,
-            stage3_covariance_scale: f64::NAN,
-            stage3_joint_lobe_test_chi2: f64::NAN,
-            p_joint_mirror_deg_per_frame: [f64::NAN; 3],
-            stage3_held_axes: 0,
-            stage3_covariance_source: 0,
-            p_joint_neighbour_deg_per_frame: [f64::NAN; 3],
-            stage3_joint_neighbour_delta_chi2: f64::NAN,
-            p_neighbour_deg_per_frame: [f64::NAN; 3],
-            stage3_neighbour_delta_chi2: f64::NAN,
-            p_joint_lobe_other_deg_per_frame: [f64::NAN; 3],
-            stage3_joint_lobe_other_weight: f64::NAN,
+            held_axes: 0,
+            observable_mask: 0,
+            fitted_frames: 0,
+            iterations: 0,
+            rate_deg_per_frame: [f64::NAN; 3],
+            covariance: [f64::NAN; 9],
+            fisher_eigenvectors: [f64::NAN; 9],
+            bound_1sigma_deg_per_frame: [f64::NAN; 3],
+            mirror_deg_per_frame: [f64::NAN; 3],
+            band_status: 0,
+            band_unobservable_reason: 0,
+            band_rate_deg_per_frame: [f64::NAN; 3],
         }
     }
 }
 
 impl SolveResponse {
-    /// The λ* data fit p and its mirror equally well; the joint fit decided the sense.
-    pub const SENSE_FROM_JOINT: u32 = 1;
-    /// The joint fit rejected the solution at λ* as another minimum of that band's cost.
-    pub const LAMBDA_REJECTED: u32 = 2;
-    /// The joint fit re-fitted each facet's widest lobe from the motion window.
-    pub const JOINT_LOBE_REFIT: u32 = 4;
-    /// The joint fit kept stage 1's lobes because the re-fit traded the rate for the lobe (it
-    /// ended below half the kept rate).
-    pub const JOINT_LOBE_RATE_TRADED: u32 = 8;
-    /// The joint fit re-fitted no lobe: each facet's widest lobe in use is a glint lobe
-    /// (μ < 0.2), whose amplitude trades against the rate, so it stays stage 1's.
-    pub const JOINT_GLINT_LOBES_ONLY: u32 = 16;
-    /// The joint fit re-fitted the widest lobes because the fit keeping stage 1's has a
-    /// neighbouring minimum that fits clearly better (Δχ² < −4): it is not its own model's best
-    /// fit, whatever the lobe test's χ².
-    pub const JOINT_LOBE_KEPT_OFF_MINIMUM: u32 = 32;
-    /// The λ* fit held stage 1's coefficients by their stable-window prior (the scenario's
-    /// `spectra.held_coefficients`).
-    pub const HELD_COEFFICIENTS: u32 = 64;
-    /// The joint fit did.
-    pub const JOINT_HELD_COEFFICIENTS: u32 = 128;
-    /// Every `stage3_flags` bit defined above.
-    pub const STAGE3_FLAGS_KNOWN: u32 = Self::SENSE_FROM_JOINT
-        | Self::LAMBDA_REJECTED
-        | Self::JOINT_LOBE_REFIT
-        | Self::JOINT_LOBE_RATE_TRADED
-        | Self::JOINT_GLINT_LOBES_ONLY
-        | Self::JOINT_LOBE_KEPT_OFF_MINIMUM
-        | Self::HELD_COEFFICIENTS
-        | Self::JOINT_HELD_COEFFICIENTS;
+    /// The answer is the joint fit over every band (else λ*'s fit).
+    pub const JOINT: u32 = 1;
+    /// The mirror fits as well: the sense of rotation is not determined.
+    pub const SENSE_UNDETERMINED: u32 = 2;
+    /// The answer re-fitted each facet's widest lobe from the motion window.
+    pub const LOBE_REFIT: u32 = 4;
+    /// Every defined flag.
+    pub const FLAGS_KNOWN: u32 = Self::JOINT | Self::SENSE_UNDETERMINED | Self::LOBE_REFIT;
 
-    /// `stage3_held_axes`: a held direction that is not a body axis (bits 0–2 are x, y, z).
+    /// `held_axes` bit of a direction other than a body axis.
     pub const HELD_OTHER: u32 = 8;
 
-    /// Names of the `stage3_covariance_source` codes (index = code).
-    pub const COVARIANCE_SOURCE_NAMES: [&'static str; 4] = [
-        "none",
-        "the observations' σ",
-        "the observations' σ, scaled by the Birge ratio (the residuals reject the model)",
-        "the residual variance, inflated for the residuals' serial correlation",
-    ];
-
-    /// Names of the `unobservable_reason` codes (index = code).
-    pub const REASON_NAMES: [&'static str; 7] = [
+    pub const REASON_NAMES: [&'static str; 6] = [
         "none",
         "flat light curve",
         "rank deficient",
         "every direction above the threshold",
         "no glint: only the diffuse terms move the light curve",
         "no solution within twice the search box",
-        "not confirmed: the joint fit over all bands finds no rate near it",
     ];
 
-    /// The name of a reason code ("unknown" outside the table).
     pub fn reason_name(code: u32) -> &'static str {
         Self::REASON_NAMES
             .get(code as usize)
@@ -431,43 +311,54 @@ impl SolveResponse {
             .unwrap_or("unknown")
     }
 
+    /// Checks a response from a peer before it is trusted: codes within their tables, band
+    /// indices within the bands, and a stage-3 rate that is a number with a covariance.
     pub fn validate(&self) -> Result<(), Reject> {
         self.meta.validate()?;
-        if SolveStatus::from_u32(self.status).is_none() {
+        let Some(status) = SolveStatus::from_u32(self.status) else {
             return Err(Reject::new("solve_response.status", "unknown status"));
+        };
+        if !(1..=3).contains(&self.stage) {
+            return Err(Reject::new("solve_response.stage", "not 1, 2 or 3"));
         }
-        if self.stage3_flags & !Self::STAGE3_FLAGS_KNOWN != 0 {
-            return Err(Reject::new("solve_response.stage3_flags", "unknown bits"));
+        if self.flags & !Self::FLAGS_KNOWN != 0 {
+            return Err(Reject::new("solve_response.flags", "unknown bits"));
         }
-        if self.stage3_held_axes > 0xF {
+        if self.held_axes > 0xF {
+            return Err(Reject::new("solve_response.held_axes", "unknown bits"));
+        }
+        if self.observable_mask > 0b111 {
             return Err(Reject::new(
-                "solve_response.stage3_held_axes",
+                "solve_response.observable_mask",
                 "unknown bits",
             ));
         }
-        if self.stage3_covariance_source as usize >= Self::COVARIANCE_SOURCE_NAMES.len() {
-            return Err(Reject::new(
-                "solve_response.stage3_covariance_source",
-                "unknown code",
-            ));
-        }
         let codes = Self::REASON_NAMES.len() as u32;
-        if self.unobservable_reason >= codes || self.joint_unobservable_reason >= codes {
+        if self.unobservable_reason >= codes || self.band_unobservable_reason >= codes {
             return Err(Reject::new(
                 "solve_response.unobservable_reason",
                 "unknown reason code",
             ));
         }
+        if SolveStatus::from_u32(self.band_status).is_none() {
+            return Err(Reject::new("solve_response.band_status", "unknown status"));
+        }
         if self.n_bands as usize > MAX_BANDS
-            || (self.n_bands > 0
-                && (self.chosen_band >= self.n_bands
-                    || self.separation_band >= self.n_bands
-                    || self.stage3_band >= self.n_bands))
+            || (self.n_bands > 0 && self.chosen_band >= self.n_bands)
         {
             return Err(Reject::new(
                 "solve_response.n_bands/chosen_band",
                 "out of range",
             ));
+        }
+        if self.stage == 3 && status == SolveStatus::Ok {
+            let numbers = self.rate_deg_per_frame.iter().chain(&self.covariance);
+            if !numbers.into_iter().all(|v| v.is_finite()) {
+                return Err(Reject::new(
+                    "solve_response.rate_deg_per_frame",
+                    "a rate reported ok must be finite, with a finite covariance",
+                ));
+            }
         }
         Ok(())
     }

@@ -6,7 +6,7 @@ use super::*;
 
 /// Ground truth for scoring; read only by the orchestrator.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("glint.v1.Truth")]
+#[type_name("glint.v2.Truth")]
 #[repr(C)]
 pub struct Truth {
     pub meta: Meta,

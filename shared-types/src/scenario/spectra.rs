@@ -52,21 +52,6 @@ pub enum AttitudeConvention {
     Consistent,
 }
 
-/// Which stage-3 polishes of the inversion hold stage 1's coefficients by their
-/// stable-window prior and re-estimate them with the motion window (the solver's
-/// `stage3.held_coefficients`, docs/adr/0030).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum HeldCoefficientsName {
-    /// Stage 1's coefficients fixed in every polish (default).
-    #[default]
-    None,
-    /// The fits of one band (λ* and the bands that replace it).
-    SingleBand,
-    /// Every fit.
-    All,
-}
-
 /// The satellite, its orbit geometry and the spectrometer ([000] Tables 1–2; math.md §1.7).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -111,10 +96,6 @@ pub struct SpectraScenario {
     pub sun_declination_deg: f64,
     #[serde(default)]
     pub attitude_convention: AttitudeConvention,
-    /// The inversion's stage-3 polishes that hold stage 1's coefficients by their prior:
-    /// "none" (default), "single-band" or "all" (docs/adr/0030).
-    #[serde(default)]
-    pub held_coefficients: HeldCoefficientsName,
 }
 
 fn default_band_width() -> f64 {

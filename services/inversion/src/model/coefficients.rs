@@ -57,11 +57,9 @@ impl RateProblem {
 
     /// `C = Σ_b F_pb Cov(x_b) F_bp` (3 × 3) at p, with `jac` the whitened Jacobian at p. The
     /// rates' covariance including the coefficients' uncertainty is F⁻¹ + F⁻¹ C F⁻¹. `None`
-    /// when no band carries a coefficient covariance (or the diffuse re-fit replaces them), and
-    /// when the coefficients are held by their prior ([`Self::with_held_coefficients`]).
+    /// when no band carries a coefficient covariance (or the diffuse re-fit replaces them).
     pub fn coefficient_term(&self, p: [f64; 3], jac: &[[f64; 3]]) -> Option<[[f64; 3]; 3]> {
-        // Held coefficients are in the Jacobian's prior rows already.
-        if !self.propagates_coefficients() || self.holds_coefficients() {
+        if !self.propagates_coefficients() {
             return None;
         }
         let n = TERMS * 2;

@@ -10,9 +10,8 @@ impl RateProblem {
     /// larger. Used to down-weight the bands the model fits worst (see
     /// [`Self::band_mismatch_scales`]).
     pub fn with_band_scales(mut self, scales: &[f64]) -> Self {
-        for ((band, s), held) in self.bands.iter_mut().zip(scales).zip(&mut self.held_scale) {
+        for (band, s) in self.bands.iter_mut().zip(scales) {
             if *s > 0.0 && s.is_finite() {
-                *held *= s;
                 band.w.iter_mut().for_each(|w| *w /= s);
             }
         }
@@ -47,7 +46,6 @@ impl RateProblem {
         let mut lobes = self.clone();
         lobes.refit_diffuse = false;
         lobes.refit_lobes = [0; 2];
-        lobes.held = vec![None; self.bands.len()];
         let refitted = self.nuisance_fit(p);
         for (band, c) in lobes.bands.iter_mut().zip(&refitted) {
             band.x[0][0] = 0.0;

@@ -96,9 +96,9 @@ impl RateProblem {
 /// Lobes at least this wide \[rms facet slope μ\] are broad: light spread over tens of degrees
 /// (wrinkled film, a cell's grid), which the two-facet model places as poorly as the diffuse
 /// light and which the stable window may weigh differently from the motion window
-/// (../shared/docs/materials.md §2 draws the line at μ = 0.2). A narrower lobe is the glint
+/// (the material data draw the line at μ = 0.2). A narrower lobe is the glint
 /// itself: its amplitude sets the glint's height and apparent width, so re-fitting it trades
-/// against the rate (ADR 0015).
+/// against the rate.
 pub const BROAD_LOBE_MIN_MU: f64 = 0.2;
 
 /// The widest lobe any band uses, per facet, when it is broad ([`BROAD_LOBE_MIN_MU`]): zeroed

@@ -14,10 +14,6 @@ pub(super) struct FitSetup<'a> {
     coefficient_covariance: &'a [Option<Vec<f64>>],
     band_scales: Option<&'a [f64]>,
     model: MotionModelConfig,
-    /// A rate fitted elsewhere (the joint fit's speed) that the windows may not grow past the
-    /// horizon of, as the search never grows past the fastest rate it fitted itself
-    /// \[deg/frame\]; 0 for none.
-    speed_floor_deg_per_frame: f64,
 }
 
 impl<'a> FitSetup<'a> {
@@ -40,24 +36,11 @@ impl<'a> FitSetup<'a> {
                 epoch_frame: Some(epoch),
                 ..model.clone()
             },
-            speed_floor_deg_per_frame: 0.0,
         }
     }
 
-    /// The same fit, its windows no longer than the horizon of `speed_deg_per_frame`.
-    pub(super) fn with_speed_floor(self, speed_deg_per_frame: f64) -> Self {
-        FitSetup {
-            speed_floor_deg_per_frame: speed_deg_per_frame,
-            ..self
-        }
-    }
-
-    /// The horizon of a rate of `speed_deg_per_frame`, or of the floor when that is faster.
     fn horizon_of(&self, config: &Stage3Config, speed_deg_per_frame: f64) -> f64 {
-        horizon_frames(
-            config,
-            speed_deg_per_frame.max(self.speed_floor_deg_per_frame),
-        )
+        horizon_frames(config, speed_deg_per_frame)
     }
 
     /// The same fit with the bands weighted by `scales` (the joint fit's reweighting).
@@ -84,11 +67,8 @@ impl<'a> FitSetup<'a> {
             },
             None => self.model.clone(),
         };
-        let mut problem = RateProblem::new(frames, self.bands, &model)?
+        let problem = RateProblem::new(frames, self.bands, &model)?
             .with_coefficient_covariance(self.coefficient_covariance.to_vec());
-        if polish.is_some_and(|c| c.held_coefficients.applies(self.bands.len())) {
-            problem = problem.with_held_coefficients();
-        }
         Ok(match self.band_scales {
             Some(scales) => problem.with_band_scales(scales),
             None => problem,
@@ -129,12 +109,12 @@ pub(super) fn search(
 ) -> Result<(RateSolution, RateProblem), InversionError> {
     if !config.max_rotation_deg.is_some_and(f64::is_finite) {
         let problem = setup.problem(setup.motion, None)?;
-        return Ok((stage3::fit_multistart(&problem, config)?, problem));
+        return Ok((stage3::fit_multistart_with(&problem, config, &[])?, problem));
     }
     let fastest = 3f64.sqrt() * config.start.half_width_deg_per_frame;
     let mut frames = setup.frames_within(horizon_frames(config, fastest));
     let mut problem = setup.problem(&frames, None)?;
-    let mut rate = stage3::fit_multistart(&problem, config)?;
+    let mut rate = stage3::fit_multistart_with(&problem, config, &[])?;
     let mut fastest_fitted_deg_per_frame = 0.0f64;
     for _ in 0..HORIZON_ROUNDS {
         let Some(fit) = rate.fit() else { break };
@@ -162,47 +142,12 @@ pub(super) fn search_and_polish(
     Ok(polish_with_refit(setup, config, &rate)?.unwrap_or((rate, problem)))
 }
 
-/// The search's model (stage 1's coefficients) over the frames of `p`'s horizon.
-fn problem_at(
-    setup: &FitSetup,
-    config: &Stage3Config,
-    p: [f64; 3],
-) -> Result<RateProblem, InversionError> {
-    setup.problem(
-        &setup.frames_within(setup.horizon_of(config, speed(p))),
-        None,
-    )
-}
-
-/// LM from `p` on the search's model over `p`'s horizon.
-pub(super) fn polish_at(
-    setup: &FitSetup,
-    config: &Stage3Config,
-    p: [f64; 3],
-) -> Result<RateSolution, InversionError> {
-    stage3::fit_from_starts(&problem_at(setup, config, p)?, &[p], config)
-}
-
-/// The search (grid, screen, polish; `p` as an extra start) on the search's model over `p`'s
-/// horizon, then [`polish_with_refit`] as the joint fit polishes its search.
-pub(super) fn search_at(
-    setup: &FitSetup,
-    config: &Stage3Config,
-    p: [f64; 3],
-) -> Result<RateSolution, InversionError> {
-    let searched = stage3::fit_multistart_with(&problem_at(setup, config, p)?, config, &[p])?;
-    Ok(match polish_with_refit(setup, config, &searched)? {
-        Some((polished, _)) => polished,
-        None => searched,
-    })
-}
-
 /// Polishes `searched` with the diffuse terms re-estimated ([`Stage3Config::refit_diffuse`]; the
 /// bisector held, see `stage3`) on the horizon of the polished rate, until the fitted frames stop
 /// changing.
 ///
 /// The sense of rotation stays the search's. A model that re-fits the diffuse light has little
-/// left to tell a rate from its mirror (ADR 0007): a polish that ends on the mirror's side is
+/// left to tell a rate from its mirror: a polish that ends on the mirror's side is
 /// re-polished from the mirror of where it ended. A searched rate mostly about Y is nearly its
 /// own mirror and has no side: the polish then goes where its model leads. `None` (keep the search's solution) when the
 /// model does not re-fit, the search found no rate, or the polish has no minimum on the search's
@@ -216,7 +161,7 @@ pub(super) fn polish_with_refit(
         return Ok(None);
     };
     let sense = first.rate_deg_per_frame;
-    // A rate mostly about Y has no side to keep (ADR 0011).
+    // A rate mostly about Y has no side to keep.
     let sided = stage3::has_sense(sense);
     let wrong_side = |p: [f64; 3]| {
         sided && stage3::distance(p, stage3::mirror(sense)) < stage3::distance(p, sense)
@@ -231,13 +176,13 @@ pub(super) fn polish_with_refit(
         }
         frames = next;
         let problem = setup.problem(&frames, Some(config))?;
-        let mut polished = stage3::fit_from_neighbourhood(&problem, p, config)?;
+        let mut polished = stage3::fit_from_starts(&problem, &[p], config)?;
         if polished
             .fit()
             .is_some_and(|f| wrong_side(f.rate_deg_per_frame))
         {
             let q = polished.fit().map_or(p, |f| f.rate_deg_per_frame);
-            polished = stage3::fit_from_neighbourhood(&problem, stage3::mirror(q), config)?;
+            polished = stage3::fit_from_starts(&problem, &[stage3::mirror(q)], config)?;
             if polished
                 .fit()
                 .is_none_or(|f| wrong_side(f.rate_deg_per_frame))

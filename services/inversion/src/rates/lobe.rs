@@ -1,5 +1,5 @@
 //! The joint fit's choice between stage 1's widest lobes and their re-fit
-//! ([`LobeRefit::WhenNeeded`](crate::stage3::LobeRefit::WhenNeeded), ADR 0010 addendum).
+//! ([`LobeRefit::WhenNeeded`](crate::stage3::LobeRefit::WhenNeeded)).
 //!
 //! The re-fit costs information: about Y, where stage 1's lobes explain the motion window, it
 //! trebles the joint fit's error at SNR 5. About Z the noisy stable window's lobe is off by
@@ -53,7 +53,6 @@ pub(crate) fn lobe_test(
         rate_traded: false,
         kept_off_minimum: false,
         other_rate_deg_per_frame: None,
-        other_weight: 0.0,
     }
 }
 

@@ -1,4 +1,4 @@
-//! Tests of the stage-3 decisions in `rates`: the joint fit's confirmation and its lobe choice.
+//! Tests of the stage-3 decisions in `rates`: the joint fit's lobe choice.
 
 use super::*;
 use crate::stage3::fixtures::{no_glint, with_covariance};
@@ -11,7 +11,6 @@ fn refit_record(widest_lobe: bool) -> Refit {
         held_direction: [1.0, 0.0, 0.0],
         lobe_test: None,
         glint_lobes_only: false,
-        held_coefficients: false,
     }
 }
 
@@ -40,32 +39,6 @@ fn refitted_about_z(z: f64) -> (RateSolution, usize) {
 }
 
 #[test]
-fn a_rate_the_joint_fit_does_not_confirm_is_not_reported() {
-    let slow = [0.0, -0.0116, 0.0098];
-    let band = || RateSolution::Determined(with_covariance(slow, [[1e-6; 3]; 3]));
-    // The joint fit found no rate and its cost has no minimum near this one.
-    let out = unless_unconfirmed(band(), Some(&no_glint(4e-4)), |_| Ok(false)).unwrap();
-    let RateSolution::Unobservable { reason, .. } = out else {
-        panic!("{out:?}")
-    };
-    assert_eq!(
-        reason,
-        UnobservableReason::NotConfirmedByJoint {
-            rate_deg_per_frame: slow
-        }
-    );
-    // It has one near: the rate stands.
-    let out = unless_unconfirmed(band(), Some(&no_glint(4e-4)), |_| Ok(true)).unwrap();
-    assert_eq!(out, band());
-    // A joint fit with a rate (or none run) asks nothing here.
-    let joint = band();
-    for j in [Some(&joint), None] {
-        let out = unless_unconfirmed(band(), j, |_| panic!("not asked")).unwrap();
-        assert_eq!(out, band());
-    }
-}
-
-#[test]
 fn a_re_fit_that_ends_below_half_the_kept_rate_traded_the_rate_for_the_lobe() {
     // χ² alone would take the re-fit: it lies 10⁴ of the kept fit's σ away.
     let kept = || {
@@ -73,7 +46,9 @@ fn a_re_fit_that_ends_below_half_the_kept_rate_traded_the_rate_for_the_lobe() {
         fit.refit = Some(refit_record(false));
         (RateSolution::Determined(fit), 101)
     };
-    let (chosen, frames) = choose_lobes(kept(), refitted(), 0.99);
+    let (chosen, frames) = choose_lobes(kept(), refitted(), 0.99, |_| Ok(false))
+        .unwrap()
+        .into_inner();
     let fit = chosen.fit().expect("a rate");
     assert_eq!((fit.rate_deg_per_frame, frames), ([0.0, 0.0, 0.25], 101));
     let test = fit
@@ -86,14 +61,18 @@ fn a_re_fit_that_ends_below_half_the_kept_rate_traded_the_rate_for_the_lobe() {
     if let RateSolution::Determined(f) = &mut fast.0 {
         f.rate_deg_per_frame = [0.0, 0.01, 0.25];
     }
-    let (chosen, frames) = choose_lobes(kept(), fast, 0.99);
+    let (chosen, frames) = choose_lobes(kept(), fast, 0.99, |_| Ok(false))
+        .unwrap()
+        .into_inner();
     assert_eq!(frames, 711, "{chosen:?}");
 }
 
 #[test]
 fn a_re_fitted_lobe_cannot_make_a_glint_stage_one_s_lobes_do_not_show() {
     // Keeping stage 1's lobes: no glint. The joint fit says so, whatever the re-fit found.
-    let (chosen, frames) = choose_lobes((no_glint(4e-4), 29), refitted(), 0.99);
+    let (chosen, frames) = choose_lobes((no_glint(4e-4), 29), refitted(), 0.99, |_| Ok(false))
+        .unwrap()
+        .into_inner();
     assert!(chosen.fit().is_none() && frames == 29, "{chosen:?}");
     // Unobservable for another reason (its best start left the search box): the re-fit
     // answers, as before.
@@ -114,27 +93,15 @@ fn a_re_fitted_lobe_cannot_make_a_glint_stage_one_s_lobes_do_not_show() {
         observability,
         wavelengths_nm,
     };
-    let (chosen, frames) = choose_lobes((outside, 29), refitted(), 0.99);
+    let (chosen, frames) = choose_lobes((outside, 29), refitted(), 0.99, |_| Ok(false))
+        .unwrap()
+        .into_inner();
     assert!(chosen.fit().is_some() && frames == 711, "{chosen:?}");
 }
 
 #[test]
 fn a_kept_fit_with_a_clearly_better_neighbour_is_no_reference_for_the_lobe_test() {
-    use crate::stage3::Neighbour;
     // The re-fit lies 1σ from the kept fit on the plane (χ² = 1, within the 99 % region).
-    let kept = |delta_chi2: Option<f64>| {
-        let (mut kept, frames) = kept_at_quarter();
-        if let RateSolution::Determined(fit) = &mut kept {
-            fit.neighbours = delta_chi2
-                .map(|d| Neighbour {
-                    rate_deg_per_frame: [0.0, 0.0, 0.2525],
-                    delta_chi2: d,
-                })
-                .into_iter()
-                .collect();
-        }
-        (kept, frames)
-    };
     let near = refitted_about_z;
     let lobe_test_of = |chosen: &RateSolution| {
         chosen
@@ -143,30 +110,35 @@ fn a_kept_fit_with_a_clearly_better_neighbour_is_no_reference_for_the_lobe_test(
             .and_then(|r| r.lobe_test)
             .expect("the test is recorded")
     };
-    // No neighbour, or one within Δχ² = 4 of the kept fit: the test alone decides, and keeps.
-    for d in [None, Some(-3.9), Some(10.0)] {
-        let (chosen, frames) = choose_lobes(kept(d), near(0.251), 0.99);
-        let t = lobe_test_of(&chosen);
-        assert_eq!(frames, 101, "{d:?}: {chosen:?}");
-        assert!(
-            (t.chi2 - 1.0).abs() < 1e-9 && !t.kept_off_minimum,
-            "{d:?}: {t:?}"
-        );
-    }
-    // A neighbour that fits better by more than 4: the re-fit is reported, and says why.
-    let (chosen, frames) = choose_lobes(kept(Some(-4.1)), near(0.251), 0.99);
+    // The kept fit is its model's best fit: the test alone decides, and keeps.
+    let (chosen, frames) = choose_lobes(kept_at_quarter(), near(0.251), 0.99, |_| Ok(false))
+        .unwrap()
+        .into_inner();
+    let t = lobe_test_of(&chosen);
+    assert_eq!(frames, 101, "{chosen:?}");
+    assert!((t.chi2 - 1.0).abs() < 1e-9 && !t.kept_off_minimum, "{t:?}");
+    // A clearly better minimum beside it: the re-fit is reported, and says why.
+    let (chosen, frames) = choose_lobes(kept_at_quarter(), near(0.251), 0.99, |_| Ok(true))
+        .unwrap()
+        .into_inner();
     let t = lobe_test_of(&chosen);
     assert_eq!(frames, 711, "{chosen:?}");
     assert!(t.chi2 < t.threshold && t.kept_off_minimum, "{t:?}");
-    // The χ² alone rejects stage 1's lobes (5σ): the re-fit, for that reason.
-    let (chosen, frames) = choose_lobes(kept(Some(-30.0)), near(0.255), 0.99);
+    // The χ² alone rejects stage 1's lobes (5σ): the neighbours are not looked for.
+    let (chosen, frames) = choose_lobes(kept_at_quarter(), near(0.255), 0.99, |_| {
+        panic!("not asked")
+    })
+    .unwrap()
+    .into_inner();
     let t = lobe_test_of(&chosen);
     assert!(
         frames == 711 && t.chi2 > t.threshold && !t.kept_off_minimum,
         "{t:?}"
     );
     // A re-fit that traded the rate for the lobe is not taken, neighbour or not.
-    let (chosen, frames) = choose_lobes(kept(Some(-30.0)), near(0.1), 0.99);
+    let (chosen, frames) = choose_lobes(kept_at_quarter(), near(0.1), 0.99, |_| Ok(true))
+        .unwrap()
+        .into_inner();
     assert_eq!(frames, 101, "{chosen:?}");
     assert!(lobe_test_of(&chosen).rate_traded);
 }
@@ -179,8 +151,12 @@ fn the_lobe_test_records_the_rate_of_the_model_it_did_not_report() {
         t.and_then(|t| t.other_rate_deg_per_frame)
     };
     // Kept (χ² = 1): the re-fit's rate is the other. Re-fitted (χ² = 25): the kept fit's.
-    let (chosen, _) = choose_lobes(kept(), refit_at(0.251), 0.99);
+    let (chosen, _) = choose_lobes(kept(), refit_at(0.251), 0.99, |_| Ok(false))
+        .unwrap()
+        .into_inner();
     assert_eq!(other_of(&chosen), Some([0.0, 0.0, 0.251]));
-    let (chosen, _) = choose_lobes(kept(), refit_at(0.255), 0.99);
+    let (chosen, _) = choose_lobes(kept(), refit_at(0.255), 0.99, |_| Ok(false))
+        .unwrap()
+        .into_inner();
     assert_eq!(other_of(&chosen), Some([0.0, 0.0, 0.25]));
 }

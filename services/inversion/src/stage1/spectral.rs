@@ -2,8 +2,7 @@
 //!
 //! One band's stage-1 coefficients carry that band's noise alone, and NNLS bends it: positivity
 //! holds coefficients at zero from one side only, so a noisy band's coefficients are biased,
-//! and λ* lands wherever they point (about Z at SNR 10: median error 6.9, NEES in the hundreds;
-//! docs/adr/0007). Surface reflectances change slowly with wavelength, so the light curves of
+//! and λ* lands wherever they point (about Z at SNR 10: median error 6.9, NEES in the hundreds). Surface reflectances change slowly with wavelength, so the light curves of
 //! neighbouring bands, each divided by its own mean, nearly coincide. The pooled light curve of
 //! band b is the local-linear fit across the bands within `window_nm` of it, evaluated at λ_b
 //! (a line, so a spectral slope passes unchanged and the window may be one-sided at the ends):

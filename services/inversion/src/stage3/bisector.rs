@@ -13,8 +13,8 @@ use crate::observability::{inverse_from_eigen, symmetric_eigen, Analysis, Unobse
 /// A rotation about the sun–observer bisector u leaves every Beckmann lobe unchanged; only the
 /// diffuse terms see it (math.md §1.6). When stage 3 re-fits those terms
 /// ([`crate::model::MotionModelConfig::refit_diffuse`]) they absorb what little the light
-/// curve says about u, and an unconstrained LM slides along it (by 0.04–1.4 deg/frame, ADR
-/// 0004) to wherever the mismatch gives it apparent curvature. So u is unobservable by
+/// curve says about u, and an unconstrained LM slides along it (by 0.04–1.4 deg/frame)
+/// to wherever the mismatch gives it apparent curvature. So u is unobservable by
 /// construction: every LM run of such a fit carries the stated prior ([`WeakPrior`]) from its
 /// start, and u is reported unobservable.
 pub(super) struct BisectorHold {

@@ -31,11 +31,8 @@ pub(crate) fn solution(p: [f64; 3], mirror: Option<[f64; 3]>) -> RateSolution {
         },
         held_directions: vec![],
         mirror_deg_per_frame: mirror,
+        hold_start_deg_per_frame: None,
         refit: None,
-        profiled_bounds_deg_per_frame: None,
-        neighbours: vec![],
-        interval_variance_scale: None,
-        interval_average: None,
     })
 }
 

@@ -5,17 +5,16 @@
 //!   sun–observer bisector in the co-orbital geometry, math.md §1.6) is held under the stated
 //!   prior and the rest re-fitted, unless the data reject the prior.
 //! - [`mirror_if_ambiguous`]: the mirror reported beside a fit it cannot be told from.
-//! - [`sense_from`] / [`keep_sense`]: which fit's evidence decides the sense when one cannot.
+//! - [`keep_sense`]: the reweighted joint fit keeps the first fit's sense.
 
 use super::bisector::BisectorHold;
-use super::{fit_from_starts, RateFit, RateSolution, Stage3Config};
+use super::{fit_from_starts, RateSolution, Stage3Config};
 use crate::error::InversionError;
 use crate::lm::{levenberg_marquardt, levenberg_marquardt_prior, LmOutcome, Prior};
 use crate::model::RateProblem;
 use crate::observability::{
-    analyse, given_sigma_scale, residual_variance, Analysis, Observability, ObservabilityConfig,
+    analyse, given_sigma_scale, residual_variance, Analysis, Observability,
 };
-use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// The mirror (−w_x, w_y, −w_z) of a rate: the same light curve when every geometry vector
@@ -34,58 +33,6 @@ pub fn has_sense(p: [f64; 3]) -> bool {
 /// ‖a − b‖ \[deg/frame\].
 pub fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f64>().sqrt()
-}
-
-/// How many standard deviations apart two fits of the same rate are: the Mahalanobis
-/// distance of `a − b` under `Cov(a) + Cov(b)`, over the eigen-directions of that sum whose
-/// 1σ is within the observability threshold (a direction held under the prior has no
-/// evidence to disagree with). The fits share data (λ* is one of the joint fit's bands), so
-/// summing the covariances makes the test lenient: it is meant to catch another minimum,
-/// not a bias.
-pub fn disagreement_sigma(a: &RateFit, b: &RateFit, config: &ObservabilityConfig) -> f64 {
-    disagreement(a, b, config).0.sqrt()
-}
-
-/// [`disagreement_sigma`] squared, d², and the number k of directions it is taken over
-/// (`(NaN, 0)` when a covariance is not finite).
-pub fn disagreement(a: &RateFit, b: &RateFit, config: &ObservabilityConfig) -> (f64, usize) {
-    let ca = Matrix3::from(a.covariance_deg2_per_frame2);
-    let cb = Matrix3::from(b.covariance_deg2_per_frame2);
-    let sum = ca + cb;
-    if !sum.iter().all(|v| v.is_finite()) {
-        return (f64::NAN, 0);
-    }
-    let d = Vector3::from(a.rate_deg_per_frame) - Vector3::from(b.rate_deg_per_frame);
-    let eig = sum.symmetric_eigen();
-    let bound = config.unobservable_bound_deg_per_frame;
-    let determined: Vec<usize> = (0..3)
-        .filter(|&k| eig.eigenvalues[k] > 0.0 && eig.eigenvalues[k].sqrt() <= bound)
-        .collect();
-    let d2 = determined
-        .iter()
-        .map(|&k| d.dot(&eig.eigenvectors.column(k)).powi(2) / eig.eigenvalues[k])
-        .sum();
-    (d2, determined.len())
-}
-
-/// Widens `fit`'s covariance so that it covers its distance from `joint`, the fit of the same
-/// rate on every band: by the Birge ratio s² = max(1, d²/k) of the two fits
-/// ([`disagreement`]), as [`crate::observability::CovarianceSource::GivenSigmaScaled`] does
-/// for residuals that reject the model. Two fits that agree within their errors keep their
-/// covariance (s² = 1); a band whose own mismatch or stage-1 noise moves its answer further
-/// than its covariance says gets error bars that cover the move. Returns s².
-pub fn widen_to_joint(fit: &mut RateFit, joint: &RateFit, config: &ObservabilityConfig) -> f64 {
-    let (d2, k) = disagreement(fit, joint, config);
-    if k == 0 || !d2.is_finite() || d2 <= k as f64 {
-        return 1.0;
-    }
-    let scale = d2 / k as f64;
-    for row in &mut fit.covariance_deg2_per_frame2 {
-        for v in row.iter_mut() {
-            *v *= scale;
-        }
-    }
-    scale
 }
 
 /// The stated prior under which stage 3 holds a direction the data cannot determine.
@@ -348,116 +295,3 @@ pub(crate) fn keep_sense(
 
 /// A rate closer than this to its own mirror has no sense of rotation to keep \[deg/frame\].
 const SAME_SENSE_DEG_PER_FRAME: f64 = 1e-2;
-
-/// When the λ* data fit p̂ and its mirror equally well (the sense of rotation about X and Z is
-/// not observable in that band), the start for the other sense if the joint fit prefers it:
-/// the joint cost holds λ*'s own data and every other band's, so its sense is the likelier one
-/// even where it cannot exclude its own mirror at Δχ² ≤ 4 either (at SNR 50 about Z, 18 of 50
-/// λ* fits took the wrong sense while the joint fit, ambiguous by that test, had it right).
-/// Compared through the exact mirror (−w_x, w_y, −w_z) of p̂: the polished mirror can drift
-/// along the weak direction. `None` to keep p̂.
-pub(crate) fn sense_from(rate: &RateSolution, joint: &RateSolution) -> Option<[f64; 3]> {
-    let (fit, joint) = (rate.fit()?, joint.fit()?);
-    fit.mirror_deg_per_frame?;
-    let p = fit.rate_deg_per_frame;
-    let m = mirror(p);
-    if distance(m, p) <= SAME_SENSE_DEG_PER_FRAME {
-        return None;
-    }
-    let to_joint = |a: [f64; 3]| distance(a, joint.rate_deg_per_frame);
-    (to_joint(m) < to_joint(p)).then_some(m)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::stage3::fixtures::{solution as fit, with_covariance};
-
-    #[test]
-    fn the_joint_fit_decides_the_sense_when_lambda_star_cannot() {
-        let p = [0.0, -0.006, -0.25];
-        let m = [0.0, -0.006, 0.25];
-        let joint = fit([0.0, -0.001, 0.249], None);
-        // λ* ambiguous, joint not: start from the mirror, the one nearer the joint fit.
-        assert_eq!(sense_from(&fit(p, Some(m)), &joint), Some(m));
-        // λ* already on the joint's side: keep it.
-        assert_eq!(sense_from(&fit(m, Some(p)), &joint), None);
-        // λ* not ambiguous: its own answer stands.
-        assert_eq!(sense_from(&fit(p, None), &joint), None);
-        // The joint fit ambiguous too: its preferred sense still carries all bands' evidence.
-        let joint_ambiguous = fit([0.0, -0.001, 0.249], Some([0.0, -0.001, -0.249]));
-        assert_eq!(sense_from(&fit(p, Some(m)), &joint_ambiguous), Some(m));
-        // The start is the exact mirror of p̂, not a polished mirror that drifted along X.
-        assert_eq!(
-            sense_from(&fit(p, Some([0.56, 0.0, 0.18])), &joint),
-            Some(m)
-        );
-        // No sense to flip: p̂ is its own mirror.
-        let flat = [0.0, 0.25, 0.001];
-        assert_eq!(sense_from(&fit(flat, Some(flat)), &joint), None);
-    }
-
-    #[test]
-    fn widening_covers_the_distance_from_the_joint_fit_and_only_beyond_its_errors() {
-        let config = ObservabilityConfig::default();
-        // X held (1σ 3 ≫ 0.25): Y and Z are the k = 2 directions compared.
-        let cov = [[9.0, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 1e-6]];
-        let joint = with_covariance(
-            [0.0, 0.25, 0.0],
-            [[0.0; 3], [0.0, 1e-8, 0.0], [0.0, 0.0, 1e-8]],
-        );
-        // 0.001 along Y and Z: d² = 2e-6 / 1.01e-6 < k, kept as it is.
-        let mut near = with_covariance([0.0, 0.251, 0.001], cov);
-        assert_eq!(widen_to_joint(&mut near, &joint, &config), 1.0);
-        assert_eq!(near.covariance_deg2_per_frame2, cov);
-        // 0.004 along Z: d² = 16e-6 / 1.01e-6 = 15.84, widened by d²/k = 7.92 …
-        let mut far = with_covariance([0.0, 0.25, 0.004], cov);
-        let scale = widen_to_joint(&mut far, &joint, &config);
-        let want = 16e-6 / 1.01e-6 / 2.0;
-        assert!((scale - want).abs() < 1e-9 * want, "{scale} vs {want}");
-        assert_eq!(far.covariance_deg2_per_frame2[2][2], 1e-6 * scale);
-        assert_eq!(far.covariance_deg2_per_frame2[0][0], 9.0 * scale);
-        // … after which its covariance covers the distance: d² ≈ k (the joint fit's own 1 %
-        // of the sum leaves it 16 / (7.92 + 0.01) = 2.017).
-        let (d2, k) = disagreement(&far, &joint, &config);
-        assert_eq!(k, 2);
-        assert!((d2 - 2.0).abs() < 0.03, "{d2}");
-    }
-
-    #[test]
-    fn disagreement_is_the_mahalanobis_distance_over_the_determined_directions() {
-        let config = ObservabilityConfig::default();
-        // Diagonal: variances 1e-6 + 3e-6 along Y, 2e-6 + 2e-6 along Z; X held (1σ 3 ≫ 0.25).
-        let a = with_covariance(
-            [0.1, 0.25, 0.004],
-            [[9.0, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 2e-6]],
-        );
-        let b = with_covariance(
-            [-0.3, 0.248, 0.0],
-            [[0.0, 0.0, 0.0], [0.0, 3e-6, 0.0], [0.0, 0.0, 2e-6]],
-        );
-        let expected = (0.002f64.powi(2) / 4e-6 + 0.004f64.powi(2) / 4e-6).sqrt();
-        let d = disagreement_sigma(&a, &b, &config);
-        assert!((d - expected).abs() < 1e-9 * expected, "{d} vs {expected}");
-        assert_eq!(disagreement_sigma(&b, &a, &config), d);
-        // Rotated frame: the same distance (the test is coordinate-free).
-        let (c, s) = (0.6f64, 0.8f64);
-        let rot = |v: [f64; 3]| [v[0], c * v[1] - s * v[2], s * v[1] + c * v[2]];
-        let rot_cov = |d: [f64; 3]| {
-            let r = nalgebra::Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c);
-            let m = r * nalgebra::Matrix3::from_diagonal(&Vector3::from(d)) * r.transpose();
-            [
-                [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-                [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-                [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-            ]
-        };
-        let ar = with_covariance(rot(a.rate_deg_per_frame), rot_cov([9.0, 1e-6, 2e-6]));
-        let br = with_covariance(rot(b.rate_deg_per_frame), rot_cov([0.0, 3e-6, 2e-6]));
-        let dr = disagreement_sigma(&ar, &br, &config);
-        assert!(
-            (dr - expected).abs() < 1e-6 * expected,
-            "{dr} vs {expected}"
-        );
-    }
-}

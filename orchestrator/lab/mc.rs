@@ -19,7 +19,7 @@
 //! HCR_i = sup_h (v_i·h)²/(exp Δ(h) − 1)  Hammersley–Chapman–Robbins, Δ(h) = ‖r(p₀+h) − r(p₀)‖²
 //!                                      profiled over the other observable directions and,
 //!                                      like the CRB, the stage-1 coefficients
-//!                                      (glint_inversion::chapman_robbins)
+//!                                      (glint_lab::chapman_robbins)
 //! copy: a test point ≥ 2 CRB from p₀ with Δ < min(1, ¼(c/CRB)²), coefficients fixed: the
 //!       model cannot tell it from p₀ (a Y rotation's mirror, moved off p₀ by the
 //!       out-of-plane geometry); runs nearer it than p₀ take d_k = p̂_k − copy
@@ -36,7 +36,6 @@
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
-use glint_inversion::chapman_robbins::{chapman_robbins, RateCopy};
 use glint_inversion::lm::normal_equations;
 use glint_inversion::observability::symmetric_eigen;
 use glint_inversion::stage1::{spectral, Stage1Config};
@@ -45,11 +44,11 @@ use glint_inversion::{
     rate_error_metric, solve_three_stage, InversionConfig, InversionResult, MotionModelConfig,
     Observation, ObservationSet, RateBand, RateProblem, Stage1Band,
 };
+use glint_lab::chapman_robbins::{chapman_robbins, RateCopy};
 use serde_json::{json, Value};
 use shared_types::scenario::NoiseWindows;
 use shared_types::Scenario;
 
-use crate::report_inversion::finite;
 use crate::run::{self, RunOptions};
 
 /// A direction with a larger 1σ bound is unobservable \[deg/frame\]: stage 3's threshold.
@@ -119,11 +118,18 @@ pub fn run_value(
         stable_noisy,
         glint_inversion::node::stage3_config(sp),
     )?;
-    let single = Estimator::from_runs(&runs, &|s3| s3, reference.single.clone(), None);
+    // λ*'s fit carries its rate (no covariance: its NEES is not scored); the answer is the
+    // joint fit, with its covariance.
+    let single = Estimator::from_runs(
+        &runs,
+        &|s3| &s3["lambda_star"],
+        reference.single.clone(),
+        None,
+    );
     // The table's bound for the joint fit: that of the model most runs reported.
     let lobe_refits = runs
         .iter()
-        .filter(|s3| s3["joint"]["widest_lobe_refit"] == true)
+        .filter(|s3| s3["widest_lobe_refit"] == true)
         .count();
     let joint_bound = match &reference.joint_models {
         Some(models) => models[usize::from(2 * lobe_refits > runs.len())].clone(),
@@ -131,7 +137,7 @@ pub fn run_value(
     };
     let joint = Estimator::from_runs(
         &runs,
-        &|s3| &s3["joint"],
+        &|s3| s3,
         joint_bound,
         reference.joint_models.as_ref(),
     );
@@ -145,15 +151,23 @@ pub fn run_value(
     let stats = json!({
         "runs": seeds,
         "snr": snr,
-        "median_err_paper_metric": median(&|s3| vec3(&s3["p_deg_per_frame"])),
-        "median_joint_err_paper_metric": median(&|s3| vec3(&s3["joint"]["p_deg_per_frame"])),
+        "median_err_paper_metric": median(&|s3| vec3(&s3["lambda_star"]["p_deg_per_frame"])),
+        "median_joint_err_paper_metric": median(&|s3| vec3(&s3["p_deg_per_frame"])),
         "reference_err_paper_metric": reference.single.p0.map(|p| rate_error_metric(p, truth)),
-        "lambda_rejected_by_joint": runs.iter().filter(|s3| s3["lambda_rejected_by_joint"] == true).count(),
         "single": single.json(),
         "joint": joint.json(),
         "joint_widest_lobe_refits": lobe_refits,
     });
     Ok((stats, all_ok))
+}
+
+/// A number for JSON: non-finite values become `null`.
+pub(crate) fn finite(v: f64) -> Value {
+    if v.is_finite() {
+        json!(v)
+    } else {
+        Value::Null
+    }
 }
 
 pub(crate) fn vec3(v: &Value) -> Option<[f64; 3]> {
@@ -294,14 +308,13 @@ impl Reference {
                 .collect();
             let problem = RateProblem::new(&frames, &rate_bands, &model_for(fit))?
                 .with_coefficient_covariance(covariance);
-            let held = config.stage3.held_coefficients.applies(bands.len());
-            crb(&problem, held, fit.map(|f| f.rate_deg_per_frame))
+            crb(&problem, fit.map(|f| f.rate_deg_per_frame))
         };
         let single = bound(
             result.rate.fit(),
             result.fitted_frames,
             result.single_band_stage1(),
-            &[result.rate_band_index],
+            &[result.stage2.chosen_index],
         )?;
         let joint_of = |result: &InversionResult| {
             bound(
@@ -362,11 +375,8 @@ fn attach_sigma(window: &mut [Observation], snr: f64) {
 }
 
 /// The bound of the fit whose plug-in model is `problem` (with the stage-1 covariance), at its
-/// noise-free answer p0. With `held` the fit held stage 1's coefficients by their prior
-/// (docs/adr/0030): its own model carries their freedom in its cost, so its information is the
-/// bound's F − L directly, and its copies and HCR are its own model's; the known-coefficient
-/// and two-stage bounds stay the plug-in model's.
-fn crb(problem: &RateProblem, held: bool, p0: Option<[f64; 3]>) -> Result<Bound> {
+/// noise-free answer p0.
+fn crb(problem: &RateProblem, p0: Option<[f64; 3]>) -> Result<Bound> {
     let Some(p) = p0 else {
         return Ok(Bound {
             p0: None,
@@ -385,21 +395,11 @@ fn crb(problem: &RateProblem, held: bool, p0: Option<[f64; 3]>) -> Result<Bound>
         (normal_equations(&jac, &r).0, jac)
     };
     let (fisher, jac) = information(problem);
-    let own = held.then(|| {
-        problem
-            .clone()
-            .with_held_coefficients()
-            .with_coefficient_covariance(vec![])
-    });
-    let reduced: [[f64; 3]; 3] = match &own {
-        Some(own) => information(own).0,
-        None => {
-            let loss = problem
-                .coefficient_information_loss(p, &jac)
-                .unwrap_or([[0.0; 3]; 3]);
-            std::array::from_fn(|i| std::array::from_fn(|j| fisher[i][j] - loss[i][j]))
-        }
-    };
+    let loss = problem
+        .coefficient_information_loss(p, &jac)
+        .unwrap_or([[0.0; 3]; 3]);
+    let reduced: [[f64; 3]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|j| fisher[i][j] - loss[i][j]));
     let (info, vecs) = symmetric_eigen(&reduced)?;
     let (known_info, known_vecs) = symmetric_eigen(&fisher)?;
     // (JᵀWJ)⁺ along each direction v of the scenario's bound: Σ_k (v·u_k)²/λ_k over the
@@ -431,8 +431,7 @@ fn crb(problem: &RateProblem, held: bool, p0: Option<[f64; 3]>) -> Result<Bound>
         known_variances[d] + quad
     });
     let variances = info.map(|l| if l > 0.0 { 1.0 / l } else { f64::INFINITY });
-    let (hcr_variances, copy) =
-        chapman_robbins_variances(own.as_ref().unwrap_or(problem), p, &variances, &vecs)?;
+    let (hcr_variances, copy) = chapman_robbins_variances(problem, p, &variances, &vecs)?;
     Ok(Bound {
         p0,
         variances,
@@ -492,10 +491,10 @@ fn chapman_robbins_variances(
     Ok((out, copy))
 }
 
-#[path = "campaign_mc/estimator.rs"]
+#[path = "mc/estimator.rs"]
 mod estimator;
 use estimator::Estimator;
 
 #[cfg(test)]
-#[path = "campaign_mc/tests.rs"]
+#[path = "mc/tests.rs"]
 mod tests;

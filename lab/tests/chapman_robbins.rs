@@ -3,14 +3,15 @@
 //! give the same light curve (a rate and its mirror, every geometry vector in the body XZ plane)
 //! no unbiased estimator exists and it is unbounded.
 
+#[path = "../../services/inversion/tests/common/mod.rs"]
 mod common;
 
 use common::*;
-use glint_inversion::chapman_robbins::chapman_robbins;
 use glint_inversion::lm::normal_equations;
 use glint_inversion::observability::symmetric_eigen;
 use glint_inversion::stage3::mirror;
 use glint_inversion::{MotionModelConfig, RateProblem};
+use glint_lab::chapman_robbins::chapman_robbins;
 
 /// Fisher eigenvalues and eigen-directions at p.
 fn fisher_eigen(problem: &RateProblem, p: [f64; 3]) -> ([f64; 3], [[f64; 3]; 3]) {

@@ -12,6 +12,10 @@ use anyhow::{Context, Result};
 use serde_json::{json, Value};
 use shared_types::{deployment, DropReason, Scenario, ServiceId, TopicCounters, TopicId};
 
+pub mod debris;
+pub mod fit;
+pub mod inversion;
+
 use crate::consume::Consumer;
 use crate::deploy::{Ending, ServiceProcess};
 
@@ -255,11 +259,12 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
         }
     };
     let (detection, tracking) = match &f.debris {
-        Some(d) => crate::report_debris::json(&d.score),
+        Some(d) => debris::json(&d.score),
         None => (Value::Null, Value::Null),
     };
     let inversion = match &scenario.spectra {
-        Some(sp) => crate::report_inversion::json(sp, &f.solve),
+        Some(sp) => serde_json::to_value(inversion::InversionReport::new(sp, &f.solve))
+            .unwrap_or(Value::Null),
         None => Value::Null,
     };
     json!({
@@ -362,9 +367,14 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     if let Some(fail) = &f.failure {
         let _ = writeln!(s, "**Failure:** {fail}\n");
     }
+    // The answer first: the attitude solve's rate and its uncertainty, then the run's record.
+    if let Some(sp) = &scenario.spectra {
+        let report = inversion::InversionReport::new(sp, &f.solve);
+        s.push_str(&report.markdown(sp.wavelengths_nm().len()));
+    }
     let _ = writeln!(
         s,
-        "## Services\n\n| service | pid | restarts | ended by |\n|---|---|---|---|"
+        "\n## Services\n\n| service | pid | restarts | ended by |\n|---|---|---|---|"
     );
     for sv in &f.services {
         let _ = writeln!(
@@ -420,10 +430,7 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
         f.shm_leftover.len()
     );
     if let Some(d) = &f.debris {
-        s.push_str(&crate::report_debris::markdown(&d.score));
-    }
-    if let Some(sp) = &scenario.spectra {
-        s.push_str(&crate::report_inversion::markdown(sp, &f.solve));
+        s.push_str(&debris::markdown(&d.score));
     }
     if !f.light_curve.is_empty() {
         let _ = writeln!(s, "\n## Light curve\n\n![light curve](light-curve.svg)");
@@ -478,7 +485,7 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
         )?;
     }
     if let Some(sp) = &scenario.spectra {
-        crate::report_inversion::plots(dir, &facts.solve)?;
+        inversion::InversionReport::new(sp, &facts.solve).plots(dir)?;
         crate::observations::write(
             &dir.join("observations.csv"),
             &facts.spectra,
@@ -486,13 +493,13 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
         )?;
         // Fit plots need complete windows (a run cut short has none to solve).
         if facts.solve.iter().any(|r| r.stage == 3) {
-            if let Err(e) = crate::report_fit::plots(dir, sp) {
+            if let Err(e) = fit::plots(dir, sp, &facts.solve) {
                 tracing::warn!(error = %e, "fit plots skipped");
             }
         }
     }
     if let Some(d) = &facts.debris {
-        crate::report_debris::plots(
+        debris::plots(
             dir,
             &d.score,
             &d.camera,

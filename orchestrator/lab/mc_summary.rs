@@ -1,5 +1,5 @@
 //! The Monte-Carlo campaign's summary.md: the error table beside the paper's, then the
-//! efficiency and honesty table (see [`crate::campaign_mc`] for the statistics).
+//! efficiency and honesty table (see [`crate::lab::mc`] for the statistics).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -9,8 +9,8 @@ use serde_json::Value;
 use shared_types::scenario::NoiseWindows;
 use shared_types::Scenario;
 
-use crate::campaign::fmt;
-use crate::campaign_mc::vec3;
+use crate::lab::fmt;
+use crate::lab::mc::vec3;
 use crate::plots::{line_chart, Series, BLUE, GREEN, ORANGE, RED};
 
 /// "k at [w_x, w_y, w_z] (Δ = …)" for the copy column, "—" without a copy.
@@ -43,7 +43,7 @@ fn fmt_e(v: &Value) -> String {
 /// The Monte-Carlo campaign's summary.md: Table-7-style medians beside the paper, then the
 /// efficiency and NEES table.
 pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value]) -> String {
-    let mut s = crate::campaign::summary_head(scenario, parameter, Some(seeds));
+    let mut s = crate::lab::summary_head(scenario, parameter, Some(seeds));
     let windows = match scenario.spectra.as_ref().map(|sp| sp.noise_windows) {
         Some(NoiseWindows::Motion) => "the motion window noisy, the stable window exact",
         _ => "both windows noisy",
@@ -55,17 +55,16 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
     s.push_str("## Error against the truth (median over seeds; paper metric 100·‖p − p*‖)\n\n");
     let _ = writeln!(
         s,
-        "| {parameter} | noise-free p₀, λ* | median, λ* | λ* set aside | median, joint | paper | 100 × CRB 1σ, joint (observable) | run |\n|---|---|---|---|---|---|---|---|"
+        "| {parameter} | noise-free p₀, λ* | median, λ* | median, glint's answer (joint) | paper | 100 × CRB 1σ, joint (observable) | run |\n|---|---|---|---|---|---|---|"
     );
     for r in rows {
         let mc = &r["monte_carlo"];
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | [{}]({}/reference/summary.md) |",
+            "| {} | {} | {} | {} | {} | {} | [{}]({}/reference/summary.md) |",
             r["value"].as_str().unwrap_or("?"),
             fmt(&mc["reference_err_paper_metric"], 2),
             fmt(&r["err_paper_metric"], 2),
-            mc["lambda_rejected_by_joint"],
             fmt(&r["joint_err_paper_metric"], 2),
             fmt(&r["paper"], 2),
             fmt(&r["crb_paper_metric"], 2),
@@ -73,11 +72,6 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
             r["run"].as_str().unwrap_or("?"),
         );
     }
-    let _ = writeln!(
-        s,
-        "\n*λ\\* set aside*: runs in which the joint fit rejected the solution at λ* as another minimum of that band's cost (more than {}σ apart, with a separate minimum at the joint solution); stage 3 is then reported at the next candidate band the joint fit accepts, and the λ* columns use it.",
-        glint_inversion::stage3::DEFAULT_JOINT_GATE_SIGMA
-    );
     s.push_str(
         "\n## Efficiency and honesty (scatter about the noise-free solution)\n\n\
          p₀, the noise-free solution, is the estimator's answer on the noise-free run's observations carrying the noisy runs' σ: σ sets the bands' weights, the stage-1 basis test and the joint fit's reweighting, so the reference deployment's own answer, solved without σ, is another estimator's (the *noise-free p₀* column above is p₀ at λ*; with σ, stage 1 also takes the spectral-pooling decision the noisy runs take on average). The CRB is the scenario's: the stage-1 coefficients are unknown and informed by both windows when both are noisy; the next column is the bound if they were known. The *two-stage* column is the variance of an efficient estimator that takes the coefficients from the stable window alone and plugs them in, as glint does: F⁺ + F⁺CF⁺, F = JᵀWJ and C the stage-1 coefficients' covariance propagated. The CRB lets the motion window inform the coefficients too; an estimator that does so takes the motion window's model mismatch into them (docs/adr/0012). The CRB sees only the light curve's slope at p₀. The Hammersley–Chapman–Robbins bound sup_h (v·h)²/(exp Δ(h) − 1) (Δ = the noise-free χ² between p₀ + h and p₀, with the stage-1 coefficients moved as the stable window allows, as in the CRB) sees the whole light curve: where it is far above the CRB, a rate h away fits nearly as well and no unbiased estimator reaches the CRB. When a rate fits within one noise variance (Δ < 1, the coefficients fixed) it is a *copy* of p₀: a Y rotation is nearly its own mirror (−w_x, w_y, −w_z), and the Sun's fraction of a degree off the body XZ plane moves the mirror a few 10⁻³ deg/frame off p₀. The data cannot tell p₀ from its copy at any SNR a campaign runs; runs nearer the copy are counted in its column and their deviation is taken from the copy. The joint fit tests stage 1's widest lobes in every run and re-fits them only when the data ask (`stage3.refit_widest_lobe = \"when-needed\"`): it has a noise-free solution per model, keeping the lobes and re-fitting them. Each run is measured from that of the model it reported (*joint, lobe re-fitted in k*: k runs re-fitted it), and the table's bound is that of the model most runs reported.\n\n\
@@ -129,7 +123,7 @@ pub fn summary(scenario: &Scenario, parameter: &str, seeds: u32, rows: &[Value])
 /// above the target, no unbiased estimator reaches it), against the parameter, on
 /// log10 axes (the values span 0.1 to 10⁴). Nothing is drawn for a non-numeric parameter.
 pub fn plot_honesty(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
-    let Some(x) = crate::campaign::numeric_values(rows) else {
+    let Some(x) = crate::lab::numeric_values(rows) else {
         return Ok(());
     };
     let series = |fit: &str, key: &str, index: Option<usize>| -> Vec<(f64, f64)> {

@@ -9,6 +9,9 @@ use anyhow::{Context, Result};
 use serde_json::{json, Value};
 use shared_types::Scenario;
 
+pub mod mc;
+pub mod mc_summary;
+
 use crate::plots::{line_chart, Series, BLUE, GREEN, RED};
 use crate::run::{self, RunOptions};
 
@@ -42,7 +45,7 @@ pub fn run(
                 camp.seeds
             );
             let (mc, ok) =
-                crate::campaign_mc::run_value(&variant, file, &sub, camp.seeds, progress, rescore)?;
+                crate::lab::mc::run_value(&variant, file, &sub, camp.seeds, progress, rescore)?;
             all_ok &= ok;
             rows.push(json!({
                 "value": value.to_string().trim_matches('"'),
@@ -83,13 +86,13 @@ pub fn run(
                 Some(why) => json!(format!("{}: {why}", s3["status"].as_str().unwrap_or("?"))),
                 None => s3["status"].clone(),
             },
-            "band_nm": s3["band_nm"],
+            "band_nm": s3["lambda_star"]["band_nm"],
             "p_deg_per_frame": s3["p_deg_per_frame"],
-            "err_paper_metric": s3["err_paper_metric"],
+            "err_paper_metric": s3["lambda_star"]["err_paper_metric"],
             "err_paper_metric_mirror": s3["err_paper_metric_mirror"],
-            "joint_err_paper_metric": s3["joint"]["err_paper_metric"],
-            "bound_1sigma_deg_per_frame": s3["fisher"]["bound_1sigma_deg_per_frame"],
-            "observable": s3["fisher"]["observable"],
+            "joint_err_paper_metric": s3["err_paper_metric"],
+            "bound_1sigma_deg_per_frame": s3["directions"].as_array().map(|d| d.iter().map(|d| d["sigma_deg_per_frame"].clone()).collect::<Vec<_>>()),
+            "observable": s3["directions"].as_array().map(|d| d.iter().map(|d| d["determined"].clone()).collect::<Vec<_>>()),
             "paper": camp.paper.get(i),
         }));
     }
@@ -104,14 +107,14 @@ pub fn run(
         serde_json::to_string_pretty(&out)? + "\n",
     )?;
     let text = if camp.seeds > 1 {
-        crate::campaign_mc_summary::summary(scenario, &camp.parameter, camp.seeds, &rows)
+        crate::lab::mc_summary::summary(scenario, &camp.parameter, camp.seeds, &rows)
     } else {
         summary(scenario, &camp.parameter, &rows)
     };
     std::fs::write(dir.join("summary.md"), text)?;
     plot(&dir, &camp.parameter, &rows)?;
     if camp.seeds > 1 {
-        crate::campaign_mc_summary::plot_honesty(&dir, &camp.parameter, &rows)?;
+        crate::lab::mc_summary::plot_honesty(&dir, &camp.parameter, &rows)?;
     }
     Ok((dir, all_ok))
 }
@@ -152,7 +155,7 @@ pub(crate) fn summary_head(scenario: &Scenario, parameter: &str, seeds: Option<u
 fn summary(scenario: &Scenario, parameter: &str, rows: &[Value]) -> String {
     let mut s = summary_head(scenario, parameter, None);
     s.push_str("Error = 100·‖p − p*‖ (deg/frame), as the paper prints it; 1σ bounds along the Fisher eigen-directions (weakest first).\n\n");
-    let _ = writeln!(s, "| {parameter} | status | band [nm] | p [deg/frame] | error (ours, λ*) | error of the equally good mirror | error (ours, joint) | paper | 1σ bounds [deg/frame] | run |\n|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "| {parameter} | status | p, glint's answer [deg/frame] | error (glint) | error of an equally good mirror | paper | λ* [nm] | error at λ* alone | 1σ bounds [deg/frame] | run |\n|---|---|---|---|---|---|---|---|---|---|");
     for r in rows {
         let p = r["p_deg_per_frame"].as_array().map_or("—".into(), |p| {
             format!(
@@ -173,12 +176,12 @@ fn summary(scenario: &Scenario, parameter: &str, rows: &[Value]) -> String {
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | [{}]({}/summary.md) |",
             r["value"].as_str().unwrap_or("?"),
             r["status"].as_str().unwrap_or("—"),
-            fmt(&r["band_nm"], 0),
             p,
-            fmt(&r["err_paper_metric"], 2),
-            fmt(&r["err_paper_metric_mirror"], 2),
             fmt(&r["joint_err_paper_metric"], 2),
+            fmt(&r["err_paper_metric_mirror"], 2),
             fmt(&r["paper"], 2),
+            fmt(&r["band_nm"], 0),
+            fmt(&r["err_paper_metric"], 2),
             b,
             r["run"].as_str().unwrap_or("?"),
             r["run"].as_str().unwrap_or("?"),

@@ -35,8 +35,8 @@
 //! geometric grid, Δ is minimised over the `free` directions by Gauss–Newton (continued from
 //! the previous offset), and the largest `c²/expm1(Δ)` is kept.
 
-use crate::error::InversionError;
-use crate::model::RateProblem;
+use glint_inversion::InversionError;
+use glint_inversion::RateProblem;
 
 /// The bound along one direction and where the supremum was found.
 #[derive(Debug, Clone, Copy, PartialEq)]
