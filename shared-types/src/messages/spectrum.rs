@@ -25,7 +25,7 @@ impl Window {
 }
 
 /// One time sample of the target's spectrum plus the geometry the inversion needs.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
 #[type_name("glint.v1.Spectrum")]
 #[repr(C)]
 pub struct Spectrum {
@@ -131,7 +131,9 @@ impl Spectrum {
 }
 
 /// A solve call to the inversion ([000] three-stage solve).
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v1.SolveRequest")]
 #[repr(C)]
 pub struct SolveRequest {
@@ -194,7 +196,7 @@ impl SolveStatus {
 }
 
 /// The inversion's answer; every stage fills what it computed (NaN elsewhere).
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
 #[type_name("glint.v1.SolveResponse")]
 #[repr(C)]
 pub struct SolveResponse {
