@@ -358,10 +358,7 @@ fn drain_keep<T: shared_types::Message>(
 fn hash_pod<T: shared_types::Message>(digest: &mut Xxh3, msg: &T) {
     let mut copy = *msg;
     copy.meta_mut().send_mono_ns = 0;
-    // SAFETY: the wire types are #[repr(C)] with explicit padding fields, so every byte of the
-    // copy is initialised; reading them as bytes is sound.
-    let bytes = unsafe {
-        std::slice::from_raw_parts(&copy as *const T as *const u8, std::mem::size_of::<T>())
-    };
-    digest.update(bytes);
+    // Every wire type derives bytemuck::Pod (no padding, checked at compile time), so its bytes
+    // are all initialised.
+    digest.update(bytemuck::bytes_of(&copy));
 }

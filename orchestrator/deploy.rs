@@ -6,6 +6,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
+use rustix::process::{Pid, Signal};
 use shared_types::ServiceId;
 
 /// How a child ended.
@@ -102,12 +103,10 @@ impl ServiceProcess {
         !self.poll_exit()
     }
 
-    fn signal(&self, sig: libc::c_int) {
+    /// Sends `sig` to the child's process group (it was spawned with pgid = pid).
+    fn signal(&self, sig: Signal) {
         if self.child.is_some() {
-            // SAFETY: kill(2) on our own child's process group (it was spawned with pgid = pid).
-            unsafe {
-                libc::kill(-(self.pid as libc::pid_t), sig);
-            }
+            signal_group(self.pid, sig);
         }
     }
 
@@ -123,12 +122,16 @@ impl Drop for ServiceProcess {
     /// Never leave a child behind, whatever path leads here.
     fn drop(&mut self) {
         if let Some(mut c) = self.child.take() {
-            // SAFETY: see `signal`.
-            unsafe {
-                libc::kill(-(self.pid as libc::pid_t), libc::SIGKILL);
-            }
+            signal_group(self.pid, Signal::KILL);
             let _ = c.wait();
         }
+    }
+}
+
+/// kill(2) on the process group `pgid`; a group that is already gone (ESRCH) is not an error.
+fn signal_group(pgid: u32, sig: Signal) {
+    if let Some(pid) = i32::try_from(pgid).ok().and_then(Pid::from_raw) {
+        let _ = rustix::process::kill_process_group(pid, sig);
     }
 }
 
@@ -166,8 +169,8 @@ pub fn stop_ladder(
 ) {
     let rungs = [
         (None, Ending::Shutdown),
-        (Some(libc::SIGTERM), Ending::Terminated),
-        (Some(libc::SIGKILL), Ending::Killed),
+        (Some(Signal::TERM), Ending::Terminated),
+        (Some(Signal::KILL), Ending::Killed),
     ];
     for (signal, label) in rungs {
         let running: Vec<bool> = children.iter_mut().map(|c| c.is_running()).collect();

@@ -13,6 +13,7 @@ use glint_physics::cw::propagate_lvlhn;
 use nalgebra::{Matrix6, Vector3, Vector6};
 use serde::Serialize;
 use shared_types::{Detections, Tracks, Truth};
+use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Detection gate against truth [px].
 pub const GATE_PX: f64 = 3.0;
@@ -85,21 +86,21 @@ fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
 }
 
-/// 95 % interval of the mean of `n` χ²(k) samples (Wilson–Hilferty for χ²(n·k), divided by n).
+/// 95 % interval of the mean of `n` χ²(k) samples (exact χ²(n·k) quantiles, divided by n).
 pub fn nees_bounds(n: usize, k: usize) -> [f64; 2] {
     chi2_mean_bounds(n * k, n)
 }
 
-/// 95 % interval of the mean of n NEES values whose sum is χ²(`total_dof`) (Wilson–Hilferty).
+/// 95 % interval of the mean of n NEES values whose sum is χ²(`total_dof`): the exact 2.5 % and
+/// 97.5 % quantiles of χ²(`total_dof`) (statrs), divided by n.
 pub fn chi2_mean_bounds(total_dof: usize, n: usize) -> [f64; 2] {
     if n == 0 || total_dof == 0 {
         return [f64::NAN, f64::NAN];
     }
-    let dof = total_dof as f64;
-    let q = |z: f64| {
-        dof * (1.0 - 2.0 / (9.0 * dof) + z * (2.0 / (9.0 * dof)).sqrt()).powi(3) / n as f64
+    let Ok(chi2) = ChiSquared::new(total_dof as f64) else {
+        return [f64::NAN, f64::NAN];
     };
-    [q(-1.959_963_985), q(1.959_963_985)]
+    [0.025, 0.975].map(|p| chi2.inverse_cdf(p) / n as f64)
 }
 
 fn wrap_rad(a: f64) -> f64 {
@@ -449,16 +450,19 @@ mod tests {
 
     #[test]
     fn nees_bounds_match_chi_square_quantiles() {
-        // χ²(6) 95 % interval: [1.237, 14.449]; Wilson–Hilferty is within 3 % at 6 dof.
+        // χ²(6) 95 % interval: [1.2373442457912, 14.449375335448] (bisection on the closed-form
+        // CDF 1 − e^{−x/2}(1 + x/2 + x²/8)).
         let [lo, hi] = nees_bounds(1, 6);
         assert!(
-            (lo - 1.237).abs() < 0.04 && (hi - 14.449).abs() < 0.3,
+            (lo - 1.237_344_245_791).abs() < 1e-9 && (hi - 14.449_375_335_448).abs() < 1e-9,
             "{lo} {hi}"
         );
-        // Mean of 50 samples: χ²(300)/50 ∈ [253.9, 349.9]/50.
+        // Mean of 50 samples: χ²(300)/50, quantiles 253.912322602 and 349.874468830 (bisection
+        // on the regularised incomplete gamma series).
         let [lo, hi] = nees_bounds(50, 6);
         assert!(
-            (lo - 5.078).abs() < 0.01 && (hi - 6.998).abs() < 0.01,
+            (lo - 253.912_322_602 / 50.0).abs() < 1e-9
+                && (hi - 349.874_468_830 / 50.0).abs() < 1e-9,
             "{lo} {hi}"
         );
     }

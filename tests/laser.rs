@@ -15,6 +15,7 @@ use glint_runtime::ports::Inbox;
 use glint_runtime::rpc::{CallOutcome, RangeClient};
 use glint_runtime::{open_node, remove_shm, shm_entries};
 use nalgebra::{Vector3, Vector6};
+use rustix::process::{kill_process, Pid, Signal};
 use shared_types::topics::{create_all, heartbeat_service};
 use shared_types::{Heartbeat, RangeRequest, RangeStatus, Scenario, ServiceId, TopicId};
 
@@ -132,8 +133,7 @@ fn sensor_answers_range_requests_against_truth() {
             other => panic!("no answer: {other:?}"),
         }
         // SIGTERM ends the service cleanly.
-        // SAFETY: signalling our own child process.
-        unsafe { libc::kill(sensor.0.id() as i32, libc::SIGTERM) };
+        kill_process(Pid::from_child(&sensor.0), Signal::TERM).expect("SIGTERM");
         let status = sensor.0.wait().unwrap();
         assert!(status.success(), "{status}");
     }

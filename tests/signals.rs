@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 use common::*;
 use glint_runtime::ports::{Inbox, Outbox};
 use glint_runtime::{open_node, remove_shm, shm_entries};
+use rustix::process::{kill_process, Pid, Signal};
 use shared_types::topics::{control_service, create_all, heartbeat_service};
 use shared_types::{Command, Control, Heartbeat, ServiceId, TopicId};
 
@@ -62,17 +63,16 @@ fn sigstop_sigcont_does_not_end_a_service_and_shutdown_does() {
                 .spawn()
                 .unwrap(),
         );
-        let pid = sensor.0.id() as i32;
+        let pid = Pid::from_child(&sensor.0);
         assert!(
             heartbeats_within(&mut hb, Duration::from_millis(600)) > 0,
             "no heartbeat"
         );
 
-        // SAFETY: signalling our own child.
-        unsafe { libc::kill(pid, libc::SIGSTOP) };
+        kill_process(pid, Signal::STOP).expect("SIGSTOP");
         std::thread::sleep(Duration::from_millis(300));
         let _ = heartbeats_within(&mut hb, Duration::from_millis(50)); // drain what was queued
-        unsafe { libc::kill(pid, libc::SIGCONT) };
+        kill_process(pid, Signal::CONT).expect("SIGCONT");
         std::thread::sleep(Duration::from_millis(100));
         assert!(
             sensor.0.try_wait().unwrap().is_none(),
@@ -134,7 +134,7 @@ fn sigterm_stops_a_campaign_instead_of_starting_the_next_deployment() {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    unsafe { libc::kill(child.0.id() as i32, libc::SIGTERM) };
+    kill_process(Pid::from_child(&child.0), Signal::TERM).expect("SIGTERM");
     let t1 = Instant::now();
     let status = loop {
         if let Some(s) = child.0.try_wait().expect("wait") {

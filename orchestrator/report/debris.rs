@@ -183,7 +183,7 @@ fn annotated_frame(
         }
     }
     let png_name = format!("frame-{k:04}.png");
-    std::fs::write(dir.join(&png_name), crate::png::encode_gray8(ow, oh, &img))?;
+    std::fs::write(dir.join(&png_name), crate::png::encode_gray8(ow, oh, &img)?)?;
     let mut svg = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" xmlns:xlink=\"http://www.w3.org/1999/xlink\" width=\"{ow}\" height=\"{}\" viewBox=\"0 0 {ow} {}\">\n<image href=\"{png_name}\" xlink:href=\"{png_name}\" x=\"0\" y=\"0\" width=\"{ow}\" height=\"{oh}\"/>\n",
         oh + 24,

@@ -18,12 +18,9 @@ pub const CONTRACT_VERSION: u32 = 2;
 
 /// xxh3-64 of a frame's pixels as little-endian bytes (the value in `FrameHeader::pixels_xxh3`).
 pub fn pixels_xxh3(pixels: &[u16]) -> u64 {
-    // SAFETY: u16 has no padding or invalid bit patterns; on little-endian targets the byte view
-    // is the little-endian encoding. Big-endian hosts are rejected at compile time below.
-    let bytes = unsafe {
-        std::slice::from_raw_parts(pixels.as_ptr() as *const u8, std::mem::size_of_val(pixels))
-    };
-    xxhash_rust::xxh3::xxh3_64(bytes)
+    // On little-endian targets the byte view is the little-endian encoding; big-endian hosts are
+    // rejected at compile time below.
+    xxhash_rust::xxh3::xxh3_64(bytemuck::cast_slice(pixels))
 }
 
 #[cfg(target_endian = "big")]

@@ -6,7 +6,9 @@ use super::*;
 
 /// User header of a camera frame; the payload is `[u16]` of `width_px * height_px` pixels,
 /// row-major, rendered in place in the loaned shared-memory sample.
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v2.FrameHeader")]
 #[repr(C)]
 pub struct FrameHeader {
@@ -58,7 +60,9 @@ pub const MAX_DETECTIONS: usize = 32;
 pub const MAX_TRACKS: usize = 16;
 
 /// One detected object in a frame ([002] §3.3–3.5).
-#[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v2.Detection")]
 #[repr(C)]
 pub struct Detection {
@@ -94,7 +98,7 @@ impl Detection {
 }
 
 /// The detector's output for one frame: matched objects only (false targets are rejected).
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
 #[type_name("glint.v2.Detections")]
 #[repr(C)]
 pub struct Detections {
@@ -157,7 +161,7 @@ impl Detections {
 }
 
 /// One track's estimate after a frame ([002] §3.6–3.8).
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
 #[type_name("glint.v2.TrackEstimate")]
 #[repr(C)]
 pub struct TrackEstimate {
@@ -217,7 +221,7 @@ impl Default for TrackEstimate {
 }
 
 /// The tracker's output for one frame.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
 #[type_name("glint.v2.Tracks")]
 #[repr(C)]
 pub struct Tracks {

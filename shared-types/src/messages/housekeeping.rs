@@ -41,7 +41,9 @@ impl DropReason {
 }
 
 /// Per-topic counters of one consumer, carried in a [`Heartbeat`].
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v2.TopicCounters")]
 #[repr(C)]
 pub struct TopicCounters {
@@ -59,7 +61,9 @@ pub struct TopicCounters {
 }
 
 /// Periodic liveness and counters of a service.
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v2.Heartbeat")]
 #[repr(C)]
 pub struct Heartbeat {
@@ -90,7 +94,9 @@ impl Heartbeat {
 
 /// Per-message acknowledgement from a consumer to a producer: credit for lockstep flow control
 /// in sim-clock mode (the producer never has more than the subscriber buffer in flight).
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v2.Ack")]
 #[repr(C)]
 pub struct Ack {
@@ -129,7 +135,9 @@ impl Command {
 }
 
 /// A control message; `target` is a [`crate::ServiceId`] as u32 or [`Control::ALL`].
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v2.Control")]
 #[repr(C)]
 pub struct Control {

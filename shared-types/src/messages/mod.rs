@@ -39,7 +39,9 @@ pub const DROP_REASONS: usize = 8;
 pub const MAX_TOPICS: usize = 8;
 
 /// Header common to every message.
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v2.Meta")]
 #[repr(C)]
 pub struct Meta {
@@ -113,7 +115,9 @@ fn unit(v: &[f64; 3], field: &'static str) -> Result<(), Reject> {
 }
 
 /// Access to the common header, and the validation every consumer runs before trusting a peer.
-pub trait Message: std::fmt::Debug + Copy + ZeroCopySend + 'static {
+/// `NoUninit` (derived as `bytemuck::Pod`, which checks at compile time that a type has no
+/// padding) lets a consumer read a message as bytes safely, e.g. to hash it.
+pub trait Message: std::fmt::Debug + Copy + ZeroCopySend + bytemuck::NoUninit + 'static {
     fn meta(&self) -> &Meta;
     fn meta_mut(&mut self) -> &mut Meta;
     /// Called by the producer after the header is filled (e.g. to compute a content hash).

@@ -5,7 +5,9 @@ use iceoryx2::prelude::ZeroCopySend;
 use super::*;
 
 /// A laser-range request: fire along (azimuth, elevation) at simulated time `meta.t_ns`.
-#[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v2.RangeRequest")]
 #[repr(C)]
 pub struct RangeRequest {
@@ -47,7 +49,9 @@ pub enum RangeStatus {
 }
 
 /// The rangefinder's answer; `meta.t_ns` is the time of the echo (request time + delay).
-#[derive(Debug, Default, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v2.RangeResponse")]
 #[repr(C)]
 pub struct RangeResponse {

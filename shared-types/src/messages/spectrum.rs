@@ -25,7 +25,7 @@ impl Window {
 }
 
 /// One time sample of the target's spectrum plus the geometry the inversion needs.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
 #[type_name("glint.v2.Spectrum")]
 #[repr(C)]
 pub struct Spectrum {
@@ -131,7 +131,9 @@ impl Spectrum {
 }
 
 /// A solve call to the inversion ([000] three-stage solve).
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
 #[type_name("glint.v2.SolveRequest")]
 #[repr(C)]
 pub struct SolveRequest {
@@ -198,7 +200,7 @@ impl SolveStatus {
 /// the Fisher directions, what the data leave open, and λ*'s fit beside it (the paper's
 /// stage 3). Per-band figures are `f32`: relative errors and degrees of separation, printed to
 /// four digits.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
 #[type_name("glint.v2.SolveResponse")]
 #[repr(C)]
 pub struct SolveResponse {

@@ -5,7 +5,7 @@ use iceoryx2::prelude::ZeroCopySend;
 use super::*;
 
 /// Ground truth for scoring; read only by the orchestrator.
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
 #[type_name("glint.v2.Truth")]
 #[repr(C)]
 pub struct Truth {

@@ -1,11 +1,28 @@
-//! Tests of the PRNG, the special functions and the normal lookup table.
+//! Tests of the keyed streams, the special functions (statrs) and the normal lookup table.
 use super::*;
 
 #[test]
 fn xoshiro_matches_reference_first_output() {
     // Reference C code: s = {1, 2, 3, 4} → rotl(1 + 4, 23) + 1.
-    let mut rng = Xoshiro256pp::from_state([1, 2, 3, 4]);
+    let seed: Vec<u8> = [1u64, 2, 3, 4]
+        .iter()
+        .flat_map(|w| w.to_le_bytes())
+        .collect();
+    let mut rng = Xoshiro256PlusPlus::from_seed(seed.try_into().unwrap());
     assert_eq!(rng.next_u64(), 41_943_041);
+}
+
+#[test]
+fn keyed_stream_is_splitmix64_seeded_xoshiro() {
+    // The state is four consecutive splitmix64 outputs from the key (Vigna's recommended seeding).
+    let key = splitmix64_mix(splitmix64_mix(7) ^ 3u64.rotate_left(32));
+    let mut sm = rand_xoshiro::SplitMix64::seed_from_u64(key);
+    let seed: Vec<u8> = (0..4).flat_map(|_| sm.next_u64().to_le_bytes()).collect();
+    let mut want = Xoshiro256PlusPlus::from_seed(seed.try_into().unwrap());
+    let mut got = Xoshiro256pp::new(7, 3);
+    for _ in 0..4 {
+        assert_eq!(got.next_u64(), want.next_u64());
+    }
 }
 
 #[test]
@@ -28,9 +45,12 @@ fn streams_are_deterministic_and_distinct() {
 }
 
 #[test]
-fn zero_state_is_replaced() {
-    let mut rng = Xoshiro256pp::from_state([0; 4]);
-    assert!((0..4).any(|_| rng.next_u64() != 0));
+fn open01_stays_open() {
+    let mut rng = Xoshiro256pp::new(1, 1);
+    assert!((0..100_000).all(|_| {
+        let u = rng.next_open01();
+        u > 0.0 && u < 1.0
+    }));
 }
 
 #[test]
