@@ -5,7 +5,7 @@
 use super::*;
 use glint_physics::camera::angles_from_position;
 use glint_physics::cw::propagate_lvlhn;
-use glint_runtime::rng::SplitMix64 as Rng;
+use glint_runtime::rng::SeededRng as Rng;
 use proptest::prelude::*;
 
 const DT: f64 = 0.04;
