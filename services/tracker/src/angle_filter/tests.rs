@@ -180,8 +180,18 @@ fn constant_rate_target_converges_below_the_measurement_noise() {
     assert!(rms < 0.5 * raw, "filtered RMS {rms:e} vs raw {raw:e}");
     assert!((raw / sigma - 1.0).abs() < 0.15);
     let est = kf.estimate();
-    assert!((est.azimuth_rate_rad_s - rate_az).abs() < 1e-4, "{est:?}");
-    assert!((est.elevation_rate_rad_s - rate_el).abs() < 1e-4, "{est:?}");
+    // The rates within 3σ of the filter's own covariance (σ ≈ 1.5e-4 rad/s here: a fixed
+    // 1e-4 held only for a lucky noise draw).
+    let c = est.covariance_diag;
+    assert!(
+        (est.azimuth_rate_rad_s - rate_az).abs() < 3.0 * c[1].sqrt(),
+        "{est:?}"
+    );
+    assert!(
+        (est.elevation_rate_rad_s - rate_el).abs() < 3.0 * c[3].sqrt(),
+        "{est:?}"
+    );
+    assert!(c[1].sqrt() < 0.1 * rate_az.abs(), "{est:?}");
     // The reported σ is consistent with the error.
     assert!(est.covariance_diag[0].sqrt() < 0.5 * sigma);
 }
