@@ -35,6 +35,7 @@ enum Phase {
 static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 /// An error if a deployment of this process was interrupted by a signal.
+#[cfg(feature = "lab")]
 pub fn bail_if_interrupted(what: &str) -> Result<()> {
     if INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst) {
         anyhow::bail!("{what} interrupted by a signal");
