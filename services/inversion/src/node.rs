@@ -156,22 +156,14 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
     if req.stage == 3 {
         if let (Some(answer), Some(fits)) = (&session.answer, &session.fits) {
             fill_answer(&mut out, answer, &fits.rate);
-            out.iterations = match fits
-                .joint_rate
-                .as_ref()
-                .filter(|_| out.flags & SolveResponse::JOINT != 0)
-            {
-                Some(joint) => joint.fit().map_or(0, |f| f.total_iterations as u32),
-                None => fits.rate.fit().map_or(0, |f| f.total_iterations as u32),
+            // The fit the answer is: its iterations, and whether it re-fitted the widest lobe.
+            let from = match answer.from {
+                AnswerFit::Joint { .. } => fits.joint_rate.as_ref(),
+                AnswerFit::Band { .. } => Some(&fits.rate),
             };
-            if let Some(refit) = fits
-                .joint_rate
-                .as_ref()
-                .filter(|_| out.flags & SolveResponse::JOINT != 0)
-                .and_then(|j| j.fit())
-                .and_then(|f| f.refit)
-            {
-                if refit.widest_lobe {
+            if let Some(fit) = from.and_then(RateSolution::fit) {
+                out.iterations = fit.total_iterations as u32;
+                if fit.refit.is_some_and(|r| r.widest_lobe) {
                     out.flags |= SolveResponse::LOBE_REFIT;
                 }
             }
