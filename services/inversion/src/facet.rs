@@ -46,11 +46,12 @@ const INV_MU2: [f64; LOBES] = {
     out
 };
 
-/// The widths the power chain below relies on (1/μ² = 10⁴, 2500, 625, 400, ·, ·, 100, 25, ·, 4).
+/// The widths the power chain below relies on (1/μ² = 10⁴, 2500, 625, 400, ·, 156.25, 100, 25,
+/// ·, 4).
 const CHAIN_WIDTHS: [f64; LOBES] = [0.01, 0.02, 0.04, 0.05, 0.07, 0.08, 0.10, 0.20, 0.30, 0.50];
 
-/// The lobes whose exponential the chain from e₂₅ gives.
-const CHAIN_LOBES: [usize; 6] = [0, 1, 2, 3, 6, 7];
+/// The lobes whose exponential the chain from e₄ gives.
+const CHAIN_LOBES: [usize; 8] = [0, 1, 2, 3, 5, 6, 7, 9];
 
 const CHAIN_APPLIES: bool = {
     let mut same = true;
@@ -71,10 +72,11 @@ pub fn lobe_exponentials(tan2: f64) -> [f64; LOBES] {
 /// exponentials a needed lobe within the cutoff uses are computed, and each needed value is
 /// bit-for-bit the one [`lobe_exponentials`] gives.
 ///
-/// For the Table-4 widths one `exp` serves six lobes: with e₂₅ = exp(−25t),
-/// e₁₀₀ = e₂₅⁴, e₄₀₀ = e₁₀₀⁴, e₆₂₅ = e₂₅²⁵, e₂₅₀₀ = e₆₂₅⁴, e₁₀₀₀₀ = e₂₅₀₀⁴ (relative rounding
-/// ≲ 400 ulp ≈ 5e-14 on e₁₀₀₀₀, which is only used while ≥ e⁻⁶⁰); the other four take their
-/// own. Far from the specular direction most lobes are past the cutoff and cost nothing.
+/// For the Table-4 widths one `exp` serves eight lobes: with e₄ = exp(−4t), e₁ = √√e₄,
+/// e₂₅ = e₄⁶ e₁, e₁₀₀ = e₂₅⁴, e₄₀₀ = e₁₀₀⁴, e₆₂₅ = e₂₅²⁵, e₁₅₆.₂₅ = √√e₆₂₅, e₂₅₀₀ = e₆₂₅⁴,
+/// e₁₀₀₀₀ = e₂₅₀₀⁴ (relative rounding ≲ 4e-13 on e₁₀₀₀₀, which is only used while ≥ e⁻⁶⁰);
+/// the other two (μ = 0.07, 0.3) take their own. Far from the specular direction most lobes
+/// are past the cutoff and cost nothing.
 #[inline]
 pub fn lobe_exponentials_of(tan2: f64, needed: &[bool; LOBES]) -> [f64; LOBES] {
     let mut out = [0.0; LOBES];
@@ -83,28 +85,41 @@ pub fn lobe_exponentials_of(tan2: f64, needed: &[bool; LOBES]) -> [f64; LOBES] {
         want[m] = needed[m] && tan2 * INV_MU2[m] <= LOBE_EXP_CUTOFF;
     }
     if CHAIN_APPLIES {
+        // Each power is formed only when it or a narrower lobe is wanted: every value formed is
+        // then ≥ e⁻²⁴⁰, never subnormal (arithmetic on subnormals is tens of times slower).
+        let from = |m: usize| want[..=m].iter().any(|&w| w);
         if CHAIN_LOBES.iter().any(|&m| want[m]) {
-            let e25 = (-25.0 * tan2).exp();
-            let x4 = (e25 * e25) * (e25 * e25);
-            let x8 = x4 * x4;
-            let x16 = x8 * x8;
-            let e625 = x16 * x8 * e25;
-            let e2500 = (e625 * e625) * (e625 * e625);
-            let chain = [
-                (0, (e2500 * e2500) * (e2500 * e2500)),
-                (1, e2500),
-                (2, e625),
-                (3, (x4 * x4) * (x4 * x4)),
-                (6, x4),
-                (7, e25),
-            ];
-            for (m, v) in chain {
-                if want[m] {
-                    out[m] = v;
+            let e4 = (-4.0 * tan2).exp();
+            out[9] = e4;
+            if from(7) {
+                let e8 = e4 * e4;
+                let e25 = (e8 * e8) * e8 * e4.sqrt().sqrt();
+                out[7] = e25;
+                if from(6) {
+                    let x4 = (e25 * e25) * (e25 * e25);
+                    out[6] = x4;
+                    if from(5) {
+                        let x8 = x4 * x4;
+                        let x16 = x8 * x8;
+                        let e625 = x16 * x8 * e25;
+                        out[2] = e625;
+                        out[3] = (x4 * x4) * (x4 * x4);
+                        out[5] = e625.sqrt().sqrt();
+                        if from(1) {
+                            let e2500 = (e625 * e625) * (e625 * e625);
+                            out[1] = e2500;
+                            out[0] = (e2500 * e2500) * (e2500 * e2500);
+                        }
+                    }
+                }
+            }
+            for m in CHAIN_LOBES {
+                if !want[m] {
+                    out[m] = 0.0;
                 }
             }
         }
-        for m in [4, 5, 8, 9] {
+        for m in [4, 8] {
             if want[m] {
                 out[m] = (-INV_MU2[m] * tan2).exp();
             }

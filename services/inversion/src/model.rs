@@ -438,11 +438,29 @@ impl RateProblem {
     /// the end, so its partial sums bound nothing and it always runs to the end. A cost at or
     /// below `bound` is bit-for-bit [`RateProblem::cost_strided`]'s.
     pub fn cost_strided_within(&self, p: [f64; 3], stride: usize, bound: f64) -> f64 {
+        let frames: Vec<usize> = (0..self.frames.len()).step_by(stride.max(1)).collect();
+        self.cost_over_within(p, &frames, bound)
+    }
+
+    /// Every `stride`-th frame, brightest first (the observed flux summed over the bands, in
+    /// units of each band's mean): the frames of the glint, where rates differ most, lead.
+    /// Summed in this order, the cost of a rate that misses the glint passes a bound soonest.
+    pub fn brightest_first(&self, stride: usize) -> Vec<usize> {
+        let mut frames: Vec<usize> = (0..self.frames.len()).step_by(stride.max(1)).collect();
+        let flux = |t: usize| self.bands.iter().map(|b| b.y[t]).sum::<f64>();
+        frames.sort_by(|&i, &j| flux(j).total_cmp(&flux(i)));
+        frames
+    }
+
+    /// Σ r² over `frames` (indices, summed in that order), stopped as soon as the partial sum
+    /// exceeds `bound` ([`Self::cost_strided_within`]).
+    pub fn cost_over_within(&self, p: [f64; 3], frames: &[usize], bound: f64) -> f64 {
         let mut g = [[0.0; TERMS]; 2];
         let mut cost = 0.0;
         let mut normals = vec![Normal::default(); self.bands.len()];
         let mut trig = TrigStepper::new(p);
-        for (t, frame) in self.frames.iter().enumerate().step_by(stride.max(1)) {
+        for &t in frames {
+            let frame = &self.frames[t];
             let rot = self.attitude.matrix_from_trig(&trig.at(frame.t_frames));
             self.basis(frame, &rot, &mut g);
             for (band, normal) in self.bands.iter().zip(normals.iter_mut()) {

@@ -8,7 +8,7 @@
 //! - each column is scaled to unit 2-norm, `A_j = G_j/‖G_j‖`, and unscaled afterwards
 //!   (`x_j = x̂_j/‖G_j‖`; a positive scaling preserves x ≥ 0); an all-zero column gets x_j = 0;
 //! - `tol = 10·ε_mach·‖A‖₁·max(T, n)`;
-//! - when T > n the problem is compressed exactly by one QR of the augmented matrix
+//! - the problem is compressed exactly by one QR of the augmented matrix
 //!   `[A | q] = Q [[R₁₁, r₁₂], [0, ρ]]`: `‖q − A x‖² = ‖r₁₂ − R₁₁ x‖² + ρ²` and
 //!   `Aᵀ(q − Ax) = R₁₁ᵀ(r₁₂ − R₁₁x)`, so the active-set loop runs on an n×n system. Several
 //!   right-hand sides with one G (one per band in stage 1) share that QR.
@@ -25,10 +25,10 @@
 //! ```
 //! Degeneracy guard (LH step 6): a newly added column whose own z is ≤ 0 is dropped again and
 //! blocked until x next changes. At the solution the KKT conditions hold: x ≥ 0, w_j ≤ tol on
-//! the zero set and w_j ≈ 0 on the positive set. The sub-problems use faer's column-pivoted QR.
+//! the zero set and w_j ≈ 0 on the positive set. The sub-problems are solved on the compressed
+//! system by Givens rotations (see `passive_ls`).
 
 use crate::error::NnlsError;
-use faer::linalg::solvers::SolveLstsq;
 use faer::{Mat, MatRef};
 
 /// Result of one NNLS solve.
@@ -89,15 +89,6 @@ impl NnlsSystem {
             .fold(0.0, f64::max);
         let tol = 10.0 * f64::EPSILON * norm1 * rows.max(n) as f64;
 
-        if rows <= n {
-            return Ok(Self {
-                col_norms,
-                reduced: a,
-                reduced_rhs: rhs.to_owned(),
-                outside_sq: vec![0.0; k],
-                tol,
-            });
-        }
         let aug = Mat::from_fn(
             rows,
             n + k,
@@ -109,11 +100,12 @@ impl NnlsSystem {
                 }
             },
         );
+        // [A | q] = Q R: R is upper trapezoidal, min(rows, n + k) × (n + k).
         let qr = aug.qr();
         let r = qr.thin_R();
         let m = r.nrows();
-        let reduced = Mat::from_fn(n, n, |i, j| r[(i, j)]);
-        let reduced_rhs = Mat::from_fn(n, k, |i, j| r[(i, n + j)]);
+        let reduced = Mat::from_fn(m.min(n), n, |i, j| if i <= j { r[(i, j)] } else { 0.0 });
+        let reduced_rhs = Mat::from_fn(m.min(n), k, |i, j| r[(i, n + j)]);
         let outside_sq = (0..k)
             .map(|j| (n..m).map(|i| r[(i, n + j)].powi(2)).sum::<f64>())
             .collect();
@@ -252,17 +244,52 @@ fn dual(m: &Mat<f64>, r: &[f64], x: &[f64]) -> Vec<f64> {
 }
 
 /// Unconstrained least squares on the passive columns; zero elsewhere.
+///
+/// The compressed system is upper trapezoidal (column j has no entry below row j), so its
+/// passive columns, taken in order, form a staircase that Givens rotations of adjacent rows
+/// bring to triangular form without fill-in: a column that follows d dropped ones takes d
+/// rotations. Then back substitution; a zero pivot (a column exactly dependent on the ones
+/// before it) leaves its unknown at 0.
 fn passive_ls(m: &Mat<f64>, r: &[f64], passive: &[bool]) -> Vec<f64> {
+    let rows = m.nrows();
     let cols: Vec<usize> = (0..passive.len()).filter(|&j| passive[j]).collect();
-    let mut z = vec![0.0; passive.len()];
-    if cols.is_empty() {
-        return z;
+    let k = cols.len();
+    let mut a: Vec<f64> = cols
+        .iter()
+        .flat_map(|&j| (0..rows).map(move |i| m[(i, j)]))
+        .collect();
+    let mut b = r.to_vec();
+    let rank = k.min(rows);
+    for i in 0..rank {
+        for l in (i + 1..=cols[i].min(rows - 1)).rev() {
+            let (x, y) = (a[i * rows + l - 1], a[i * rows + l]);
+            if y == 0.0 {
+                continue;
+            }
+            let h = (x * x + y * y).sqrt();
+            let (c, s) = (x / h, y / h);
+            let rotate = |u: &mut f64, v: &mut f64| {
+                (*u, *v) = (c * *u + s * *v, c * *v - s * *u);
+            };
+            for col in a[i * rows..].chunks_exact_mut(rows) {
+                let (upper, lower) = col.split_at_mut(l);
+                rotate(&mut upper[l - 1], &mut lower[0]);
+            }
+            let (upper, lower) = b.split_at_mut(l);
+            rotate(&mut upper[l - 1], &mut lower[0]);
+        }
     }
-    let sub = Mat::from_fn(m.nrows(), cols.len(), |i, c| m[(i, cols[c])]);
-    let rhs = Mat::from_fn(m.nrows(), 1, |i, _| r[i]);
-    let sol = sub.col_piv_qr().solve_lstsq(rhs);
-    for (c, &j) in cols.iter().enumerate() {
-        z[j] = sol[(c, 0)];
+    let mut y = vec![0.0; k];
+    for j in (0..rank).rev() {
+        let d = a[j * rows + j];
+        if d != 0.0 {
+            let s: f64 = (j + 1..rank).map(|c| a[c * rows + j] * y[c]).sum();
+            y[j] = (b[j] - s) / d;
+        }
+    }
+    let mut z = vec![0.0; passive.len()];
+    for (&j, &yj) in cols.iter().zip(&y) {
+        z[j] = yj;
     }
     z
 }
@@ -270,6 +297,7 @@ fn passive_ls(m: &Mat<f64>, r: &[f64], passive: &[bool]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use faer::linalg::solvers::SolveLstsq;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

@@ -9,9 +9,10 @@
 //!
 //! 1. **Grid**: `points_per_axis`³ points over the box `[−h, h]³` (h = `half_width_deg_per_frame`,
 //!    default 0.5 deg/frame, 9 points per axis → 0.125 deg/frame spacing), each costed on every
-//!    `⌈T/max_grid_frames⌉`-th frame (values only). A point's sum stops once it passes the
-//!    `screen_starts`-th best full cost so far: it cannot be a candidate, and the candidates
-//!    are those of the full costs, in their order.
+//!    `⌈T/max_grid_frames⌉`-th frame (values only), brightest frame first. The points are
+//!    visited in the order of their cost at the brightest frame, and a point's sum stops once
+//!    it passes the `screen_starts`-th best full cost so far: it cannot be a candidate, and the
+//!    candidates are those of the full costs, in their order.
 //! 2. **Screen**: the `screen_starts` best grid points (default 16) each get `screen_iterations`
 //!    LM iterations (default 6) on every `⌈T/max_screen_frames⌉`-th frame.
 //! 3. **Polish**: the `polish_starts` best screened points (default 3; duplicates within
@@ -50,6 +51,9 @@ pub use neighbours::{neighbouring_minima, Neighbour};
 pub(crate) use weak::keep_sense;
 pub use weak::{distance, has_sense, mirror, nearest_body_axis, WeakPrior, RATE_NAMES};
 
+/// Frames of the grid's first look at every point (the brightest): the points are then costed
+/// in the order of those partial sums, so the best come first and the rest stop early.
+const GRID_PROBE_FRAMES: usize = 1;
 /// Duplicate screened starts closer than this are merged \[deg/frame\].
 const SAME_START_DEG_PER_FRAME: f64 = 1e-2;
 /// Two rates this close are the same solution \[deg/frame\]: a later polish that comes this
@@ -207,17 +211,6 @@ fn axis_values(start: &StartConfig) -> Vec<f64> {
 /// Evaluates the grid; returns the `screen_starts` best points (best first) and the number of
 /// grid points evaluated.
 pub fn grid_candidates(problem: &RateProblem, start: &StartConfig) -> (Vec<[f64; 3]>, usize) {
-    grid_candidates_near(problem, start, None)
-}
-
-/// [`grid_candidates`], visiting the points nearest `near` first (a rate already found on a
-/// shorter window): good points found early stop the others' sums sooner. The candidates and
-/// their order do not depend on the order of the visit.
-pub fn grid_candidates_near(
-    problem: &RateProblem,
-    start: &StartConfig,
-    near: Option<[f64; 3]>,
-) -> (Vec<[f64; 3]>, usize) {
     let axis = axis_values(start);
     let stride = problem.frame_count().div_ceil(start.max_grid_frames);
     let mut scored: Vec<(f64, [f64; 3])> = Vec::with_capacity(axis.len().pow(3));
@@ -228,13 +221,18 @@ pub fn grid_candidates_near(
             }
         }
     }
+    // Each point's first few frames (the brightest) rank the points for the visit; each
+    // point's sum then continues over every frame, stopping once it passes the
+    // `screen_starts`-th lowest full cost so far: such a point has `screen_starts` better ones
+    // and is not a candidate. The candidates and their order are those of the full costs.
+    let frames = problem.brightest_first(stride);
+    let probe = &frames[..frames.len().min(GRID_PROBE_FRAMES)];
+    let first_look: Vec<f64> = scored
+        .iter()
+        .map(|(_, p)| problem.cost_over_within(*p, probe, f64::INFINITY))
+        .collect();
     let mut visit: Vec<usize> = (0..scored.len()).collect();
-    if let Some(q) = near {
-        visit.sort_by(|&i, &j| distance(scored[i].1, q).total_cmp(&distance(scored[j].1, q)));
-    }
-    // The `screen_starts` lowest costs so far, ascending: a point whose partial cost passes
-    // the last of them has `screen_starts` better points and is not a candidate, so its
-    // evaluation stops there (the candidates and their order are those of the full costs).
+    visit.sort_by(|&i, &j| first_look[i].total_cmp(&first_look[j]));
     let mut best: Vec<f64> = Vec::with_capacity(start.screen_starts + 1);
     for i in visit {
         let bound = if best.len() < start.screen_starts {
@@ -242,7 +240,7 @@ pub fn grid_candidates_near(
         } else {
             best.last().copied().unwrap_or(f64::INFINITY)
         };
-        let c = problem.cost_strided_within(scored[i].1, stride, bound);
+        let c = problem.cost_over_within(scored[i].1, &frames, bound);
         let c = if c.is_finite() { c } else { f64::INFINITY };
         if c <= bound {
             let at = best.partition_point(|&b| b <= c);
@@ -497,8 +495,7 @@ pub fn fit_multistart_with(
     extra: &[[f64; 3]],
 ) -> Result<RateSolution, InversionError> {
     validate(config)?;
-    let (candidates, grid_points) =
-        grid_candidates_near(problem, &config.start, extra.first().copied());
+    let (candidates, grid_points) = grid_candidates(problem, &config.start);
     let mut starts = screen_candidates(problem, &candidates, config)?;
     starts.extend_from_slice(extra);
     polish(problem, &starts, (grid_points, candidates.len()), config)
