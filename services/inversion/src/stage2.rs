@@ -197,31 +197,6 @@ fn crossing(i: usize, n_i: f64, n_next: f64, half: f64) -> f64 {
     theta_r_deg(i) + (half - n_i) / (n_next - n_i) * GRID_STEP_DEG
 }
 
-/// Reference definition: full 0.01° scan of N(θ_R) for coefficients `x` at θ_I.
-pub fn lobe_shape_full_scan(theta_i_deg: f64, x: &[f64; TERMS_PER_FACET]) -> LobeShape {
-    let curve: Vec<f64> = (0..=GRID_INTERVALS)
-        .map(|i| dot(x, &in_plane_basis(theta_i_deg, theta_r_deg(i))))
-        .collect();
-    let (i_max, peak) = first_argmax(curve.iter().copied().enumerate());
-    let half = 0.5 * peak;
-    let left = (0..i_max)
-        .rev()
-        .find(|&i| curve[i] < half)
-        .map_or(-GRID_LIMIT_DEG, |i| {
-            crossing(i, curve[i], curve[i + 1], half)
-        });
-    let right = (i_max + 1..=GRID_INTERVALS)
-        .find(|&i| curve[i] < half)
-        .map_or(GRID_LIMIT_DEG, |i| {
-            crossing(i - 1, curve[i - 1], curve[i], half)
-        });
-    LobeShape {
-        peak,
-        fwhm_deg: right - left,
-        peak_theta_r_deg: theta_r_deg(i_max),
-    }
-}
-
 /// The band-independent basis tabulated on the coarse grid for each incidence.
 #[derive(Debug, Clone)]
 pub struct SeparationGrid {

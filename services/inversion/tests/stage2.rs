@@ -2,8 +2,8 @@
 
 use glint_inversion::stage1::Stage1Band;
 use glint_inversion::stage2::{
-    band_separation, lobe_shape_full_scan, run_stage2, run_stage2_with, BandSelection, LobeShape,
-    SeparationGrid, Stage2Config, INCIDENCES_DEG,
+    band_separation, in_plane_basis, run_stage2, run_stage2_with, BandSelection, LobeShape,
+    SeparationGrid, Stage2Config, GRID_INTERVALS, GRID_LIMIT_DEG, INCIDENCES_DEG,
 };
 use glint_inversion::InversionError;
 use glint_physics::two_facet::TwoFacetCoefficients;
@@ -176,5 +176,38 @@ fn the_default_rule_prefers_the_most_specular_of_the_well_separated_bands() {
             assert_eq!(field, "stage2.min_relative_separation")
         }
         other => panic!("{other:?}"),
+    }
+}
+
+/// Reference definition of the lobe shape: N(θ_R) = x·β(θ_I, θ_R) on every 0.01° of
+/// [−89.9°, 89.9°], its first maximum, and the half-maximum crossings interpolated linearly.
+fn lobe_shape_full_scan(theta_i_deg: f64, x: &[f64; 11]) -> LobeShape {
+    let step = 2.0 * GRID_LIMIT_DEG / GRID_INTERVALS as f64;
+    let theta = |i: usize| -GRID_LIMIT_DEG + i as f64 * step;
+    let curve: Vec<f64> = (0..=GRID_INTERVALS)
+        .map(|i| {
+            let b = in_plane_basis(theta_i_deg, theta(i));
+            x.iter().zip(&b).map(|(a, b)| a * b).sum()
+        })
+        .collect();
+    let (mut i_max, mut peak) = (0, f64::NEG_INFINITY);
+    for (i, &v) in curve.iter().enumerate() {
+        if v > peak {
+            (i_max, peak) = (i, v);
+        }
+    }
+    let half = 0.5 * peak;
+    let cross = |i: usize| theta(i) + (half - curve[i]) / (curve[i + 1] - curve[i]) * step;
+    let left = (0..i_max)
+        .rev()
+        .find(|&i| curve[i] < half)
+        .map_or(-GRID_LIMIT_DEG, cross);
+    let right = (i_max + 1..=GRID_INTERVALS)
+        .find(|&i| curve[i] < half)
+        .map_or(GRID_LIMIT_DEG, |i| cross(i - 1));
+    LobeShape {
+        peak,
+        fwhm_deg: right - left,
+        peak_theta_r_deg: theta(i_max),
     }
 }

@@ -81,16 +81,6 @@ impl RateProblem {
             .map(|(b, band_rows)| project_band(band_rows, |t| t * nb + b, r, jac.as_deref_mut()))
             .collect()
     }
-
-    /// The re-fitted nuisance coefficients per band at p (stage-1 units W·m², like x̃; the
-    /// constant remainder in W·m² per sr⁻¹ of G), or zeros without the re-fit.
-    pub fn nuisance_coefficients(&self, p: [f64; 3]) -> Vec<[f64; NUISANCE]> {
-        self.nuisance_fit(p)
-            .iter()
-            .zip(&self.bands)
-            .map(|(c, band)| c.map(|v| v * band.mean_flux_w))
-            .collect()
-    }
 }
 
 /// Lobes at least this wide \[rms facet slope μ\] are broad: light spread over tens of degrees
