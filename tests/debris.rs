@@ -44,6 +44,14 @@ fn debris_scenario_meets_its_targets_across_processes() {
             "{t}"
         );
     }
+    // Every measurement reaches its filter: none is skipped (the mid-exposure angles and the
+    // laser ranges reach the EKF along different float paths to the same instant) or reset.
+    let log = std::fs::read_to_string(dir.join("logs/tracker.log")).expect("tracker log");
+    let faults: Vec<&str> = log
+        .lines()
+        .filter(|l| l.contains("Skipped") || l.contains("Reset"))
+        .collect();
+    assert!(faults.is_empty(), "filter faults: {faults:#?}");
     for pic in [
         "debris-angles.svg",
         "debris-ekf.svg",

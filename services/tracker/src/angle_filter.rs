@@ -223,12 +223,13 @@ impl AngleFilter {
     /// State and covariance predicted to `t_s` (no change to the filter).
     pub fn predicted(&self, t_s: f64) -> Result<(Vector4<f64>, Matrix4<f64>), FilterError> {
         let dt = t_s - self.t_s;
-        if !dt.is_finite() || dt < 0.0 {
+        if !dt.is_finite() || dt < -crate::SAME_INSTANT_S {
             return Err(FilterError::TimeReversed {
                 filter_t_s: self.t_s,
                 t_s,
             });
         }
+        let dt = dt.max(0.0);
         let phi = transition(dt);
         let p = phi * self.p * phi.transpose() + process_noise(&self.config, dt);
         Ok((phi * self.x, 0.5 * (p + p.transpose())))
@@ -239,7 +240,7 @@ impl AngleFilter {
         let (x, p) = self.predicted(t_s)?;
         self.x = x;
         self.p = p;
-        self.t_s = t_s;
+        self.t_s = self.t_s.max(t_s);
         Ok(())
     }
 
@@ -283,7 +284,7 @@ impl AngleFilter {
         }
         self.x = x_new;
         self.p = p_new;
-        self.t_s = z.t_s;
+        self.t_s = self.t_s.max(z.t_s);
         Ok(AngleUpdate {
             innovation_rad: nu,
             nis: (nu.transpose() * s_inv * nu)[0],

@@ -305,12 +305,13 @@ impl CwEkf {
     /// State and covariance predicted to `t_s` (no change to the filter).
     pub fn predicted(&self, t_s: f64) -> Result<(Vector6<f64>, Matrix6<f64>), EkfError> {
         let dt = t_s - self.t_s;
-        if !dt.is_finite() || dt < 0.0 {
+        if !dt.is_finite() || dt < -crate::SAME_INSTANT_S {
             return Err(EkfError::TimeReversed {
                 filter_t_s: self.t_s,
                 t_s,
             });
         }
+        let dt = dt.max(0.0);
         let phi = cw_stm_lvlhn(self.config.mean_motion_rad_s, dt);
         let p = phi * self.p * phi.transpose() + process_noise(self.config.accel_noise_m_s_3_2, dt);
         Ok((phi * self.x, 0.5 * (p + p.transpose())))
@@ -321,7 +322,7 @@ impl CwEkf {
         let (x, p) = self.predicted(t_s)?;
         self.x = x;
         self.p = p;
-        self.t_s = t_s;
+        self.t_s = self.t_s.max(t_s);
         Ok(())
     }
 

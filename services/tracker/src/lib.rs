@@ -15,6 +15,12 @@ pub mod node;
 pub mod pointing;
 pub mod track;
 
+/// Two times closer than this are the same instant \[s\]: the wire's resolution (1 ns). Times
+/// reach the filters as f64 seconds computed along different paths (an exposure's end minus
+/// half its length, a laser fire time), which can differ in the last bit; a filter asked for a
+/// time within this of its own does not move and skips nothing.
+pub const SAME_INSTANT_S: f64 = 1e-9;
+
 pub use angle_filter::{AngleEstimate, AngleFilter, AngleFilterConfig, AngleMeasurement};
 pub use ekf::{CwEkf, CwEkfConfig, EkfEstimate, RangeFix};
 pub use pointing::{predict_pointing, PointingCommand};

@@ -62,6 +62,9 @@ struct FrameWork<'a> {
 impl FrameWork<'_> {
     fn process(&mut self, d: &Detections) -> Result<Tracks> {
         let t_s = d.exposure_end_ns as f64 * 1e-9;
+        // From integer nanoseconds, so that it is the same f64 as any other path to that instant.
+        let half_ns = (0.5 * self.exposure_s * 1e9).round() as u64;
+        let mid_exposure_s = d.exposure_end_ns.saturating_sub(half_ns) as f64 * 1e-9;
         let items = &d.items[..(d.n as usize).min(d.items.len())];
         let observations: Vec<TrackObservation> = items
             .iter()
@@ -76,7 +79,7 @@ impl FrameWork<'_> {
                 ekf_angles: (det.sigma_rad > 0.0).then(|| {
                     let (az, el) = self.camera.angles_from_pixel(det.x_px, det.y_px);
                     EkfAngles {
-                        t_s: t_s - 0.5 * self.exposure_s,
+                        t_s: mid_exposure_s,
                         azimuth_rad: az,
                         elevation_rad: el,
                         sigma_rad: det.sigma_rad / self.end_point_factor,

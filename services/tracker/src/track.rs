@@ -269,7 +269,9 @@ impl Track {
         };
         let range_t_s = obs.range_t_s.unwrap_or(obs.t_s);
         let range = match obs.range_m {
-            Some(r) if r.is_finite() && r > 0.0 && range_t_s >= obs.t_s => Some(r),
+            Some(r) if r.is_finite() && r > 0.0 && range_t_s >= obs.t_s - crate::SAME_INSTANT_S => {
+                Some(r)
+            }
             Some(r) => {
                 // A bad range: report it and carry on with the angles.
                 let msg = format!(
@@ -281,7 +283,9 @@ impl Track {
             None => None,
         };
         match range {
-            Some(r) if range_t_s == obs.t_s && self.ekf.is_some() => {
+            Some(r)
+                if (range_t_s - obs.t_s).abs() <= crate::SAME_INSTANT_S && self.ekf.is_some() =>
+            {
                 let fix = RangeFix {
                     t_s: obs.t_s,
                     azimuth_rad: obs.azimuth_rad,

@@ -3,6 +3,7 @@
 //! stability, errors.
 
 use super::*;
+use crate::{AngleFilter, AngleFilterConfig};
 use glint_physics::camera::angles_from_position;
 use glint_physics::cw::propagate_lvlhn;
 use glint_runtime::rng::SeededRng as Rng;
@@ -328,6 +329,34 @@ fn errors_leave_the_filter_unchanged() {
     assert!((nu[0] - 0.002).abs() < 1e-12);
     let json = serde_json::to_string(&ekf.estimate()).expect("serialises");
     assert!(json.contains("position_sigma_m"));
+}
+
+/// A measurement at the filter's own instant reached along another float path (the filter at
+/// 0.21000000000000002 s, the measurement at 0.21 s, as a debris run had them) is applied, not
+/// skipped as "time goes backwards"; one a microsecond earlier is refused, and the filter's
+/// time never moves back.
+#[test]
+fn the_same_instant_in_another_rounding_is_not_time_reversed() {
+    let cfg = CwEkfConfig::default();
+    let t_fix = 0.21f64;
+    let t_mid = f64::from_bits(t_fix.to_bits() + 1);
+    assert_eq!(format!("{t_mid}"), "0.21000000000000002");
+    let f1 = fix(&truth(0.0), 0.0, &cfg, None);
+    let f2 = fix(&truth(t_mid), t_mid, &cfg, None);
+    let mut ekf = CwEkf::initialize(cfg, &f1, &f2).expect("valid");
+    ekf.update(&fix(&truth(t_fix), t_fix, &cfg, None))
+        .expect("the same instant");
+    assert_eq!(ekf.t_s(), t_mid);
+    assert!(matches!(
+        ekf.update(&fix(&truth(t_fix - 1e-6), t_fix - 1e-6, &cfg, None)),
+        Err(EkfError::TimeReversed { .. })
+    ));
+    let mut angles_filter =
+        AngleFilter::initialize(AngleFilterConfig::default(), &angles(&f1), &angles(&f2))
+            .expect("valid");
+    angles_filter
+        .update(&angles(&fix(&truth(t_fix), t_fix, &cfg, None)))
+        .expect("the same instant");
 }
 
 #[test]

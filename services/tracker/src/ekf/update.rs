@@ -35,7 +35,7 @@ impl CwEkf {
         }
         self.x = x_new;
         self.p = p_new;
-        self.t_s = t_s;
+        self.t_s = self.t_s.max(t_s);
         Ok((nu, (nu.transpose() * s_inv * nu)[0]))
     }
 }
@@ -68,7 +68,7 @@ impl CwEkf {
         }
         self.x = x_new;
         self.p = p_new;
-        self.t_s = t_s;
+        self.t_s = self.t_s.max(t_s);
         Ok(nu)
     }
 }
