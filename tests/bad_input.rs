@@ -14,6 +14,10 @@ fn base() -> String {
     std::fs::read_to_string(scenario("debris-geo.toml")).unwrap()
 }
 
+fn spectra_base() -> String {
+    std::fs::read_to_string(scenario("geo-hover-yspin.toml")).unwrap()
+}
+
 #[test]
 fn malformed_scenarios_exit_2_naming_file_and_field() {
     let dir = temp_dir("bad");
@@ -42,6 +46,18 @@ fn malformed_scenarios_exit_2_naming_file_and_field() {
             "syntax.toml",
             "name = \"x\"\n[camera\n".to_string(),
             "camera",
+        ),
+        // Band centres outside the sensor's material tables: refused before any work (the
+        // sensor died at run time with a Debug dump of WavelengthOutOfRange).
+        (
+            "band-start.toml",
+            spectra_base().replace("band_start_nm = 400.0", "band_start_nm = 390.0"),
+            "`spectra.band_start_nm`: 390 is out of range; allowed 400..=750",
+        ),
+        (
+            "band-stop.toml",
+            spectra_base().replace("band_stop_nm = 750.0", "band_stop_nm = 760.0"),
+            "`spectra.band_stop_nm`: 760 is out of range; allowed 400..=750",
         ),
     ];
     for (name, text, field) in cases {

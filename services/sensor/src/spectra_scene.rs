@@ -315,3 +315,17 @@ fn find_stable_start(
         phase_deg: phase_rad.to_degrees(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use glint_physics::materials::MATERIAL_BANDS_NM;
+    use shared_types::scenario::BAND_CENTRE_RANGE_NM;
+
+    /// The scenario check lets through exactly the band centres the material tables cover.
+    #[test]
+    fn validation_allows_the_material_tables_range() {
+        let (lo, hi) = BAND_CENTRE_RANGE_NM;
+        assert_eq!(lo, MATERIAL_BANDS_NM[0]);
+        assert_eq!(hi, MATERIAL_BANDS_NM[MATERIAL_BANDS_NM.len() - 1]);
+    }
+}

@@ -56,7 +56,8 @@ pub enum AttitudeConvention {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpectraScenario {
-    /// First and last band centre [nm], 380–780, and the step between centres [nm], 1–100.
+    /// First and last band centre [nm], 400–750 (the material tables), and the step between
+    /// centres [nm], 1–100.
     pub band_start_nm: f64,
     pub band_stop_nm: f64,
     pub band_step_nm: f64,
@@ -120,9 +121,14 @@ impl SpectraScenario {
     }
 }
 
+/// Band centres the sensor can render \[nm\]: the range of its material tables (the physics
+/// crate's `MATERIAL_BANDS_NM`; a sensor test keeps the two equal).
+pub const BAND_CENTRE_RANGE_NM: (f64, f64) = (400.0, 750.0);
+
 pub(super) fn check_spectra(c: &mut Checker, sp: &SpectraScenario) {
-    c.range("spectra.band_start_nm", sp.band_start_nm, 380.0, 780.0);
-    c.range("spectra.band_stop_nm", sp.band_stop_nm, 380.0, 780.0);
+    let (lo, hi) = BAND_CENTRE_RANGE_NM;
+    c.range("spectra.band_start_nm", sp.band_start_nm, lo, hi);
+    c.range("spectra.band_stop_nm", sp.band_stop_nm, lo, hi);
     c.range("spectra.band_step_nm", sp.band_step_nm, 1.0, 100.0);
     c.range("spectra.band_width_nm", sp.band_width_nm, 1.0, 100.0);
     if sp.band_stop_nm < sp.band_start_nm {
@@ -141,7 +147,7 @@ pub(super) fn check_spectra(c: &mut Checker, sp: &SpectraScenario) {
     {
         c.fail(
             "spectra.band_width_nm",
-            "bands must stay inside 380..=780 nm (the material data range)".into(),
+            "band edges must stay inside 380..=780 nm (the solar spectrum table)".into(),
         );
     }
     c.range(
