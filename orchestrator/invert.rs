@@ -316,7 +316,7 @@ fn read_inversion_config(path: &Path) -> Result<InversionConfig> {
     config
         .stage3
         .validate()
-        .map_err(|e| anyhow!("{}: [stage3] {e}", path.display()))?;
+        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     config
         .stage2
         .validate()

@@ -135,3 +135,50 @@ fn campaigns_run_through_glint_lab_and_plain_runs_through_glint_run() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("no [campaign] section"), "{err}");
 }
+
+/// Solver settings outside their documented ranges are refused before any work, naming the
+/// file, the field, the value and the range (a 1000-point grid per axis asked for 32 GB and
+/// aborted the process).
+#[test]
+fn unbounded_solver_settings_exit_2_before_any_work() {
+    let dir = temp_dir("bad-config");
+    let observations =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/y-snr50-seed7-400nm.csv");
+    let cases = [
+        (
+            "[stage3.start]\npoints_per_axis = 1000\n",
+            "stage3.start.points_per_axis: 1000 is out of range; allowed 1..=41",
+        ),
+        (
+            "[stage3.start]\nscreen_starts = 4000000000\n",
+            "stage3.start.screen_starts: 4000000000 is out of range; allowed 1..=1000",
+        ),
+        (
+            "[stage3.start]\npolish_starts = 4000000000\n",
+            "stage3.start.polish_starts: 4000000000 is out of range; allowed 1..=100",
+        ),
+        (
+            "[stage3.start]\nhalf_width_deg_per_frame = 1e9\n",
+            "stage3.start.half_width_deg_per_frame: 1000000000 is out of range; allowed (0, 10]",
+        ),
+        (
+            "[stage3.lm]\nmax_iterations = 0\n",
+            "stage3.lm.max_iterations: 0 is out of range; allowed 1..=10000",
+        ),
+    ];
+    for (i, (text, want)) in cases.iter().enumerate() {
+        let config = write(&dir, &format!("c{i}.toml"), text);
+        let out = glint()
+            .arg("invert")
+            .arg(&observations)
+            .arg("--config")
+            .arg(&config)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{text}: {err}");
+        assert!(err.contains(&format!("c{i}.toml")), "{text}: {err}");
+        assert!(err.contains(want), "{text}: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

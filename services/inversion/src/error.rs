@@ -80,6 +80,16 @@ pub enum InversionError {
         /// What is wrong.
         reason: &'static str,
     },
+    /// A setting's value is outside its documented range.
+    #[error("{field}: {value} is out of range; allowed {allowed}")]
+    SettingOutOfRange {
+        /// Field name.
+        field: &'static str,
+        /// The value given.
+        value: f64,
+        /// The allowed range.
+        allowed: &'static str,
+    },
     /// A band has no flux at all (‖Φ‖ = 0 or mean Φ ≤ 0): nothing to fit.
     #[error("band {wavelength_nm} nm: no flux in the {window} window")]
     NoFlux {

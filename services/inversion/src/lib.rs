@@ -128,6 +128,11 @@ pub fn solve_three_stage(
     config: &InversionConfig,
 ) -> Result<InversionResult, InversionError> {
     set.validate()?;
+    // Every setting before any work: an out-of-range count would otherwise surface (or
+    // allocate) only in stage 3.
+    config.stage1.validate()?;
+    config.stage2.validate()?;
+    config.stage3.validate()?;
     let body_normal = Vector3::from(config.model.body_normal);
     let stage1 = stage1::run_stage1_full(
         &set.stable,

@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct LmConfig {
-    /// k_max, outer iterations (≥ 1; 500). The seed's 5000 only lets LM creep along the
+    /// k_max, outer iterations (1..=10000; 500). The seed's 5000 only lets LM creep along the
     /// weakly observable bisector direction; a well-posed 3-parameter fit converges in tens.
     pub max_iterations: usize,
     /// Stop when ε < this (seed: 1e-22, in normalised units).

@@ -77,11 +77,17 @@ fn rejects_invalid_input_and_config() {
     ));
     let set = scenario(40, 20, [0.0, 0.0, 0.25]);
     let mut config = InversionConfig::default();
-    config.stage3.start.points_per_axis = 0;
-    assert!(matches!(
-        solve_three_stage(&set, &config),
-        Err(InversionError::InvalidConfig { .. })
-    ));
+    for n in [0, 42, 1000] {
+        config.stage3.start.points_per_axis = n;
+        assert!(matches!(
+            solve_three_stage(&set, &config),
+            Err(InversionError::SettingOutOfRange {
+                field: "stage3.start.points_per_axis",
+                allowed: "1..=41",
+                ..
+            })
+        ));
+    }
     config = InversionConfig::default();
     config.model.body_normal = [2.0, 0.0, 0.0];
     assert!(matches!(

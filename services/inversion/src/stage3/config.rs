@@ -10,19 +10,19 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct StartConfig {
-    /// Box half-width h \[deg/frame\] (> 0; 0.5).
+    /// Box half-width h \[deg/frame\] ((0, 10]; 0.5).
     pub half_width_deg_per_frame: f64,
-    /// Grid points per axis (≥ 1; 9). 1 means the single start p = 0.
+    /// Grid points per axis (1..=41; 9). 1 means the single start p = 0.
     pub points_per_axis: usize,
-    /// Frames used per grid evaluation, at most (≥ 1; 40).
+    /// Frames used per grid evaluation, at most (1..=100000; 40).
     pub max_grid_frames: usize,
-    /// Best grid points screened by short LM runs (≥ 1; 16).
+    /// Best grid points screened by short LM runs (1..=1000; 16).
     pub screen_starts: usize,
-    /// LM iterations per screened start (≥ 1; 6).
+    /// LM iterations per screened start (1..=100; 6).
     pub screen_iterations: usize,
-    /// Frames used while screening, at most (≥ 1; 90).
+    /// Frames used while screening, at most (1..=100000; 90).
     pub max_screen_frames: usize,
-    /// Screened starts polished to convergence (≥ 1; 3).
+    /// Screened starts polished to convergence (1..=100; 3).
     pub polish_starts: usize,
 }
 
@@ -142,22 +142,79 @@ impl Stage3Config {
     }
 }
 
+/// The largest grid, per axis: 41³ = 68,921 points (95 × the default's 729), a few seconds per
+/// search. Larger counts only cost time (and memory: a grid of 1000 per axis is 10⁹ points).
+pub const MAX_POINTS_PER_AXIS: usize = 41;
+/// Upper limits of the other start counts and of LM's iterations (see [`StartConfig`]).
+const MAX_FRAMES: usize = 100_000;
+const MAX_SCREEN_STARTS: usize = 1_000;
+const MAX_SCREEN_ITERATIONS: usize = 100;
+const MAX_POLISH_STARTS: usize = 100;
+const MAX_LM_ITERATIONS: usize = 10_000;
+
 pub(super) fn validate(config: &Stage3Config) -> Result<(), InversionError> {
     let s = &config.start;
     let bad = |field, reason| Err(InversionError::InvalidConfig { field, reason });
-    if !(s.half_width_deg_per_frame > 0.0 && s.half_width_deg_per_frame.is_finite()) {
-        return bad("start.half_width_deg_per_frame", "must be > 0 and finite");
+    let out_of_range = |field, value, allowed| {
+        Err(InversionError::SettingOutOfRange {
+            field,
+            value,
+            allowed,
+        })
+    };
+    let h = s.half_width_deg_per_frame;
+    if !(h > 0.0 && h <= 10.0) {
+        return out_of_range("stage3.start.half_width_deg_per_frame", h, "(0, 10]");
     }
+    // (field, value, largest allowed, the allowed range as printed)
     let counts = [
-        s.points_per_axis,
-        s.max_grid_frames,
-        s.screen_starts,
-        s.screen_iterations,
-        s.max_screen_frames,
-        s.polish_starts,
+        (
+            "stage3.start.points_per_axis",
+            s.points_per_axis,
+            MAX_POINTS_PER_AXIS,
+            "1..=41",
+        ),
+        (
+            "stage3.start.max_grid_frames",
+            s.max_grid_frames,
+            MAX_FRAMES,
+            "1..=100000",
+        ),
+        (
+            "stage3.start.screen_starts",
+            s.screen_starts,
+            MAX_SCREEN_STARTS,
+            "1..=1000",
+        ),
+        (
+            "stage3.start.screen_iterations",
+            s.screen_iterations,
+            MAX_SCREEN_ITERATIONS,
+            "1..=100",
+        ),
+        (
+            "stage3.start.max_screen_frames",
+            s.max_screen_frames,
+            MAX_FRAMES,
+            "1..=100000",
+        ),
+        (
+            "stage3.start.polish_starts",
+            s.polish_starts,
+            MAX_POLISH_STARTS,
+            "1..=100",
+        ),
+        (
+            "stage3.lm.max_iterations",
+            config.lm.max_iterations,
+            MAX_LM_ITERATIONS,
+            "1..=10000",
+        ),
     ];
-    if counts.contains(&0) {
-        return bad("start", "every count must be ≥ 1");
+    for (field, value, max, allowed) in counts {
+        if !(1..=max).contains(&value) {
+            return out_of_range(field, value as f64, allowed);
+        }
     }
     if let Some(deg) = config.max_rotation_deg {
         if !(deg > 0.0 && (deg <= 360.0 || deg == f64::INFINITY)) {
@@ -174,9 +231,12 @@ pub(super) fn validate(config: &Stage3Config) -> Result<(), InversionError> {
     if !(0.0..=1.0).contains(&config.observability.min_lobe_share) {
         return bad("observability.min_lobe_share", "must be in [0, 1]");
     }
-    let lambda_ok = config.lm.lambda_init > 0.0 && config.lm.lambda_init.is_finite();
-    if config.lm.max_iterations == 0 || !lambda_ok {
-        return bad("lm", "max_iterations ≥ 1 and lambda_init > 0 required");
+    let lm = &config.lm;
+    if !(lm.lambda_init > 0.0 && lm.lambda_init < lm.lambda_max && lm.lambda_max.is_finite()) {
+        return bad(
+            "lm.lambda_init",
+            "allowed 0 < lambda_init < lambda_max (finite)",
+        );
     }
     Ok(())
 }
