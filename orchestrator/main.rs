@@ -16,6 +16,7 @@ mod png;
 mod progress;
 mod report;
 mod run;
+mod run_dir;
 mod score_debris;
 mod sequence;
 mod tools;
@@ -48,9 +49,13 @@ enum Cmd {
     Run {
         /// Scenario file (TOML); the built-in default when absent.
         scenario: Option<PathBuf>,
-        /// Run directory (default: runs/<name>-<UTC timestamp>).
+        /// Run directory (default: runs/<name>-<UTC timestamp>-<run id>); refused when it
+        /// already holds files, unless --force.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace the previous run in --out (a glint run directory not in use).
+        #[arg(long)]
+        force: bool,
         /// Override the scenario's seed.
         #[arg(long)]
         seed: Option<u64>,
@@ -182,7 +187,12 @@ fn finish(result: anyhow::Result<(PathBuf, bool)>) -> ExitCode {
         }
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::from(1)
+            // A bad --out is the user's to fix, like a bad scenario.
+            if e.downcast_ref::<run_dir::OutDirError>().is_some() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
         }
     }
 }
@@ -209,6 +219,7 @@ fn main() -> ExitCode {
         Cmd::Run {
             scenario,
             out,
+            force,
             seed,
         } => {
             glint_runtime::init_tracing("orchestrator");
@@ -226,6 +237,7 @@ fn main() -> ExitCode {
                 scenario: sc,
                 scenario_file: file,
                 out_dir: out,
+                replace: force,
                 progress: std::io::stderr().is_terminal(),
             }))
         }

@@ -19,6 +19,8 @@ pub struct RunOptions {
     pub scenario: Scenario,
     pub scenario_file: String,
     pub out_dir: Option<PathBuf>,
+    /// Replace a previous run in `out_dir` (`--force`; see [`crate::run_dir`]).
+    pub replace: bool,
     pub progress: bool,
 }
 
@@ -45,15 +47,14 @@ pub fn bail_if_interrupted(what: &str) -> Result<()> {
 
 pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let scenario = &opts.scenario;
-    let out_dir = opts.out_dir.clone().unwrap_or_else(|| {
-        PathBuf::from("runs").join(format!("{}-{}", scenario.name, utc_stamp()))
-    });
-    std::fs::create_dir_all(&out_dir)
-        .with_context(|| format!("creating run directory {}", out_dir.display()))?;
+    let prefix = run_prefix();
+    let id = prefix.trim_start_matches("glint_").trim_end_matches('_');
+    // Held (locked) until the report is written: no other run can use this directory.
+    let dir = crate::run_dir::prepare(opts.out_dir.as_deref(), &scenario.name, id, opts.replace)?;
+    let out_dir = dir.path.clone();
     let resolved = out_dir.join("scenario.toml");
     std::fs::write(&resolved, scenario.to_toml())
         .with_context(|| format!("writing {}", resolved.display()))?;
-    let prefix = run_prefix();
     let exe = std::env::current_exe().context("locating the glint executable")?;
 
     let wall0 = Instant::now();
@@ -71,6 +72,7 @@ pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     facts.prefix = prefix;
     facts.scenario_file = opts.scenario_file.clone();
     let ok = report::write(&out_dir, scenario, &facts)?;
+    drop(dir);
     Ok((out_dir, ok))
 }
 

@@ -107,3 +107,76 @@ fn realtime_clock_accounts_for_every_frame() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Runs started in the same second never share a directory: two default runs started
+/// together each get their own, and each report is of its own scenario (the seed each was
+/// given). Before, both wrote `runs/<name>-<second>/` and one run read the other's scenario.
+#[test]
+fn runs_started_together_get_their_own_directories() {
+    let dir = temp_dir("same-second");
+    let start = |seed: &str| {
+        glint()
+            .current_dir(&dir)
+            .args(["run", "--seed", seed])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let (a, b) = (start("11"), start("12"));
+    let mut seen = vec![];
+    for (child, seed) in [(a, 11), (b, 12)] {
+        let out = child.wait_with_output().unwrap();
+        assert_success(&out);
+        let summary = String::from_utf8_lossy(&out.stdout).trim().to_string();
+        let run_dir = dir.join(std::path::Path::new(&summary).parent().unwrap());
+        let report = read_json(&run_dir.join("report.json"));
+        assert_eq!(report["seed"], seed, "{}", run_dir.display());
+        seen.push(run_dir);
+    }
+    assert_ne!(seen[0], seen[1]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `--out` into a directory that holds files is refused (exit 2) unless `--force`, which
+/// replaces a previous run and leaves none of its files; `--force` never clears a directory
+/// that is not a run's.
+#[test]
+fn out_into_a_previous_run_needs_force_and_leaves_nothing_of_it() {
+    let dir = temp_dir("out-reuse");
+    let out = dir.join("run");
+    run_ok(None, &out, &[]);
+    std::fs::write(out.join("stale.txt"), "from before").unwrap();
+    let again = glint().arg("run").arg("--out").arg(&out).output().unwrap();
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert_eq!(again.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("already holds files") && err.contains("--force"),
+        "{err}"
+    );
+    assert!(
+        out.join("stale.txt").exists(),
+        "a refused run touches nothing"
+    );
+    let r = run_ok(None, &out, &["--force"]);
+    assert!(
+        !out.join("stale.txt").exists(),
+        "the previous run's files are gone"
+    );
+    assert_eq!(r.report["success"], true);
+    let other = dir.join("not-a-run");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("notes.txt"), "mine").unwrap();
+    let refused = glint()
+        .arg("run")
+        .arg("--out")
+        .arg(&other)
+        .arg("--force")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{err}");
+    assert!(err.contains("not a glint run directory"), "{err}");
+    assert!(other.join("notes.txt").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

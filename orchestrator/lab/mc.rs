@@ -95,6 +95,8 @@ pub fn run_value(
             scenario,
             scenario_file: file.to_string(),
             out_dir: Some(sub.to_path_buf()),
+            // The campaign owns its directory: a sub-run there replaces the previous one.
+            replace: true,
             progress,
         })?;
         run::bail_if_interrupted("campaign")?;

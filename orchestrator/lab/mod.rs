@@ -71,6 +71,8 @@ pub fn run(
             scenario: variant,
             scenario_file: file.to_string(),
             out_dir: Some(sub.clone()),
+            // The campaign owns its directory: a sub-run there replaces the previous one.
+            replace: true,
             progress,
         })?;
         run::bail_if_interrupted("campaign")?;
