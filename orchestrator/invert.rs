@@ -42,8 +42,13 @@ pub fn invert(path: &Path, options: &InvertOptions) -> Result<(serde_json::Value
         j["answer"]["err_paper_metric"] = json!(err(result.answer.rate_deg_per_frame));
         j["stage3_err_paper_metric"] = json!(err(result.rate.fit().map(|f| f.rate_deg_per_frame)));
     }
+    let ignored = if file.ignored_columns.is_empty() {
+        String::new()
+    } else {
+        format!(" (columns not read: {})", file.ignored_columns.join(", "))
+    };
     let mut text = format!(
-        "{}: {} bands, stable {} samples, motion {} frames\n",
+        "{}: {} bands, stable {} samples, motion {} frames{ignored}\n",
         path.display(),
         file.set.wavelengths_nm.len(),
         file.set.stable.len(),
@@ -307,7 +312,9 @@ fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> anyhow::Error {
 
 /// Reads solver settings for `glint invert --config` (TOML; unknown fields are errors).
 fn read_inversion_config(path: &Path) -> Result<InversionConfig> {
-    let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let text =
+        shared_types::input::read_text_capped(path, shared_types::input::MAX_TEXT_FILE_BYTES)
+            .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let config: InversionConfig = toml::from_str(&text).map_err(|e| toml_error(path, &text, &e))?;
     config
         .stage1

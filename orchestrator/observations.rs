@@ -23,7 +23,6 @@ use std::path::Path;
 use anyhow::{anyhow, bail, Context, Result};
 use glint_inversion::{Observation, ObservationSet};
 use nalgebra::Vector3;
-use serde::Deserialize;
 use shared_types::{Spectrum, Window};
 
 const FIXED: [&str; 10] = [
@@ -43,6 +42,8 @@ const FIXED: [&str; 10] = [
 pub struct ObservationFile {
     pub set: ObservationSet,
     pub truth_rate_deg_per_frame: Option<[f64; 3]>,
+    /// Header columns glint does not read (named to the user).
+    pub ignored_columns: Vec<String>,
 }
 
 /// Writes spectra (as received in a run) in the observation format.
@@ -89,33 +90,161 @@ pub fn write(path: &Path, spectra: &[Spectrum], truth: Option<[f64; 3]>) -> Resu
     std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
 }
 
+/// Largest observation file read \[bytes\]: 36 bands × 1440 rows take 1 MB.
+pub const MAX_FILE_BYTES: u64 = 256 << 20;
+/// Band centres accepted \[nm\]: ultraviolet to thermal infrared.
+pub const WAVELENGTH_RANGE_NM: (f64, f64) = (200.0, 25_000.0);
+/// Largest frame index accepted (a billion frames: 30 years at one a second).
+pub const MAX_FRAME_INDEX: u64 = 1_000_000_000;
+/// A flux below −this × σ is not noise about a positive flux: refused.
+const MAX_NEGATIVE_SIGMAS: f64 = 5.0;
+
 /// Reads an observation file; every problem names the file, the line and the column.
 pub fn read(path: &Path) -> Result<ObservationFile> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let text = shared_types::input::read_text_capped(path, MAX_FILE_BYTES)
+        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     parse(&text, &path.display().to_string())
 }
 
-/// One data row by position: the ten fixed columns, then every flux_ and sigma_ value.
-#[derive(Deserialize)]
-struct Row(
-    String,
-    u64,
-    f64,
-    f64,
-    f64,
-    f64,
-    f64,
-    f64,
-    f64,
-    f64,
-    Vec<f64>,
-);
+/// The fixed columns and the names they are also known by (matched without case).
+const ALIASES: [(&str, &[&str]); 10] = [
+    ("window", &["window", "segment"]),
+    (
+        "frame_index",
+        &["frame_index", "frame", "frame_no", "index"],
+    ),
+    ("t_s", &["t_s", "t", "time", "time_s"]),
+    ("sun_x", &["sun_x", "sx", "s_x"]),
+    ("sun_y", &["sun_y", "sy", "s_y"]),
+    ("sun_z", &["sun_z", "sz", "s_z"]),
+    ("obs_x", &["obs_x", "ox", "o_x", "observer_x"]),
+    ("obs_y", &["obs_y", "oy", "o_y", "observer_y"]),
+    ("obs_z", &["obs_z", "oz", "o_z", "observer_z"]),
+    ("range_m", &["range_m", "range", "r_m"]),
+];
+
+/// Where each column of the file goes.
+struct Columns {
+    /// Position of each fixed column (in [`ALIASES`] order).
+    fixed: [usize; 10],
+    /// Position of each band's flux and σ, by band.
+    flux: Vec<usize>,
+    sigma: Vec<usize>,
+    /// The header's names, for messages.
+    names: Vec<String>,
+    /// Columns read by nobody.
+    ignored: Vec<String>,
+}
+
+/// `flux_<nm>` / `sigma_<nm>` (also `flux<nm>`, `err_<nm>`, `flux_err_<nm>`, `sigma<nm>`):
+/// the kind and the wavelength text.
+fn band_column(name: &str) -> Option<(bool, &str)> {
+    for (prefix, is_flux) in [
+        ("flux_err_", false),
+        ("sigma_", false),
+        ("err_", false),
+        ("sigma", false),
+        ("flux_", true),
+        ("flux", true),
+    ] {
+        if let Some(w) = name.strip_prefix(prefix) {
+            return Some((is_flux, w));
+        }
+    }
+    None
+}
+
+fn columns(cells: &[&str], file: &str, line: u64) -> Result<(Columns, Vec<f64>)> {
+    let names: Vec<String> = cells.iter().map(|c| c.to_string()).collect();
+    let mut fixed = [usize::MAX; 10];
+    let mut bands: Vec<(f64, Option<usize>, Option<usize>)> = vec![];
+    let mut ignored = vec![];
+    for (k, raw) in cells.iter().enumerate() {
+        let name = raw.to_ascii_lowercase();
+        if let Some(slot) = ALIASES.iter().position(|(_, a)| a.contains(&name.as_str())) {
+            if fixed[slot] != usize::MAX {
+                bail!(
+                    "{file}:{line}: columns {} (`{}`) and {} (`{raw}`) are both `{}`",
+                    fixed[slot] + 1,
+                    cells[fixed[slot]],
+                    k + 1,
+                    ALIASES[slot].0
+                );
+            }
+            fixed[slot] = k;
+        } else if let Some((is_flux, w)) = band_column(&name) {
+            let (lo, hi) = WAVELENGTH_RANGE_NM;
+            let nm: f64 = w
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite() && (lo..=hi).contains(v))
+                .ok_or_else(|| {
+                    anyhow!("{file}:{line}: column {} `{raw}`: the band centre must be a number of nm in {lo}..={hi}", k + 1)
+                })?;
+            let band = match bands.iter().position(|b| b.0 == nm) {
+                Some(i) => i,
+                None => {
+                    bands.push((nm, None, None));
+                    bands.len() - 1
+                }
+            };
+            let slot = if is_flux {
+                &mut bands[band].1
+            } else {
+                &mut bands[band].2
+            };
+            if let Some(other) = *slot {
+                bail!(
+                    "{file}:{line}: columns {} (`{}`) and {} (`{raw}`) are the same band",
+                    other + 1,
+                    cells[other],
+                    k + 1
+                );
+            }
+            *slot = Some(k);
+        } else {
+            ignored.push(raw.to_string());
+        }
+    }
+    if let Some(slot) = fixed.iter().position(|&k| k == usize::MAX) {
+        let (name, aliases) = ALIASES[slot];
+        bail!(
+            "{file}:{line}: no `{name}` column (also read as: {}); the header needs {} and flux_<nm> columns",
+            aliases[1..].join(", "),
+            ALIASES.map(|a| a.0).join(", ")
+        );
+    }
+    if bands.is_empty() {
+        bail!("{file}:{line}: no flux_<nm> column");
+    }
+    let with_sigma = bands.iter().filter(|b| b.2.is_some()).count();
+    if let Some(b) = bands.iter().find(|b| b.1.is_none()) {
+        bail!(
+            "{file}:{line}: column `{}` has no flux column of its band",
+            cells[b.2.unwrap_or(0)]
+        );
+    }
+    if with_sigma != 0 && with_sigma != bands.len() {
+        bail!("{file}:{line}: give one sigma_<nm> column per flux_<nm> column, or none");
+    }
+    let wavelengths = bands.iter().map(|b| b.0).collect();
+    Ok((
+        Columns {
+            fixed,
+            flux: bands.iter().filter_map(|b| b.1).collect(),
+            sigma: bands.iter().filter_map(|b| b.2).collect(),
+            names,
+            ignored,
+        },
+        wavelengths,
+    ))
+}
 
 /// Parses the text of an observation file (`file` names it in errors). Records are read by the
 /// `csv` crate (fields trimmed, '#' lines skipped); the `truth_rate_deg_per_frame` comment is
-/// picked out of the comment lines first.
+/// picked out of the comment lines first. Columns are found by name, in any order.
 pub fn parse(text: &str, file: &str) -> Result<ObservationFile> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut truth = None;
     for (i, raw) in text.lines().enumerate() {
         if let Some(comment) = raw.trim().strip_prefix('#') {
@@ -130,9 +259,8 @@ pub fn parse(text: &str, file: &str) -> Result<ObservationFile> {
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
         .from_reader(text.as_bytes());
-    let mut header: Option<Vec<String>> = None;
+    let mut header: Option<Columns> = None;
     let mut set = ObservationSet::default();
-    let (mut n_flux, mut has_sigma) = (0usize, false);
     let mut record = csv::StringRecord::new();
     // Line numbers come from byte offsets: csv's own counter loses a line per blank CRLF line.
     let mut lines = LineCounter::new(text);
@@ -152,103 +280,27 @@ pub fn parse(text: &str, file: &str) -> Result<ObservationFile> {
         }
         let cells: Vec<&str> = record.iter().collect();
         let Some(cols) = &header else {
-            if cells.len() < FIXED.len() + 1 || cells[..FIXED.len()] != FIXED {
-                bail!(
-                    "{file}:{line_no}: header must start with {} followed by flux_<nm> columns",
-                    FIXED.join(",")
-                );
-            }
-            for c in &cells[FIXED.len()..] {
-                if let Some(w) = c.strip_prefix("flux_") {
-                    if has_sigma {
-                        bail!("{file}:{line_no}: flux_ columns must come before sigma_ columns");
-                    }
-                    let w: f64 = w.parse().map_err(|_| {
-                        anyhow!("{file}:{line_no}: column `{c}`: wavelength is not a number")
-                    })?;
-                    set.wavelengths_nm.push(w);
-                    n_flux += 1;
-                } else if c.starts_with("sigma_") {
-                    has_sigma = true;
-                } else {
-                    bail!(
-                        "{file}:{line_no}: unknown column `{c}` (allowed: flux_<nm>, sigma_<nm>)"
-                    );
-                }
-            }
-            if has_sigma && cells.len() != FIXED.len() + 2 * n_flux {
-                bail!("{file}:{line_no}: give one sigma_<nm> column per flux_<nm> column, or none");
-            }
-            header = Some(cells.iter().map(|c| c.to_string()).collect());
+            let (c, wavelengths) = columns(&cells, file, line_no)?;
+            set.wavelengths_nm = wavelengths;
+            header = Some(c);
             continue;
         };
-        if cells.len() != cols.len() {
+        if cells.len() != cols.names.len() {
             bail!(
                 "{file}:{line_no}: {} values, the header has {}",
                 cells.len(),
-                cols.len()
+                cols.names.len()
             );
         }
-        let row: Row = record
-            .deserialize(None)
-            .map_err(|e| cell_error(&e, &cells, cols, file, line_no))?;
-        let Row(window, frame_index, t_s, sx, sy, sz, ox, oy, oz, range_m, values) = row;
-        let finite = |k: usize, v: f64| -> Result<f64> {
-            if !v.is_finite() {
-                bail!(
-                    "{file}:{line_no}: column `{}`: not a finite number",
-                    cols[k]
-                );
-            }
-            Ok(v)
-        };
-        let fixed = [t_s, sx, sy, sz, ox, oy, oz, range_m];
-        for (k, v) in fixed.into_iter().enumerate() {
-            finite(k + 2, v)?;
-        }
-        for (k, v) in values.iter().enumerate() {
-            finite(FIXED.len() + k, *v)?;
-        }
-        let unit = |k: usize, v: Vector3<f64>| -> Result<Vector3<f64>> {
-            if (v.norm() - 1.0).abs() > 1e-6 {
-                bail!(
-                    "{file}:{line_no}: columns `{}`..`{}`: not a unit vector (norm {})",
-                    cols[k],
-                    cols[k + 2],
-                    v.norm()
-                );
-            }
-            Ok(v)
-        };
-        if range_m <= 0.0 {
-            bail!("{file}:{line_no}: column `range_m`: must be > 0");
-        }
-        let (flux_w, sigma_w) = values.split_at(n_flux);
-        let obs = Observation {
-            frame_index,
-            t_s,
-            sun_body: unit(3, Vector3::new(sx, sy, sz))?,
-            observer_body: unit(6, Vector3::new(ox, oy, oz))?,
-            range_m,
-            flux_w: flux_w.to_vec(),
-            // All-zero σ means noise-free data: leave the weights to the residuals.
-            sigma_w: if sigma_w.iter().all(|s| *s == 0.0) {
-                vec![]
-            } else {
-                sigma_w.to_vec()
-            },
-        };
-        match window.as_str() {
-            "stable" => set.stable.push(obs),
-            "motion" => set.motion.push(obs),
-            other => {
-                bail!("{file}:{line_no}: column `window`: `{other}` (allowed: stable, motion)")
-            }
+        let (obs, window) = row(&cells, cols, file, line_no)?;
+        match window {
+            Window::Stable => set.stable.push(obs),
+            Window::Motion => set.motion.push(obs),
         }
     }
-    if header.is_none() {
+    let Some(cols) = header else {
         bail!("{file}: no header line");
-    }
+    };
     if set.stable.is_empty() || set.motion.is_empty() {
         bail!(
             "{file}: needs rows of both windows (stable: {}, motion: {})",
@@ -259,7 +311,101 @@ pub fn parse(text: &str, file: &str) -> Result<ObservationFile> {
     Ok(ObservationFile {
         set,
         truth_rate_deg_per_frame: truth,
+        ignored_columns: cols.ignored,
     })
+}
+
+/// One data row: the observation and its window.
+fn row(cells: &[&str], cols: &Columns, file: &str, line: u64) -> Result<(Observation, Window)> {
+    let at = |k: usize| (cols.names[k].as_str(), cells[k]);
+    let number = |k: usize| -> Result<f64> {
+        let (name, v) = at(k);
+        let x: f64 = v
+            .parse()
+            .map_err(|_| anyhow!("{file}:{line}: column `{name}`: `{v}` is not a number"))?;
+        if !x.is_finite() {
+            bail!("{file}:{line}: column `{name}`: `{v}` is not a finite number");
+        }
+        Ok(x)
+    };
+    let [window, frame, t, sx, sy, sz, ox, oy, oz, range] = cols.fixed;
+    let window = match at(window).1 {
+        "stable" => Window::Stable,
+        "motion" => Window::Motion,
+        other => bail!(
+            "{file}:{line}: column `{}`: `{other}` (allowed: stable, motion)",
+            at(window).0
+        ),
+    };
+    let (frame_name, frame_text) = at(frame);
+    let frame_index: u64 = frame_text
+        .parse()
+        .ok()
+        .filter(|f| *f <= MAX_FRAME_INDEX)
+        .ok_or_else(|| {
+            anyhow!("{file}:{line}: column `{frame_name}`: `{frame_text}` is not a whole number in 0..={MAX_FRAME_INDEX}")
+        })?;
+    let unit = |k: [usize; 3]| -> Result<Vector3<f64>> {
+        let v = Vector3::new(number(k[0])?, number(k[1])?, number(k[2])?);
+        if (v.norm() - 1.0).abs() > 1e-6 {
+            bail!(
+                "{file}:{line}: columns `{}`..`{}`: not a unit vector (norm {})",
+                at(k[0]).0,
+                at(k[2]).0,
+                v.norm()
+            );
+        }
+        Ok(v)
+    };
+    let range_m = number(range)?;
+    if range_m <= 0.0 {
+        bail!("{file}:{line}: column `{}`: must be > 0", at(range).0);
+    }
+    let flux_w: Vec<f64> = cols
+        .flux
+        .iter()
+        .map(|&k| number(k))
+        .collect::<Result<_>>()?;
+    let sigma_w: Vec<f64> = cols
+        .sigma
+        .iter()
+        .map(|&k| number(k))
+        .collect::<Result<_>>()?;
+    // All-zero σ means noise-free data: leave the weights to the residuals.
+    let noise_free = sigma_w.iter().all(|s| *s == 0.0);
+    for (b, &k) in cols.sigma.iter().enumerate() {
+        if !noise_free && sigma_w[b] <= 0.0 {
+            bail!(
+                "{file}:{line}: column `{}`: σ {} must be > 0 (or 0 in every band of noise-free data)",
+                at(k).0,
+                sigma_w[b]
+            );
+        }
+    }
+    for (b, &k) in cols.flux.iter().enumerate() {
+        let floor = if noise_free {
+            0.0
+        } else {
+            -MAX_NEGATIVE_SIGMAS * sigma_w[b]
+        };
+        if flux_w[b] < floor {
+            bail!(
+                "{file}:{line}: column `{}`: flux {} W is negative beyond the noise (allowed ≥ 0, or ≥ −{MAX_NEGATIVE_SIGMAS}σ with σ given)",
+                at(k).0,
+                flux_w[b]
+            );
+        }
+    }
+    let obs = Observation {
+        frame_index,
+        t_s: number(t)?,
+        sun_body: unit([sx, sy, sz])?,
+        observer_body: unit([ox, oy, oz])?,
+        range_m,
+        flux_w,
+        sigma_w: if noise_free { vec![] } else { sigma_w },
+    };
+    Ok((obs, window))
 }
 
 /// 1-based line numbers of csv record positions, for positions met in increasing order. A
@@ -318,28 +464,6 @@ fn parse_truth(v: &str, file: &str, line_no: usize) -> Result<[f64; 3]> {
     Ok([p[0], p[1], p[2]])
 }
 
-/// The message for a cell that does not deserialize: file, line, column name and what it allows.
-fn cell_error(
-    e: &csv::Error,
-    cells: &[&str],
-    cols: &[String],
-    file: &str,
-    line_no: u64,
-) -> anyhow::Error {
-    let field = match e.kind() {
-        csv::ErrorKind::Deserialize { err, .. } => err.field(),
-        _ => None,
-    };
-    let Some(k) = field.map(|k| k as usize).filter(|k| *k < cells.len()) else {
-        return anyhow!("{file}:{line_no}: {e}");
-    };
-    let (col, v) = (&cols[k], cells[k]);
-    match k {
-        1 => anyhow!("{file}:{line_no}: column `{col}`: `{v}` is not a whole number"),
-        _ => anyhow!("{file}:{line_no}: column `{col}`: `{v}` is not a number"),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -366,6 +490,87 @@ mod tests {
         let bad = GOOD.replace("motion,0", "moving,0");
         let e = parse(&bad, "obs.csv").err().unwrap().to_string();
         assert!(e.contains("window") && e.contains("moving"), "{e}");
+    }
+
+    fn error(text: &str) -> String {
+        parse(text, "obs.csv").err().expect("refused").to_string()
+    }
+
+    /// The gaps an adversarial probe found: each is refused with line and column.
+    #[test]
+    fn malformed_bands_frames_and_noise_are_refused_with_line_and_column() {
+        let header =
+            "window,frame_index,t_s,sun_x,sun_y,sun_z,obs_x,obs_y,obs_z,range_m,flux_650,flux_700";
+        let e = error(&GOOD.replace(header, &header.replace("flux_700", "flux_nan")));
+        assert!(
+            e.contains("obs.csv:3") && e.contains("flux_nan") && e.contains("200..=25000"),
+            "{e}"
+        );
+        let e = error(&GOOD.replace(header, &header.replace("flux_700", "flux_1000000")));
+        assert!(
+            e.contains("flux_1000000") && e.contains("200..=25000"),
+            "{e}"
+        );
+        let e = error(&GOOD.replace(header, &header.replace("flux_700", "flux_650")));
+        assert!(
+            e.contains("columns 11 (`flux_650`) and 12 (`flux_650`) are the same band"),
+            "{e}"
+        );
+        let e = error(
+            &GOOD
+                .replace(header, &header.replace("t_s", "time"))
+                .replace("sun_x", "t"),
+        );
+        assert!(e.contains("are both `t_s`"), "{e}");
+        let e = error(&GOOD.replace("motion,0,10.0", "motion,18446744073709551615,10.0"));
+        assert!(
+            e.contains("obs.csv:5") && e.contains("frame_index") && e.contains("0..=1000000000"),
+            "{e}"
+        );
+        let e = error(&GOOD.replace("3e-14,4e-14", "-3e-14,4e-14"));
+        assert!(
+            e.contains("obs.csv:5") && e.contains("flux_650") && e.contains("negative"),
+            "{e}"
+        );
+        let noisy = GOOD
+            .replace(",flux_700\n", ",flux_700,sigma_650,sigma_700\n")
+            .replace("1e-14,2e-14\n", "1e-14,2e-14,1e-16,1e-16\n")
+            .replace("3e-14,4e-14\n", "3e-14,4e-14,1e-16,1e-16\n");
+        assert!(parse(&noisy, "obs.csv").is_ok());
+        // Noise about a faint flux may dip below zero; far below is not noise.
+        assert!(parse(&noisy.replace("3e-14,4e-14,", "-2e-16,4e-14,"), "obs.csv").is_ok());
+        let e = error(&noisy.replace("3e-14,4e-14,", "-1e-15,4e-14,"));
+        assert!(e.contains("obs.csv:5") && e.contains("flux_650"), "{e}");
+        for bad in ["-1e-16", "0"] {
+            let e = error(&noisy.replace(
+                "3e-14,4e-14,1e-16,1e-16",
+                &format!("3e-14,4e-14,{bad},1e-16"),
+            ));
+            assert!(
+                e.contains("obs.csv:5") && e.contains("sigma_650") && e.contains("> 0"),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    /// A light curve from another tool: a UTF-8 byte-order mark, other spellings, another
+    /// column order, and columns glint does not read (named back to the user).
+    #[test]
+    fn columns_are_read_by_name_in_any_order() {
+        let text = "\u{feff}# from another tool\nframe,t,Window,phase_deg,sx,sy,sz,ox,oy,oz,range,flux_700,flux_650,err_650,err_700\n\
+            0,0.0,stable,12.5,1,0,0,0,0,1,2.1e6,2e-14,1e-14,1e-16,2e-16\n\
+            0,10.0,motion,12.6,1,0,0,0,0,1,2.1e6,4e-14,3e-14,1e-16,2e-16\n";
+        let f = parse(text, "lc.csv").unwrap();
+        assert_eq!(f.set.wavelengths_nm, vec![700.0, 650.0]);
+        assert_eq!(f.set.motion[0].flux_w, vec![4e-14, 3e-14]);
+        assert_eq!(f.set.motion[0].sigma_w, vec![2e-16, 1e-16]);
+        assert_eq!(f.set.motion[0].t_s, 10.0);
+        assert_eq!(f.ignored_columns, vec!["phase_deg".to_string()]);
+        let e = error(&GOOD.replace("range_m,", "distance,"));
+        assert!(
+            e.contains("no `range_m` column (also read as: range, r_m)"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -15,7 +15,11 @@ use shared_types::Scenario;
 /// Detections of one frame as JSON (pixel convention: x = column, y = row, the first pixel's
 /// centre at (0, 0); θ from +x toward +y).
 pub fn detect(path: &Path, threshold_dn: Option<u16>) -> Result<String> {
-    let img = read_pgm(path).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let img = read_pgm(path).map_err(|e| match e {
+        // The read error names the file itself.
+        glint_detector::pgm::PgmError::Io { .. } => anyhow!("{e}"),
+        _ => anyhow!("{}: {e}", path.display()),
+    })?;
     let mut cfg = DetectorConfig::default();
     if let Some(t) = threshold_dn {
         cfg.threshold = Threshold::AbsoluteDn { threshold_dn: t };

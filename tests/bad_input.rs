@@ -182,3 +182,22 @@ fn unbounded_solver_settings_exit_2_before_any_work() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A file that never ends (`/dev/zero`) is refused after a documented number of bytes, with
+/// exit 2, by every command that reads a user's file; before, they read until memory ran out.
+#[test]
+fn endless_input_files_are_refused_at_their_size_limit() {
+    for (args, limit) in [
+        (&["validate", "/dev/zero"][..], "1 MiB"),
+        (&["tool", "detect", "/dev/zero"][..], "128 MiB"),
+        (&["invert", "/dev/zero"][..], "256 MiB"),
+    ] {
+        let out = glint().args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("/dev/zero") && err.contains(limit),
+            "{args:?}: {err}"
+        );
+    }
+}

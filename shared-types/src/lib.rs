@@ -4,6 +4,7 @@
 //! Only this crate and `glint-runtime` touch iceoryx2 directly.
 
 pub mod deployment;
+pub mod input;
 pub mod messages;
 pub mod scenario;
 pub mod topics;

@@ -242,11 +242,16 @@ pub fn encode_pgm(image: &PgmImage) -> Result<Vec<u8>, PgmError> {
     Ok(out)
 }
 
-/// Reads a binary PGM file.
+/// Largest PGM file read \[bytes\]: a 8192² 16-bit frame and its header.
+pub const MAX_PGM_FILE_BYTES: u64 = 8192 * 8192 * 2 + 4096;
+
+/// Reads a binary PGM file (at most [`MAX_PGM_FILE_BYTES`]).
 pub fn read_pgm(path: &Path) -> Result<PgmImage, PgmError> {
-    let bytes = std::fs::read(path).map_err(|source| PgmError::Io {
-        path: path.to_path_buf(),
-        source,
+    let bytes = shared_types::input::read_capped(path, MAX_PGM_FILE_BYTES).map_err(|source| {
+        PgmError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
     })?;
     parse_pgm(&bytes)
 }

@@ -163,10 +163,11 @@ impl Scenario {
     /// Reads, parses and validates a scenario file.
     pub fn from_file(path: &std::path::Path) -> Result<Scenario, ScenarioError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
-            file: file.clone(),
-            source,
-        })?;
+        let text = crate::input::read_text_capped(path, crate::input::MAX_TEXT_FILE_BYTES)
+            .map_err(|source| ScenarioError::Io {
+                file: file.clone(),
+                source,
+            })?;
         Self::from_toml_str(&text, &file)
     }
 
