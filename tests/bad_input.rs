@@ -47,6 +47,24 @@ fn malformed_scenarios_exit_2_naming_file_and_field() {
             "name = \"x\"\n[camera\n".to_string(),
             "camera",
         ),
+        // Messages point to the right place: a missing field names its table and itself,
+        // a bad frame count is one error (not also one per false target), and a huge value
+        // prints in exponent form.
+        (
+            "missing-fov.toml",
+            base().replace("fov_deg = 10.0\n", ""),
+            "missing-fov.toml:13: field `camera.fov_deg`: missing field `fov_deg`",
+        ),
+        (
+            "missing-band.toml",
+            spectra_base().replace("band_start_nm = 400.0\n", ""),
+            "field `spectra.band_start_nm`: missing field `band_start_nm`",
+        ),
+        (
+            "huge.toml",
+            base().replace("psf_sigma_px = 0.8", "psf_sigma_px = 1e308"),
+            "`camera.psf_sigma_px`: 1e308 is out of range; allowed 0.2..=5\n",
+        ),
         // Band centres outside the sensor's material tables: refused before any work (the
         // sensor died at run time with a Debug dump of WavelengthOutOfRange).
         (
@@ -85,6 +103,19 @@ fn malformed_scenarios_exit_2_naming_file_and_field() {
     assert!(
         !dir.join("never").exists(),
         "a bad scenario must not start a run"
+    );
+    let zero = write(
+        &dir,
+        "zero.toml",
+        &base().replace("frames = 50", "frames = 0"),
+    );
+    let out = glint().arg("validate").arg(&zero).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("`camera.frames`: 0 is out of range"), "{err}");
+    assert!(
+        !err.contains("false_targets"),
+        "one error, not one per false target: {err}"
     );
     let missing = glint()
         .arg("validate")

@@ -123,15 +123,27 @@ struct Checker {
     errors: Vec<FieldError>,
 }
 
+/// A value as a user reads it: plain, or in exponent form when very large or small (1e308,
+/// not its 309 digits).
+fn shown(v: f64) -> String {
+    let a = v.abs();
+    if a == 0.0 || !a.is_finite() || (1e-4..1e15).contains(&a) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 impl Checker {
     fn range(&mut self, field: &str, v: f64, lo: f64, hi: f64) {
+        let allowed = format!("allowed {}..={}", shown(lo), shown(hi));
         if !v.is_finite() {
             self.fail(
                 field,
-                format!("{v} is not a finite number; allowed {lo}..={hi}"),
+                format!("{} is not a finite number; {allowed}", shown(v)),
             );
         } else if v < lo || v > hi {
-            self.fail(field, format!("{v} is out of range; allowed {lo}..={hi}"));
+            self.fail(field, format!("{} is out of range; {allowed}", shown(v)));
         }
     }
     fn range_u(&mut self, field: &str, v: u64, lo: u64, hi: u64) {
@@ -254,10 +266,21 @@ impl Scenario {
 
 /// Turns a TOML/serde error into file:line + field path.
 fn parse_error(text: &str, file: &str, e: &toml::de::Error) -> ScenarioError {
-    let (line, field) = match e.span() {
+    let (line, mut field) = match e.span() {
         Some(span) => locate(text, span.start),
         None => (0, String::from("(document)")),
     };
+    // "missing field `x`": the field is x of the table the error points at.
+    let missing = e
+        .message()
+        .strip_prefix("missing field `")
+        .and_then(|m| m.split('`').next());
+    if let Some(name) = missing {
+        field = match field.as_str() {
+            "(document)" => name.to_string(),
+            table => format!("{table}.{name}"),
+        };
+    }
     ScenarioError::Parse {
         file: file.to_string(),
         line,
@@ -277,11 +300,17 @@ fn locate(text: &str, offset: usize) -> (usize, String) {
         .map(|k| k.trim().trim_matches('"').to_string())
         .filter(|k| !k.is_empty() && !k.starts_with('['))
         .unwrap_or_default();
-    let table = before
-        .lines()
-        .rev()
-        .map(str::trim)
-        .find(|l| l.starts_with('['))
+    // The table the offset is in: its own line when that is a table header (a missing field is
+    // reported at its table's header), else the last header before it.
+    let own = Some(line.trim()).filter(|l| l.starts_with('['));
+    let table = own
+        .or_else(|| {
+            before
+                .lines()
+                .rev()
+                .map(str::trim)
+                .find(|l| l.starts_with('['))
+        })
         .map(|l| {
             l.trim_matches(|ch| ch == '[' || ch == ']')
                 .trim()
