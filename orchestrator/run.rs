@@ -198,6 +198,8 @@ fn deploy_and_run(
         }
         Ok(Step::Wait)
     })?;
+    // Production ends here for a run that did not complete (a failure, a signal).
+    let t_stopped = Instant::now();
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
@@ -229,10 +231,8 @@ fn deploy_and_run(
     shutdown_sent.into_inner()?;
     consumer.poll()?;
 
-    let production_s = match (t_running, t_done) {
-        (Some(a), Some(b)) => (b - a).as_secs_f64(),
-        _ => 0.0,
-    };
+    // A run that failed produced until it stopped: its rates are over that time.
+    let production_s = t_running.map_or(0.0, |a| (t_done.unwrap_or(t_stopped) - a).as_secs_f64());
     let facts = RunFacts::collect(
         &consumer,
         &children,

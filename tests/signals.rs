@@ -173,3 +173,102 @@ fn sigterm_stops_a_campaign_instead_of_starting_the_next_deployment() {
     assert!(seeds < 30, "{seeds} deployments ran");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The children of `parent` whose command line is `glint service <name> …`.
+fn service_pid(parent: u32, name: &str) -> Option<i32> {
+    for entry in std::fs::read_dir("/proc").ok()?.flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<i32>() else {
+            continue;
+        };
+        let cmdline = std::fs::read(entry.path().join("cmdline")).unwrap_or_default();
+        let args: Vec<&[u8]> = cmdline.split(|&b| b == 0).collect();
+        let is_service = args.len() > 2 && args[1] == b"service" && args[2] == name.as_bytes();
+        let stat = std::fs::read_to_string(entry.path().join("stat")).unwrap_or_default();
+        // Field 4 of /proc/PID/stat, after the parenthesised command name.
+        let ppid = stat
+            .rsplit_once(')')
+            .and_then(|(_, rest)| rest.split_whitespace().nth(1))
+            .and_then(|p| p.parse::<u32>().ok());
+        if is_service && ppid == Some(parent) {
+            return Some(pid);
+        }
+    }
+    None
+}
+
+/// A detector killed (SIGKILL) in the middle of a run: `glint run` exits 1, the report says
+/// which service died and how; every topic's `published` is at least what its consumers
+/// received (a killed publisher's last heartbeat undercounted it), and the production time
+/// and rates cover the frames produced until the failure (they read 0).
+#[test]
+fn a_killed_service_fails_the_run_with_a_consistent_report() {
+    let dir = temp_dir("kill-detector");
+    let file = scenario_variant(
+        "debris-geo.toml",
+        &[("frames = 50", "frames = 20000")],
+        &dir,
+    );
+    let out = dir.join("out");
+    let child = glint()
+        .arg("run")
+        .arg(&file)
+        .arg("--out")
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn glint");
+    let mut child = KillOnDrop(child);
+    let t0 = Instant::now();
+    // Kill it once frames flow: startup takes about 0.1 s and 20000 frames many seconds, so
+    // one second in is mid-run (the frame count below checks it).
+    let pid = loop {
+        if let Some(pid) = service_pid(child.0.id(), "detector") {
+            break pid;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "the detector never started"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    std::thread::sleep(Duration::from_secs(1));
+    kill_process(Pid::from_raw(pid).expect("pid"), Signal::KILL).expect("SIGKILL");
+    let status = loop {
+        if let Some(s) = child.0.try_wait().expect("wait") {
+            break s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "the run did not end"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(status.code(), Some(1));
+    let report = read_json(&out.join("report.json"));
+    assert_eq!(report["success"], false);
+    let failure = report["failure"].as_str().unwrap_or_default();
+    assert!(
+        failure.contains("detector") && failure.contains("SIGKILL"),
+        "{failure}"
+    );
+    for (topic, t) in report["topics"].as_object().unwrap() {
+        let published = t["published"].as_u64();
+        for (name, c) in t["consumers"].as_object().unwrap() {
+            if let (Some(p), Some(r)) = (published, c["received"].as_u64()) {
+                assert!(p >= r, "{topic}: published {p} < received {r} by {name}");
+            }
+        }
+    }
+    let frames = report["topics"]["frame"]["published"].as_u64().unwrap();
+    assert!(frames > 0 && frames < 20000, "{frames} frames");
+    let timing = &report["timing"];
+    let production_s = timing["production_s"].as_f64().unwrap();
+    let fps = timing["frames_per_s"].as_f64().unwrap();
+    assert!(production_s > 0.3, "{timing}");
+    assert!(
+        (fps * production_s - frames as f64).abs() <= 1.0,
+        "{timing}, {frames} frames"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -131,11 +131,23 @@ impl RunFacts {
                 };
                 consumers.insert(c.name().to_string(), fact);
             }
+            // A publisher killed between heartbeats reported fewer than it published: what its
+            // consumers received (or dropped) it published at least.
+            let reported = consumer.reported(producer_of(t), t).map(|c| c.published);
+            let seen = consumers
+                .values()
+                .flatten()
+                .map(|c| c.received + c.dropped.iter().sum::<u64>())
+                .max();
+            let published = match (reported, seen) {
+                (Some(p), Some(s)) => Some(p.max(s)),
+                (p, s) => p.or(s),
+            };
             topics.insert(
                 t,
                 TopicFact {
                     expected,
-                    published: consumer.reported(producer_of(t), t).map(|c| c.published),
+                    published,
                     digest: digests.get(&t).copied(),
                     consumers,
                 },
@@ -249,8 +261,13 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
             }),
         );
     }
-    let frames = f.topics.get(&TopicId::Frame).map_or(0, |t| t.expected);
-    let spectra = f.topics.get(&TopicId::Spectrum).map_or(0, |t| t.expected);
+    // What was produced: the expected count on a complete run, fewer on a failed one.
+    let produced = |id| {
+        f.topics
+            .get(&id)
+            .map_or(0, |t: &TopicFact| t.published.unwrap_or(t.expected))
+    };
+    let (frames, spectra) = (produced(TopicId::Frame), produced(TopicId::Spectrum));
     let rate = |n: u64| {
         if f.outcome.production_s > 0.0 {
             n as f64 / f.outcome.production_s
