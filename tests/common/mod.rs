@@ -148,14 +148,12 @@ pub fn deterministic_part(report: &Value) -> Value {
     r
 }
 
-/// `/dev/shm` entries of a prefix.
+/// What a prefix left behind, in `/dev/shm` and in iceoryx2's node and service directories.
 pub fn shm_left(prefix: &str) -> Vec<String> {
-    std::fs::read_dir("/dev/shm")
-        .map(|d| {
-            d.flatten()
-                .map(|e| e.file_name().to_string_lossy().to_string())
-                .filter(|n| n.starts_with(prefix))
-                .collect()
-        })
-        .unwrap_or_default()
+    // An unreadable /dev/shm would make every leftover check pass: fail instead.
+    std::fs::read_dir("/dev/shm").expect("/dev/shm cannot be read: no leftover check possible");
+    glint_runtime::shm_entries(prefix)
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect()
 }

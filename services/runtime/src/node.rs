@@ -24,52 +24,63 @@ pub fn open_node(prefix: &str, name: &str) -> Result<IpcNode> {
     Ok(node)
 }
 
-/// Entries in `/dev/shm` that belong to a prefix.
+/// What a prefix left behind: its entries in `/dev/shm`, and the node and service
+/// directories under iceoryx2's root path (`/tmp/iceoryx2` by default) that hold its files.
 pub fn shm_entries(prefix: &str) -> Vec<std::path::PathBuf> {
-    let mut out = vec![];
-    if let Ok(dir) = std::fs::read_dir("/dev/shm") {
-        for e in dir.flatten() {
-            if e.file_name().to_string_lossy().starts_with(prefix) {
-                out.push(e.path());
+    let mut out = prefixed_in(std::path::Path::new("/dev/shm"), prefix);
+    let root = Config::global_config().global.root_path().to_string();
+    for sub in ["nodes", "services"] {
+        let dir = std::path::Path::new(&root).join(sub);
+        out.extend(prefixed_in(&dir, prefix));
+        // A node's directory is named by its id; its files carry the prefix.
+        if let Ok(rd) = std::fs::read_dir(&dir) {
+            for e in rd.flatten() {
+                let p = e.path();
+                if p.is_dir() && !prefixed_in(&p, prefix).is_empty() {
+                    out.push(p);
+                }
             }
         }
     }
     out.sort();
+    out.dedup();
     out
 }
 
-/// Removes a prefix's leftovers from `/dev/shm` and iceoryx2's node/service directories.
-/// Call only after every process of the deployment has exited.
-pub fn remove_shm(prefix: &str) -> usize {
-    let mut n = 0;
-    for p in shm_entries(prefix) {
-        if std::fs::remove_file(&p).is_ok() {
-            n += 1;
-        }
-    }
-    let root = Config::global_config().global.root_path().to_string();
-    for sub in ["nodes", "services"] {
-        let dir = std::path::Path::new(&root).join(sub);
-        n += remove_prefixed(&dir, prefix);
-    }
-    n
+/// Entries of `dir` whose name starts with `prefix`.
+fn prefixed_in(dir: &std::path::Path, prefix: &str) -> Vec<std::path::PathBuf> {
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return vec![];
+    };
+    rd.flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(prefix))
+        .map(|e| e.path())
+        .collect()
 }
 
-fn remove_prefixed(dir: &std::path::Path, prefix: &str) -> usize {
+/// Removes a prefix's leftovers: first iceoryx2's own cleanup of the prefix's dead nodes
+/// (their stale ports and services), then whatever of the prefix remains in `/dev/shm` and in
+/// iceoryx2's node and service directories ([`shm_entries`]). Call only after every process
+/// of the deployment has exited. Returns the number of entries removed.
+pub fn remove_shm(prefix: &str) -> usize {
     let mut n = 0;
-    if let Ok(rd) = std::fs::read_dir(dir) {
-        for e in rd.flatten() {
-            if !e.file_name().to_string_lossy().starts_with(prefix) {
-                continue;
+    if let Ok(name) = FileName::new(prefix.as_bytes()) {
+        let mut config = Config::global_config().clone();
+        config.global.prefix = name;
+        let _ = Node::<ipc::Service>::list(&config, |state| {
+            if let NodeState::Dead(view) = state {
+                n += view.try_remove_stale_resources().is_ok() as usize;
             }
-            let p = e.path();
-            let ok = if p.is_dir() {
-                std::fs::remove_dir_all(&p).is_ok()
-            } else {
-                std::fs::remove_file(&p).is_ok()
-            };
-            n += ok as usize;
-        }
+            CallbackProgression::Continue
+        });
+    }
+    for p in shm_entries(prefix) {
+        let ok = if p.is_dir() {
+            std::fs::remove_dir_all(&p).is_ok()
+        } else {
+            std::fs::remove_file(&p).is_ok()
+        };
+        n += ok as usize;
     }
     n
 }
