@@ -97,14 +97,22 @@ fn realtime_clock_accounts_for_every_frame() {
         ],
         &dir,
     );
-    let r = run(Some(&file), &dir.join("out"), &[]);
+    // The run must succeed (every message accounted for), and every consumer of the frames —
+    // the detector too, not only the orchestrator — received or dropped each one with a reason.
+    let r = run_ok(Some(&file), &dir.join("out"), &[]);
+    assert_eq!(r.report["success"], true);
+    assert_eq!(r.report["scenario"]["clock"], "realtime");
     let f = &r.report["topics"]["frame"];
     assert_eq!(f["published"], 25);
-    let c = &f["consumers"]["orchestrator"];
-    assert_eq!(
-        c["received"].as_u64().unwrap() + c["dropped"].as_u64().unwrap(),
-        25
-    );
+    for name in ["orchestrator", "detector"] {
+        let c = &f["consumers"][name];
+        assert_eq!(c["accounted"], true, "{name}: {c}");
+        assert_eq!(
+            c["received"].as_u64().unwrap() + c["dropped"].as_u64().unwrap(),
+            25,
+            "{name}: {c}"
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 
