@@ -31,6 +31,9 @@ pub fn prepare(out: Option<&Path>, name: &str, id: &str, replace: bool) -> anyho
         Some(p) => p.to_path_buf(),
         None => PathBuf::from("runs").join(format!("{name}-{}-{id}", crate::run::utc_stamp())),
     };
+    if path.exists() && !path.is_dir() {
+        return Err(OutDirError(format!("{} is a file, not a directory", path.display())).into());
+    }
     let holds_files = std::fs::read_dir(&path).is_ok_and(|mut d| d.next().is_some());
     if holds_files {
         let shown = path.display();

@@ -186,5 +186,10 @@ fn out_into_a_previous_run_needs_force_and_leaves_nothing_of_it() {
     assert_eq!(refused.status.code(), Some(2), "{err}");
     assert!(err.contains("not a glint run directory"), "{err}");
     assert!(other.join("notes.txt").exists());
+    let file = other.join("notes.txt");
+    let onto_file = glint().arg("run").arg("--out").arg(&file).output().unwrap();
+    let err = String::from_utf8_lossy(&onto_file.stderr);
+    assert_eq!(onto_file.status.code(), Some(2), "{err}");
+    assert!(err.contains("is a file, not a directory"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
