@@ -51,28 +51,28 @@ pub fn prepare(out: Option<&Path>, name: &str, id: &str, replace: bool) -> anyho
             ))
             .into());
         }
-        let lock = File::options()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(path.join(LOCK))?;
-        if flock(&lock, FlockOperation::NonBlockingLockExclusive).is_err() {
-            return Err(OutDirError(format!("{shown} is in use by a running deployment")).into());
-        }
+        let lock = lock(&path)?;
         clear(&path)?;
         return Ok(RunDir { path, _lock: lock });
     }
     std::fs::create_dir_all(&path)
         .map_err(|e| anyhow::anyhow!("creating run directory {}: {e}", path.display()))?;
-    let lock = File::create(path.join(LOCK))?;
-    if flock(&lock, FlockOperation::NonBlockingLockExclusive).is_err() {
-        return Err(OutDirError(format!(
-            "{} is in use by a running deployment",
-            path.display()
-        ))
-        .into());
-    }
+    let lock = lock(&path)?;
     Ok(RunDir { path, _lock: lock })
+}
+
+/// Takes the exclusive lock of `dir`, or says which deployment holds it.
+fn lock(dir: &Path) -> anyhow::Result<File> {
+    let lock = File::options()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(dir.join(LOCK))?;
+    if flock(&lock, FlockOperation::NonBlockingLockExclusive).is_err() {
+        let shown = dir.display();
+        return Err(OutDirError(format!("{shown} is in use by a running deployment")).into());
+    }
+    Ok(lock)
 }
 
 /// Whether `dir` looks like a run's: it has the files every run writes first or last.

@@ -222,6 +222,48 @@ fn service_pid(parent: u32, name: &str) -> Option<i32> {
     None
 }
 
+/// `glint run FILE --out OUT`, killed if the test ends first.
+fn start_run(file: &std::path::Path, out: &std::path::Path) -> KillOnDrop {
+    KillOnDrop(
+        glint()
+            .arg("run")
+            .arg(file)
+            .arg("--out")
+            .arg(out)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn glint"),
+    )
+}
+
+/// The pid of the run's service `name` once it exists (polled every `poll`, at most 60 s).
+fn wait_for_service(run: &KillOnDrop, name: &str, poll: Duration) -> Pid {
+    let t0 = Instant::now();
+    loop {
+        if let Some(pid) = service_pid(run.0.id(), name) {
+            return Pid::from_raw(pid).expect("pid");
+        }
+        assert!(t0.elapsed() < Duration::from_secs(60), "no {name} started");
+        std::thread::sleep(poll);
+    }
+}
+
+/// The run's exit status (at most 120 s).
+fn wait_for_exit(run: &mut KillOnDrop) -> std::process::ExitStatus {
+    let t0 = Instant::now();
+    loop {
+        if let Some(s) = run.0.try_wait().expect("wait") {
+            return s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "the run did not end"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
 /// A detector killed (SIGKILL) in the middle of a run: `glint run` exits 1, the report says
 /// which service died and how; every topic's `published` is at least what its consumers
 /// received (a killed publisher's last heartbeat undercounted it), and the production time
@@ -235,41 +277,13 @@ fn a_killed_service_fails_the_run_with_a_consistent_report() {
         &dir,
     );
     let out = dir.join("out");
-    let child = glint()
-        .arg("run")
-        .arg(&file)
-        .arg("--out")
-        .arg(&out)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn glint");
-    let mut child = KillOnDrop(child);
-    let t0 = Instant::now();
+    let mut run = start_run(&file, &out);
     // Kill it once frames flow: startup takes about 0.1 s and 20000 frames many seconds, so
     // one second in is mid-run (the frame count below checks it).
-    let pid = loop {
-        if let Some(pid) = service_pid(child.0.id(), "detector") {
-            break pid;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(60),
-            "the detector never started"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    let pid = wait_for_service(&run, "detector", Duration::from_millis(20));
     std::thread::sleep(Duration::from_secs(1));
-    kill_process(Pid::from_raw(pid).expect("pid"), Signal::KILL).expect("SIGKILL");
-    let status = loop {
-        if let Some(s) = child.0.try_wait().expect("wait") {
-            break s;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(120),
-            "the run did not end"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    kill_process(pid, Signal::KILL).expect("SIGKILL");
+    let status = wait_for_exit(&mut run);
     assert_eq!(status.code(), Some(1));
     let report = read_json(&out.join("report.json"));
     assert_eq!(report["success"], false);
@@ -307,35 +321,10 @@ fn a_service_killed_during_startup_leaves_no_node_behind() {
     let dir = temp_dir("kill-at-startup");
     for attempt in 0..4 {
         let out = dir.join(format!("out{attempt}"));
-        let child = glint()
-            .arg("run")
-            .arg(scenario("debris-geo.toml"))
-            .arg("--out")
-            .arg(&out)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("spawn glint");
-        let mut child = KillOnDrop(child);
-        let t0 = Instant::now();
-        let pid = loop {
-            if let Some(pid) = service_pid(child.0.id(), "tracker") {
-                break pid;
-            }
-            assert!(t0.elapsed() < Duration::from_secs(60), "no tracker started");
-            std::thread::sleep(Duration::from_millis(1));
-        };
-        kill_process(Pid::from_raw(pid).expect("pid"), Signal::KILL).expect("SIGKILL");
-        let status = loop {
-            if let Some(s) = child.0.try_wait().expect("wait") {
-                break s;
-            }
-            assert!(
-                t0.elapsed() < Duration::from_secs(60),
-                "the run did not end"
-            );
-            std::thread::sleep(Duration::from_millis(10));
-        };
+        let mut run = start_run(&scenario("debris-geo.toml"), &out);
+        let pid = wait_for_service(&run, "tracker", Duration::from_millis(1));
+        kill_process(pid, Signal::KILL).expect("SIGKILL");
+        let status = wait_for_exit(&mut run);
         assert_eq!(status.code(), Some(1), "attempt {attempt}");
         let report = read_json(&out.join("report.json"));
         let prefix = report["run"]["prefix"]
