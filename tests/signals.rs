@@ -22,14 +22,19 @@ impl Drop for KillOnDrop {
     }
 }
 
+/// The fields of `PROC_DIR/stat` after the parenthesised command name: state, ppid, …
+fn stat_fields(proc_dir: &str) -> Option<Vec<String>> {
+    let stat = std::fs::read_to_string(format!("{proc_dir}/stat")).ok()?;
+    let (_, rest) = stat.rsplit_once(')')?;
+    Some(rest.split_whitespace().map(str::to_string).collect())
+}
+
 /// Waits (at most 5 s) until the process state in `/proc/PID/stat` satisfies `ok`.
 fn wait_for_state(pid: u32, ok: impl Fn(char) -> bool) {
     let t0 = Instant::now();
     loop {
-        let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-        let state = stat
-            .rsplit_once(')')
-            .and_then(|(_, rest)| rest.trim_start().chars().next());
+        let state = stat_fields(&format!("/proc/{pid}"))
+            .and_then(|f| f.first().and_then(|s| s.chars().next()));
         if state.is_some_and(&ok) {
             return;
         }
@@ -209,12 +214,8 @@ fn service_pid(parent: u32, name: &str) -> Option<i32> {
         let cmdline = std::fs::read(entry.path().join("cmdline")).unwrap_or_default();
         let args: Vec<&[u8]> = cmdline.split(|&b| b == 0).collect();
         let is_service = args.len() > 2 && args[1] == b"service" && args[2] == name.as_bytes();
-        let stat = std::fs::read_to_string(entry.path().join("stat")).unwrap_or_default();
-        // Field 4 of /proc/PID/stat, after the parenthesised command name.
-        let ppid = stat
-            .rsplit_once(')')
-            .and_then(|(_, rest)| rest.split_whitespace().nth(1))
-            .and_then(|p| p.parse::<u32>().ok());
+        let ppid = stat_fields(&entry.path().to_string_lossy())
+            .and_then(|f| f.get(1).and_then(|p| p.parse::<u32>().ok()));
         if is_service && ppid == Some(parent) {
             return Some(pid);
         }
