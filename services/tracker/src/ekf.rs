@@ -27,7 +27,7 @@
 use crate::angle_filter::{wrap_pi, AngleMeasurement};
 use glint_physics::camera::position_from_angles;
 use glint_physics::cw::cw_stm_lvlhn;
-use nalgebra::{Matrix3, Matrix3x6, Matrix6, SMatrix, SVector, Vector3, Vector6};
+use nalgebra::{Matrix2, Matrix3, Matrix3x6, Matrix6, SMatrix, SVector, Vector3, Vector6};
 
 /// Mean motion of a GEO observer (§3.9, §7.1) \[rad/s\].
 pub const GEO_MEAN_MOTION_RAD_S: f64 = 7.292115864164384e-05;
@@ -243,11 +243,28 @@ impl CwEkf {
         Ok(Self { config, t_s, x, p })
     }
 
-    /// Two-fix initialisation (see the module doc).
+    /// Two-fix initialisation (see the module doc), each fix's angles measured with the
+    /// configured σ_α, σ_β.
     pub fn initialize(
         config: CwEkfConfig,
         first: &RangeFix,
         second: &RangeFix,
+    ) -> Result<Self, EkfError> {
+        let angles = config
+            .measurement_covariance()
+            .fixed_view::<2, 2>(0, 0)
+            .into_owned();
+        Self::initialize_with_angle_covariances(config, first, second, [angles; 2])
+    }
+
+    /// Two-fix initialisation where each fix's (α, β) carry their own covariance, e.g. angles
+    /// an angle filter predicted to a delayed range's time: P₀ must hold the prediction's
+    /// uncertainty, not the measurement's, or the filter starts (and stays) over-confident.
+    pub fn initialize_with_angle_covariances(
+        config: CwEkfConfig,
+        first: &RangeFix,
+        second: &RangeFix,
+        angle_covariances: [Matrix2<f64>; 2],
     ) -> Result<Self, EkfError> {
         let dt = second.t_s - first.t_s;
         if !(dt > 0.0 && dt.is_finite()) {
@@ -273,14 +290,17 @@ impl CwEkf {
         m.fixed_view_mut::<3, 3>(3, 0)
             .copy_from(&(vr - vv * rv_inv * rr));
         m.fixed_view_mut::<3, 3>(3, 3).copy_from(&(vv * rv_inv));
-        let r = config.measurement_covariance();
-        let cov = |f: &RangeFix| {
+        let cov = |f: &RangeFix, angles: &Matrix2<f64>| {
+            let mut r = config.measurement_covariance();
+            r.fixed_view_mut::<2, 2>(0, 0).copy_from(angles);
             let j = fix_jacobian(f.azimuth_rad, f.elevation_rad, f.range_m);
             j * r * j.transpose()
         };
         let mut c = Matrix6::zeros();
-        c.fixed_view_mut::<3, 3>(0, 0).copy_from(&cov(first));
-        c.fixed_view_mut::<3, 3>(3, 3).copy_from(&cov(second));
+        c.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&cov(first, &angle_covariances[0]));
+        c.fixed_view_mut::<3, 3>(3, 3)
+            .copy_from(&cov(second, &angle_covariances[1]));
         let p = m * c * m.transpose() + process_noise(config.accel_noise_m_s_3_2, dt);
         Self::from_state(config, second.t_s, x, 0.5 * (p + p.transpose()))
     }

@@ -20,6 +20,7 @@ use crate::angle_filter::{
 use crate::ekf::{CwEkf, CwEkfConfig, EkfError, EkfEstimate, RangeFix};
 use crate::pointing::{predict_pointing, PointingCommand};
 use crate::ConfigError;
+use nalgebra::Matrix2;
 use std::collections::BTreeMap;
 
 /// Life-cycle and filter settings.
@@ -151,7 +152,8 @@ pub struct Track {
     pub angle_filter: Option<AngleFilter>,
     pub ekf: Option<CwEkf>,
     pending_angles: Option<AngleMeasurement>,
-    pending_fix: Option<RangeFix>,
+    /// A first fix awaiting its second, with the covariance of its (α, β).
+    pending_fix: Option<(RangeFix, Matrix2<f64>)>,
 }
 
 /// A track's state for the JSON report.
@@ -326,18 +328,28 @@ impl Track {
             return;
         }
         // Initialisation needs fixes (α, β, r) at one time: the range's, with the angles the
-        // angle filter predicts for that time (the measured ones when the times agree).
-        let (az, el) = if t_s > obs.t_s {
+        // angle filter predicts for that time and their covariance (the measured ones and
+        // σ_α, σ_β when the times agree).
+        let (az, el, angles_cov) = if t_s > obs.t_s {
             match self
                 .angle_filter
                 .as_ref()
                 .and_then(|f| f.predicted(t_s).ok())
             {
-                Some((x, _)) => (x[0], x[2]),
+                Some((x, p)) => (
+                    x[0],
+                    x[2],
+                    Matrix2::new(p[(0, 0)], p[(0, 2)], p[(2, 0)], p[(2, 2)]),
+                ),
                 None => return,
             }
         } else {
-            (obs.azimuth_rad, obs.elevation_rad)
+            let r = cfg.measurement_covariance();
+            (
+                obs.azimuth_rad,
+                obs.elevation_rad,
+                r.fixed_view::<2, 2>(0, 0).into_owned(),
+            )
         };
         let fix = RangeFix {
             t_s,
@@ -346,14 +358,25 @@ impl Track {
             range_m,
         };
         match self.pending_fix.take() {
-            Some(first) if fix.t_s > first.t_s => match CwEkf::initialize(*cfg, &first, &fix) {
-                Ok(f) => self.ekf = Some(f),
-                Err(e) => {
-                    self.pending_fix = Some(fix);
-                    faults.push(self.fault(FilterKind::Ekf, FaultAction::Skipped, e.to_string()));
+            Some((first, first_cov)) if fix.t_s > first.t_s => {
+                match CwEkf::initialize_with_angle_covariances(
+                    *cfg,
+                    &first,
+                    &fix,
+                    [first_cov, angles_cov],
+                ) {
+                    Ok(f) => self.ekf = Some(f),
+                    Err(e) => {
+                        self.pending_fix = Some((fix, angles_cov));
+                        faults.push(self.fault(
+                            FilterKind::Ekf,
+                            FaultAction::Skipped,
+                            e.to_string(),
+                        ));
+                    }
                 }
-            },
-            _ => self.pending_fix = Some(fix),
+            }
+            _ => self.pending_fix = Some((fix, angles_cov)),
         }
     }
 
