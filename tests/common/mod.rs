@@ -7,6 +7,8 @@ use std::process::{Command, Output};
 
 use serde_json::Value;
 
+pub mod procs;
+
 pub fn glint() -> Command {
     Command::new(env!("CARGO_BIN_EXE_glint"))
 }
@@ -156,4 +158,55 @@ pub fn shm_left(prefix: &str) -> Vec<String> {
         .iter()
         .map(|p| p.display().to_string())
         .collect()
+}
+
+/// What an SVG figure shows: its text labels (trimmed, numbers left out) and how many
+/// elements of `tag` it draws.
+pub struct Svg {
+    pub texts: Vec<String>,
+    text: String,
+}
+
+impl Svg {
+    pub fn read(path: &Path) -> Svg {
+        let text =
+            std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let mut texts = vec![];
+        for chunk in text.split("<text").skip(1) {
+            let Some(body) = chunk.split_once('>').map(|(_, b)| b) else {
+                continue;
+            };
+            let label = body.split("</text>").next().unwrap_or_default().trim();
+            let numeric = label
+                .chars()
+                .all(|c| c.is_ascii_digit() || "+-.e−".contains(c));
+            if !label.is_empty() && !numeric {
+                texts.push(label.to_string());
+            }
+        }
+        Svg { texts, text }
+    }
+
+    /// The number of `<tag …>` elements.
+    pub fn count(&self, tag: &str) -> usize {
+        self.text.matches(&format!("<{tag} ")).count()
+    }
+
+    pub fn has_text(&self, label: &str) -> bool {
+        self.texts.iter().any(|t| t == label)
+    }
+}
+
+/// Width and height of a PNG, from its IHDR chunk.
+pub fn png_size(path: &Path) -> (u32, u32) {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(
+        &bytes[..8],
+        b"\x89PNG\r\n\x1a\n",
+        "{} is not a PNG",
+        path.display()
+    );
+    assert_eq!(&bytes[12..16], b"IHDR");
+    let be = |i: usize| u32::from_be_bytes(bytes[i..i + 4].try_into().unwrap());
+    (be(16), be(20))
 }
