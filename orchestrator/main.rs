@@ -5,6 +5,7 @@
 //! Exit codes: 0 success, 1 the run failed (a service died, a message was lost, …),
 //! 2 bad input (scenario file, arguments).
 
+mod clean;
 mod consume;
 mod deploy;
 mod invert;
@@ -59,6 +60,13 @@ enum Cmd {
         /// Override the scenario's seed.
         #[arg(long)]
         seed: Option<u64>,
+    },
+    /// Remove what crashed deployments left in shared memory (/dev/shm and iceoryx2's node
+    /// directory); a deployment still running is left alone.
+    Clean {
+        /// Only this deployment prefix (`glint_<hex>_`, in report.json under run.prefix).
+        #[arg(long)]
+        prefix: Option<String>,
     },
     /// Check a scenario file; report every problem with its field and allowed range.
     Validate { scenario: PathBuf },
@@ -200,6 +208,19 @@ fn finish(result: anyhow::Result<(PathBuf, bool)>) -> ExitCode {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Cmd::Clean { prefix } => {
+            if let Some(p) = prefix
+                .as_deref()
+                .filter(|p| !glint_runtime::is_deployment_prefix(p))
+            {
+                eprintln!("error: --prefix {p:?}: a deployment prefix is glint_<hex digits>_ (report.json, run.prefix)");
+                return ExitCode::from(2);
+            }
+            for line in clean::clean(prefix.as_deref()) {
+                println!("{line}");
+            }
+            ExitCode::SUCCESS
+        }
         Cmd::Validate { scenario } => match Scenario::from_file(&scenario) {
             Ok(s) => {
                 println!(

@@ -60,7 +60,7 @@ pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let wall0 = Instant::now();
     let result = deploy_and_run(scenario, &prefix, &exe, &resolved, &out_dir, opts.progress);
     // Everything iceoryx2 is dropped inside deploy_and_run; now nothing of the prefix may remain.
-    let removed = remove_shm(&prefix);
+    let (removed, held_by) = remove_shm(&prefix);
     let leftover: Vec<String> = shm_entries(&prefix)
         .iter()
         .map(|p| p.display().to_string())
@@ -68,6 +68,15 @@ pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let mut facts = result?;
     facts.shm_removed = removed;
     facts.shm_leftover = leftover;
+    if !held_by.is_empty() && facts.failure.is_none() {
+        facts.failure = Some(format!(
+            "the deployment's shared memory is still held by node(s) {} outside it; their files \
+             under prefix {prefix} are left in place (`glint clean --prefix {prefix}` removes \
+             them once those processes end)",
+            held_by.join(", ")
+        ));
+    }
+    facts.shm_held_by = held_by;
     facts.wall_s = wall0.elapsed().as_secs_f64();
     facts.prefix = prefix;
     facts.scenario_file = opts.scenario_file.clone();

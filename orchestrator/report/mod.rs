@@ -69,6 +69,8 @@ pub struct RunFacts {
     pub scenario_file: String,
     pub shm_removed: usize,
     pub shm_leftover: Vec<String>,
+    /// Live nodes under the prefix once the deployment ended (processes outside it).
+    pub shm_held_by: Vec<String>,
 }
 
 /// The service that publishes a topic.
@@ -196,6 +198,7 @@ impl RunFacts {
             scenario_file: String::new(),
             shm_removed: 0,
             shm_leftover: vec![],
+            shm_held_by: vec![],
         }
     }
 
@@ -305,7 +308,7 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
         })).collect::<Vec<_>>(),
         "topics": topics,
         "laser": { "requests": f.range_requests },
-        "shared_memory": { "leftover": f.shm_leftover },
+        "shared_memory": { "leftover": f.shm_leftover, "held_by": f.shm_held_by },
         "run": {
             "prefix": f.prefix,
             "scenario_file": f.scenario_file,

@@ -19,7 +19,9 @@ pub use clock::mono_ns;
 pub use config_error::ConfigError;
 pub use credit::{AckReader, Credit};
 pub use housekeeping::Housekeeping;
-pub use node::{init_tracing, open_node, remove_shm, shm_entries};
+pub use node::{
+    glint_prefixes, init_tracing, is_deployment_prefix, open_node, remove_shm, shm_entries,
+};
 pub use ports::{Inbox, Outbox};
 pub use stats::TopicStats;
 pub use waitloop::{run_loop, Exit, Step, Wake};

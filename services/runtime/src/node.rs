@@ -47,6 +47,42 @@ pub fn shm_entries(prefix: &str) -> Vec<std::path::PathBuf> {
     out
 }
 
+/// The deployment prefixes (`glint_<hex>_`) that have anything in `/dev/shm` or in iceoryx2's
+/// node and service directories, sorted.
+pub fn glint_prefixes() -> Vec<String> {
+    let root = Config::global_config().global.root_path().to_string();
+    let mut dirs = vec![std::path::PathBuf::from("/dev/shm")];
+    for sub in ["nodes", "services"] {
+        let dir = std::path::Path::new(&root).join(sub);
+        if let Ok(rd) = std::fs::read_dir(&dir) {
+            dirs.extend(rd.flatten().map(|e| e.path()).filter(|p| p.is_dir()));
+        }
+        dirs.push(dir);
+    }
+    let mut out: Vec<String> = dirs
+        .iter()
+        .filter_map(|d| std::fs::read_dir(d).ok())
+        .flat_map(|rd| rd.flatten())
+        .filter_map(|e| deployment_prefix(&e.file_name().to_string_lossy()).map(str::to_string))
+        .collect();
+    out.sort();
+    out.dedup();
+    out
+}
+
+/// Whether `prefix` is a whole deployment prefix, `glint_<hex>_`.
+pub fn is_deployment_prefix(prefix: &str) -> bool {
+    deployment_prefix(prefix) == Some(prefix)
+}
+
+/// `glint_<hex>_` at the start of a file name.
+fn deployment_prefix(name: &str) -> Option<&str> {
+    let rest = name.strip_prefix("glint_")?;
+    let hex = rest.find('_')?;
+    (hex > 0 && rest[..hex].bytes().all(|b| b.is_ascii_hexdigit()))
+        .then(|| &name[.."glint_".len() + hex + 1])
+}
+
 /// Entries of `dir` whose name starts with `prefix`.
 fn prefixed_in(dir: &std::path::Path, prefix: &str) -> Vec<std::path::PathBuf> {
     let Ok(rd) = std::fs::read_dir(dir) else {
@@ -60,19 +96,32 @@ fn prefixed_in(dir: &std::path::Path, prefix: &str) -> Vec<std::path::PathBuf> {
 
 /// Removes a prefix's leftovers: first iceoryx2's own cleanup of the prefix's dead nodes
 /// (their stale ports and services), then whatever of the prefix remains in `/dev/shm` and in
-/// iceoryx2's node and service directories ([`shm_entries`]). Call only after every process
-/// of the deployment has exited. Returns the number of entries removed.
-pub fn remove_shm(prefix: &str) -> usize {
+/// iceoryx2's node and service directories ([`shm_entries`]). A prefix that a live node still
+/// holds (a process outside the deployment, or one not yet ended) keeps its files: they are
+/// that node's, and show as leftovers. Call after every process of the deployment has exited.
+/// Returns the number of entries removed and the names of the live nodes.
+pub fn remove_shm(prefix: &str) -> (usize, Vec<String>) {
     let mut n = 0;
+    let mut alive = vec![];
     if let Ok(name) = FileName::new(prefix.as_bytes()) {
         let mut config = Config::global_config().clone();
         config.global.prefix = name;
         let _ = Node::<ipc::Service>::list(&config, |state| {
-            if let NodeState::Dead(view) = state {
-                n += view.try_remove_stale_resources().is_ok() as usize;
+            match state {
+                NodeState::Dead(view) => {
+                    n += view.try_remove_stale_resources().is_ok() as usize;
+                }
+                NodeState::Alive(view) => alive.push(node_label(&view)),
+                // Another user's node: not ours to remove.
+                NodeState::Inaccessible(id) => alive.push(format!("{id:?}")),
+                // A node killed while it was being created: its files go below.
+                NodeState::Undefined(_) => {}
             }
             CallbackProgression::Continue
         });
+    }
+    if !alive.is_empty() {
+        return (n, alive);
     }
     for p in shm_entries(prefix) {
         let ok = if p.is_dir() {
@@ -82,7 +131,15 @@ pub fn remove_shm(prefix: &str) -> usize {
         };
         n += ok as usize;
     }
-    n
+    (n, alive)
+}
+
+/// A live node's name, or its id where it published no details.
+fn node_label(view: &impl iceoryx2::node::NodeView) -> String {
+    view.details().as_ref().map_or_else(
+        || format!("{:?}", view.id()),
+        |d| d.name().as_str().to_string(),
+    )
 }
 
 /// Sets up `tracing` to stderr, filtered by `RUST_LOG` (default `info`), with the service name.
@@ -96,4 +153,24 @@ pub fn init_tracing(service: &str) {
         .with_target(false)
         .try_init();
     tracing::debug!(service, "tracing ready");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::deployment_prefix;
+
+    #[test]
+    fn a_deployment_prefix_is_glint_hex_underscore() {
+        assert_eq!(
+            deployment_prefix("glint_4f2a09bc_frame.service"),
+            Some("glint_4f2a09bc_")
+        );
+        assert_eq!(deployment_prefix("glint_4f2a09bc"), None);
+        assert_eq!(deployment_prefix("glint__x"), None);
+        assert_eq!(deployment_prefix("glint_xyz_a"), None);
+        assert_eq!(deployment_prefix("iox2_4f2a_"), None);
+        assert!(super::is_deployment_prefix("glint_4f2a09bc_"));
+        assert!(!super::is_deployment_prefix("glint_4f2a09bc_x"));
+        assert!(!super::is_deployment_prefix(""));
+    }
 }
