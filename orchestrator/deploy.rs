@@ -58,7 +58,14 @@ impl ServiceProcess {
         let log_path = log_dir.join(format!("{}.log", id.name()));
         let log = std::fs::File::create(&log_path)
             .with_context(|| format!("creating {}", log_path.display()))?;
-        let child = Command::new(exe)
+        let parent = rustix::process::getpid();
+        let mut command = Command::new(exe);
+        // SAFETY: the closure runs in the forked child before exec and makes only
+        // async-signal-safe calls (prctl, getppid), allocating nothing.
+        unsafe {
+            command.pre_exec(move || glint_runtime::lifeline::set_death_signal_in_child(parent));
+        }
+        let child = command
             .arg("service")
             .arg(id.name())
             .arg("--prefix")

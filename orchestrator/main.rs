@@ -359,6 +359,8 @@ fn main() -> ExitCode {
             scenario,
         } => {
             glint_runtime::init_tracing(&name);
+            // A service ends with the process that started it (see glint_runtime::lifeline).
+            glint_runtime::lifeline::watch_parent();
             let sc = match Scenario::from_file(&scenario) {
                 Ok(s) => s,
                 Err(e) => {

@@ -246,3 +246,70 @@ fn a_prefix_still_held_at_the_end_fails_the_leftover_check_and_glint_clean_remov
     assert_eq!(out.status.code(), Some(2));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A SIGKILLed orchestrator takes its services with it (parent-death signal, and each service
+/// watches its parent), a SIGSTOPped one included (its orphaned process group gets SIGHUP and
+/// SIGCONT); `glint clean` then removes everything the deployment left.
+#[test]
+fn a_killed_orchestrator_leaves_no_service_running_and_glint_clean_leaves_nothing() {
+    let dir = temp_dir("kill-orchestrator");
+    let file = long_debris(&dir, "timeout_s = 120.0");
+    let out = dir.join("out");
+    let mut run = start_run(&file, &out, &[]);
+    let services: Vec<_> = ["sensor", "detector", "tracker"]
+        .map(|name| wait_for_service(&run, name, Duration::from_millis(5)))
+        .into();
+    let prefix = prefix_of(services[0]);
+    wait_for_start(&out);
+    kill_process(services[1], Signal::STOP).expect("SIGSTOP the detector");
+    wait_for_state(services[1].as_raw_nonzero().get() as u32, |s| s == 'T');
+    run.0.kill().expect("SIGKILL the orchestrator");
+    run.0.wait().expect("reap");
+    let killed = Instant::now();
+    for pid in &services {
+        let pid = pid.as_raw_nonzero().get() as u32;
+        // Gone, or a zombie init has not reaped yet.
+        while process_state(pid).is_some_and(|s| s != 'Z') {
+            assert!(
+                killed.elapsed() < Duration::from_secs(1),
+                "service {pid} outlived its orchestrator by 1 s: state {:?}",
+                process_state(pid)
+            );
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+    assert!(
+        !shm_left(&prefix).is_empty(),
+        "a killed orchestrator leaves its services' files"
+    );
+    let cleaned = glint()
+        .args(["clean", "--prefix", &prefix])
+        .output()
+        .unwrap();
+    assert!(cleaned.status.success(), "{cleaned:?}");
+    assert!(shm_left(&prefix).is_empty(), "{:?}", shm_left(&prefix));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// SIGHUP (a closed terminal) ends a run like SIGTERM: the services stop on `Shutdown`, the
+/// report says why, nothing is left.
+#[test]
+fn sighup_ends_a_run_cleanly() {
+    let dir = temp_dir("sighup");
+    let file = long_debris(&dir, "timeout_s = 120.0");
+    let out = dir.join("out");
+    let mut run = start_run(&file, &out, &[]);
+    wait_for_start(&out);
+    let pid = rustix::process::Pid::from_child(&run.0);
+    kill_process(pid, Signal::HUP).expect("SIGHUP");
+    let status = wait_for_exit(&mut run, Duration::from_secs(30));
+    assert_eq!(status.code(), Some(1));
+    let report = read_json(&out.join("report.json"));
+    assert_eq!(report["failure"], "interrupted by a signal");
+    for name in ["sensor", "detector", "tracker"] {
+        assert_eq!(ending(&report, name), "shutdown", "{name}: {report}");
+    }
+    let prefix = report["run"]["prefix"].as_str().unwrap();
+    assert!(shm_left(prefix).is_empty(), "{:?}", shm_left(prefix));
+    let _ = std::fs::remove_dir_all(&dir);
+}

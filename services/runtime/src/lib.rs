@@ -8,6 +8,7 @@ pub mod clock;
 pub mod config_error;
 pub mod credit;
 pub mod housekeeping;
+pub mod lifeline;
 pub mod node;
 pub mod ports;
 pub mod rng;

@@ -1,7 +1,8 @@
 //! The one event loop of every service: block in an iceoryx2 WaitSet on the input listeners
 //! (each optionally with a deadline) and a periodic tick; never spin.
 //!
-//! Exit happens only on `TerminationRequest` (SIGTERM/SIGINT) or when the handler asks for it.
+//! Exit happens only on `TerminationRequest` (SIGTERM/SIGINT), on what [`crate::lifeline`]
+//! reports (SIGHUP, a watched parent gone), or when the handler asks for it.
 //! `Interrupt` is ignored on purpose: iceoryx2 raises it for SIGCONT too, and a service that is
 //! SIGSTOPped and continued by fault injection must keep running (docs/iceoryx2 notes §9.1).
 
@@ -41,7 +42,7 @@ pub enum Step {
 pub enum Exit {
     /// The handler returned `Step::Stop`.
     Stopped,
-    /// SIGTERM / SIGINT.
+    /// SIGTERM / SIGINT / SIGHUP, or the parent process ended.
     Terminated,
 }
 
@@ -51,6 +52,7 @@ pub fn run_loop(
     tick: Duration,
     mut handler: impl FnMut(&[Wake]) -> Result<Step>,
 ) -> Result<Exit> {
+    crate::lifeline::handle_hangup();
     let waitset = WaitSetBuilder::new()
         .create::<Ipc>()
         .map_err(|e| anyhow!("waitset: {e:?}"))?;
@@ -95,6 +97,10 @@ pub fn run_loop(
             )
             .map_err(|e| anyhow!("waitset wait: {e:?}"))?;
         if result == WaitSetRunResult::TerminationRequest {
+            return Ok(Exit::Terminated);
+        }
+        if let Some(why) = crate::lifeline::end_requested() {
+            tracing::info!("ending: {why}");
             return Ok(Exit::Terminated);
         }
         // Drain the notifications of inputs that fired, or the WaitSet fires again at once.
