@@ -301,6 +301,15 @@ impl Consumer {
         })
     }
 
+    /// How many messages of `topic` the orchestrator has taken so far (0 if it does not
+    /// consume it).
+    pub fn carried(&self, topic: TopicId) -> u64 {
+        self.own_stats()
+            .iter()
+            .find(|s| s.topic == topic)
+            .map_or(0, |s| s.next_seq)
+    }
+
     /// (accepted, expected) over all consumed topics, for progress display.
     pub fn progress(&self) -> (u64, u64) {
         let done: u64 = self.own_stats().iter().map(|s| s.next_seq).sum();

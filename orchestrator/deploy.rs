@@ -111,7 +111,7 @@ impl ServiceProcess {
     }
 
     /// Sends `sig` to the child's process group (it was spawned with pgid = pid).
-    fn signal(&self, sig: Signal) {
+    pub fn signal(&self, sig: Signal) {
         if self.child.is_some() {
             signal_group(self.pid, sig);
         }

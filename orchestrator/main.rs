@@ -8,6 +8,7 @@
 mod clean;
 mod consume;
 mod deploy;
+mod faults;
 mod invert;
 #[cfg(feature = "lab")]
 mod lab;
@@ -60,6 +61,11 @@ enum Cmd {
         /// Override the scenario's seed.
         #[arg(long)]
         seed: Option<u64>,
+        /// Inject a fault, as `SERVICE:KIND@AT[,duration_s=S]`: `detector:kill@20` (once the
+        /// detector's input has carried message 20), `tracker:stop@1.5s,duration_s=0.3`
+        /// (1.5 s after the start, for 0.3 s). Repeatable; added to the scenario's [[fault]].
+        #[arg(long = "fault", value_name = "SERVICE:KIND@AT")]
+        faults: Vec<String>,
     },
     /// Remove what crashed deployments left in shared memory (/dev/shm and iceoryx2's node
     /// directory); a deployment still running is left alone.
@@ -181,6 +187,38 @@ fn load_with_seed(
     Ok((sc, file))
 }
 
+/// Appends the `--fault` arguments to the scenario's faults and validates them with it; an
+/// error names the argument.
+fn add_faults(sc: &mut Scenario, args: &[String]) -> Result<(), String> {
+    let from_file = sc.fault.len();
+    for a in args {
+        let spec = shared_types::scenario::FaultSpec::parse(a)
+            .map_err(|e| format!("--fault `{a}`: {e}"))?;
+        sc.fault.push(spec);
+    }
+    sc.validate().map_err(|errors| {
+        errors
+            .iter()
+            .map(|e| {
+                // `fault[i].x` of an argument reads as the argument's own field.
+                let arg = e
+                    .field
+                    .strip_prefix("fault[")
+                    .and_then(|r| r.split_once("]."))
+                    .and_then(|(i, f)| Some((i.parse::<usize>().ok()?, f)))
+                    .filter(|(i, _)| *i >= from_file);
+                match arg {
+                    Some((i, f)) => {
+                        format!("--fault `{}`: {f}: {}", args[i - from_file], e.message)
+                    }
+                    None => e.to_string(),
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
+    })
+}
+
 /// Prints where the summary is and maps the outcome to the exit code.
 fn finish(result: anyhow::Result<(PathBuf, bool)>) -> ExitCode {
     match result {
@@ -242,12 +280,17 @@ fn main() -> ExitCode {
             out,
             force,
             seed,
+            faults,
         } => {
             glint_runtime::init_tracing("orchestrator");
-            let (sc, file) = match load_with_seed(scenario.as_ref(), seed) {
+            let (mut sc, file) = match load_with_seed(scenario.as_ref(), seed) {
                 Ok(x) => x,
                 Err(code) => return code,
             };
+            if let Err(e) = add_faults(&mut sc, &faults) {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
             if sc.campaign.is_some() {
                 eprintln!(
                     "error: {file}: a [campaign] scenario runs with `glint lab campaign {file}`"

@@ -10,6 +10,7 @@ use shared_types::{deployment, Command, Control, Heartbeat, Scenario};
 
 use crate::consume::Consumer;
 use crate::deploy::{stop_ladder, Ending, ServiceProcess};
+use crate::faults::Injector;
 use crate::report::{self, Outcome, RunFacts};
 
 /// Orchestrator tick: supervision and progress cadence.
@@ -128,8 +129,27 @@ fn deploy_and_run(
         inputs.push((l, None));
     }
     let hb_deadline = Duration::from_millis(limits.heartbeat_deadline_ms);
+    let mut injector = Injector::new(scenario);
+    let since_start = |t: Instant, t0: Option<Instant>| {
+        t0.map_or(0.0, |t0| t.saturating_duration_since(t0).as_secs_f64())
+    };
     let exit = run_loop(&inputs, TICK, |wakes| {
         consumer.poll()?;
+        if phase == Phase::Running {
+            let now_s = since_start(Instant::now(), t_running);
+            let due = injector.step(now_s, |s| {
+                consumer.carried(crate::faults::trigger_topic(scenario, s))
+            });
+            for a in due {
+                if let Some(c) = children.iter().find(|c| c.id == a.service) {
+                    tracing::info!(service = c.id.name(), signal = ?a.signal, "fault injected");
+                    c.signal(a.signal);
+                }
+            }
+            for (id, seen) in &consumer.seen {
+                injector.heard_from(*id, since_start(seen.at, t_running));
+            }
+        }
         if let Some(b) = &bar {
             b.set_position(consumer.progress().0);
         }
@@ -172,12 +192,15 @@ fn deploy_and_run(
             return Ok(Step::Stop);
         }
         if wakes.contains(&Wake::Tick) || wakes.contains(&Wake::Timeout) {
+            let now_s = since_start(Instant::now(), t_running);
             for c in children.iter_mut() {
                 if !c.is_running() {
+                    injector.detected(c.id, "exit", now_s);
                     failure = Some(format!(
-                        "service {} exited unexpectedly: {}\n{}",
+                        "service {} exited unexpectedly: {}{}\n{}",
                         c.id.name(),
                         c.ending.label(),
+                        injected_note(&injector, c.id),
                         c.log_tail(8)
                     ));
                     return Ok(Step::Stop);
@@ -188,10 +211,12 @@ fn deploy_and_run(
                         .get(&c.id)
                         .is_none_or(|s| s.at.elapsed() > hb_deadline);
                     if stale {
+                        injector.detected(c.id, "heartbeat deadline", now_s);
                         failure = Some(format!(
-                            "service {} sent no heartbeat for run.heartbeat_deadline_ms = {} ms",
+                            "service {} sent no heartbeat for run.heartbeat_deadline_ms = {} ms{}",
                             c.id.name(),
-                            limits.heartbeat_deadline_ms
+                            limits.heartbeat_deadline_ms,
+                            injected_note(&injector, c.id)
                         ));
                         return Ok(Step::Stop);
                     }
@@ -219,6 +244,12 @@ fn deploy_and_run(
         }
     }
 
+    // A service still SIGSTOPped by a fault is continued, so that it can obey the ladder.
+    for a in injector.release(since_start(t_stopped, t_running)) {
+        if let Some(c) = children.iter().find(|c| c.id == a.service) {
+            c.signal(a.signal);
+        }
+    }
     // Stop ladder; drain final heartbeats while waiting so the last counters are captured.
     let grace = Duration::from_millis(limits.shutdown_grace_ms);
     let shutdown_sent = std::cell::Cell::new(Ok(()));
@@ -251,6 +282,7 @@ fn deploy_and_run(
             .map(|s| s.responses.clone())
             .unwrap_or_default(),
         failure,
+        injector.faults,
         Outcome {
             startup_s: t_running.map_or(0.0, |t| (t - t_start).as_secs_f64()),
             production_s,
@@ -265,6 +297,17 @@ fn deploy_and_run(
     drop(listeners);
     drop(node);
     Ok(facts)
+}
+
+/// " (injected fault: …)" when faults were injected into `id`; restarts are not built yet, so
+/// a detected fault ends the run.
+fn injected_note(injector: &Injector, id: shared_types::ServiceId) -> String {
+    let faults = injector.injected_into(id);
+    if faults.is_empty() {
+        String::new()
+    } else {
+        format!(" (injected fault: {})", faults.join(", "))
+    }
 }
 
 /// A prefix unique to this deployment (pid and time), short enough for iceoryx2's file names.

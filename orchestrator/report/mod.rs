@@ -13,6 +13,7 @@ use serde_json::{json, Value};
 use shared_types::{deployment, DropReason, Scenario, ServiceId, TopicCounters, TopicId};
 
 pub mod debris;
+pub mod faults;
 pub mod fit;
 pub mod inversion;
 
@@ -71,6 +72,8 @@ pub struct RunFacts {
     pub shm_leftover: Vec<String>,
     /// Live nodes under the prefix once the deployment ended (processes outside it).
     pub shm_held_by: Vec<String>,
+    /// The injected faults and what supervision saw of them.
+    pub faults: Vec<crate::faults::Fault>,
 }
 
 /// The service that publishes a topic.
@@ -96,6 +99,7 @@ impl RunFacts {
         scenario: &Scenario,
         solve: Vec<shared_types::SolveResponse>,
         failure: Option<String>,
+        faults: Vec<crate::faults::Fault>,
         outcome: Outcome,
     ) -> Self {
         let services = children
@@ -199,6 +203,7 @@ impl RunFacts {
             shm_removed: 0,
             shm_leftover: vec![],
             shm_held_by: vec![],
+            faults,
         }
     }
 
@@ -303,6 +308,7 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
         "success": f.success(),
         "failure": f.failure,
         "accounting": { "invariant_held": f.invariant_held() },
+        "faults": faults::json(f),
         "services": f.services.iter().map(|s| json!({
             "name": s.name, "pid": s.pid, "restarts": s.restarts, "ending": s.ending.label(),
         })).collect::<Vec<_>>(),
@@ -406,6 +412,7 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
             sv.ending.label()
         );
     }
+    s.push_str(&faults::markdown(f));
     let _ = writeln!(
         s,
         "\n## Message accounting\n\nEvery message published must be received or dropped with a counted reason.\n\n| topic | published | consumer | received | dropped | accounted | digest |\n|---|---|---|---|---|---|---|"
@@ -517,6 +524,9 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
                 tracing::warn!(error = %e, "fit plots skipped");
             }
         }
+    }
+    if !facts.faults.is_empty() {
+        faults::timeline(&dir.join("faults.svg"), facts)?;
     }
     if let Some(d) = &facts.debris {
         debris::plots(

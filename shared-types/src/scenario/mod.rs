@@ -9,10 +9,12 @@ use serde::{Deserialize, Serialize};
 
 mod camera;
 mod campaign;
+mod fault;
 mod spectra;
 
 pub use camera::*;
 pub use campaign::*;
+pub use fault::*;
 pub use spectra::*;
 
 /// A scenario problem: where it is and what is allowed.
@@ -86,6 +88,9 @@ pub struct Scenario {
     pub spectra: Option<SpectraScenario>,
     /// Sweep one parameter: one full deployment per value, results tabulated.
     pub campaign: Option<Campaign>,
+    /// Faults to inject (`[[fault]]`; also `glint run --fault`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub fault: Vec<FaultSpec>,
 }
 
 fn default_seed() -> u64 {
@@ -229,6 +234,7 @@ impl Scenario {
         if let Some(sp) = &self.spectra {
             check_spectra(&mut c, sp);
         }
+        fault::check_faults(&mut c, self);
         if let Some(camp) = &self.campaign {
             c.range_u("campaign.values (count)", camp.values.len() as u64, 1, 100);
             c.range_u("campaign.seeds", camp.seeds as u64, 1, 1000);

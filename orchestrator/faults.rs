@@ -1,0 +1,277 @@
+//! Fault injection: the scenario's `[[fault]]` entries fired at their trigger, and what the
+//! orchestrator saw of each: when it was injected, when supervision noticed it (the child's
+//! exit, or a missed heartbeat deadline), when the service was heard from again. A polled
+//! state machine per fault, driven by the run loop; it decides, the loop signals.
+
+use rustix::process::Signal;
+use serde_json::{json, Value};
+use shared_types::scenario::{FaultKind, FaultSpec};
+use shared_types::{Scenario, ServiceId, TopicId};
+
+/// Where a fault is in its life.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum State {
+    Armed,
+    /// SIGSTOPped; SIGCONT is due at this time [s since start].
+    Stopped {
+        until_s: f64,
+    },
+    /// Injected (and, for a stop, continued): waiting to hear from the service again.
+    Injected,
+    Done,
+}
+
+/// One fault and its timeline [s since the services were started].
+#[derive(Debug, Clone)]
+pub struct Fault {
+    pub spec: FaultSpec,
+    pub service: ServiceId,
+    state: State,
+    pub injected_s: Option<f64>,
+    pub ended_s: Option<f64>,
+    pub detected_s: Option<f64>,
+    pub detected_by: Option<&'static str>,
+    pub recovered_s: Option<f64>,
+}
+
+/// A signal for the loop to send to a service's process group.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Action {
+    pub service: ServiceId,
+    pub signal: Signal,
+}
+
+/// The input topic whose progress triggers an `at_seq` fault: what the service consumes (for
+/// the sensor, what it produces).
+pub fn trigger_topic(scenario: &Scenario, service: ServiceId) -> TopicId {
+    match service {
+        ServiceId::Sensor if scenario.camera.is_none() => TopicId::Spectrum,
+        ServiceId::Sensor | ServiceId::Detector => TopicId::Frame,
+        ServiceId::Tracker => TopicId::Detections,
+        _ => TopicId::Spectrum,
+    }
+}
+
+pub struct Injector {
+    pub faults: Vec<Fault>,
+}
+
+impl Injector {
+    /// The scenario's faults (already validated).
+    pub fn new(scenario: &Scenario) -> Self {
+        let faults = scenario
+            .fault
+            .iter()
+            .filter_map(|spec| {
+                Some(Fault {
+                    service: spec.service_id()?,
+                    spec: spec.clone(),
+                    state: State::Armed,
+                    injected_s: None,
+                    ended_s: None,
+                    detected_s: None,
+                    detected_by: None,
+                    recovered_s: None,
+                })
+            })
+            .collect();
+        Injector { faults }
+    }
+
+    /// The signals due at `now_s`; `carried(service)` is how many messages of the service's
+    /// trigger topic have been seen.
+    pub fn step(&mut self, now_s: f64, carried: impl Fn(ServiceId) -> u64) -> Vec<Action> {
+        let mut actions = vec![];
+        for f in &mut self.faults {
+            match f.state {
+                State::Armed => {
+                    let due = match (f.spec.at_seq, f.spec.at_s) {
+                        (Some(seq), _) => carried(f.service) > seq,
+                        (None, Some(at)) => now_s >= at,
+                        (None, None) => false,
+                    };
+                    if !due {
+                        continue;
+                    }
+                    f.injected_s = Some(now_s);
+                    let (signal, next) = match f.spec.kind {
+                        FaultKind::Kill => (Signal::KILL, State::Injected),
+                        FaultKind::Stop => (
+                            Signal::STOP,
+                            State::Stopped {
+                                until_s: now_s + f.spec.duration_s.unwrap_or(0.0),
+                            },
+                        ),
+                    };
+                    if f.spec.kind == FaultKind::Kill {
+                        f.ended_s = Some(now_s);
+                    }
+                    f.state = next;
+                    actions.push(Action {
+                        service: f.service,
+                        signal,
+                    });
+                }
+                State::Stopped { until_s } if now_s >= until_s => {
+                    f.state = State::Injected;
+                    f.ended_s = Some(now_s);
+                    actions.push(Action {
+                        service: f.service,
+                        signal: Signal::CONT,
+                    });
+                }
+                _ => {}
+            }
+        }
+        actions
+    }
+
+    /// Supervision noticed `service` (`how`: "exit", "heartbeat deadline") at `now_s`.
+    pub fn detected(&mut self, service: ServiceId, how: &'static str, now_s: f64) {
+        for f in self.faults.iter_mut().filter(|f| f.service == service) {
+            if f.injected_s.is_some() && f.detected_s.is_none() && f.state != State::Done {
+                f.detected_s = Some(now_s);
+                f.detected_by = Some(how);
+            }
+        }
+    }
+
+    /// `service` was last heard from (a heartbeat arrived) at `heard_s`: a stop is recovered
+    /// once the service is heard from after its SIGCONT.
+    pub fn heard_from(&mut self, service: ServiceId, heard_s: f64) {
+        for f in self.faults.iter_mut().filter(|f| f.service == service) {
+            let continued = f.ended_s.is_some_and(|e| heard_s >= e);
+            if f.state == State::Injected && f.spec.kind == FaultKind::Stop && continued {
+                f.recovered_s = Some(heard_s);
+                f.state = State::Done;
+            }
+        }
+    }
+
+    /// The faults injected into `service` so far, as the user wrote them (for messages).
+    pub fn injected_into(&self, service: ServiceId) -> Vec<String> {
+        self.faults
+            .iter()
+            .filter(|f| f.service == service && f.injected_s.is_some())
+            .map(|f| f.label())
+            .collect()
+    }
+
+    /// A fault still stopped when the run ends: continue it, so the stop ladder can act.
+    pub fn release(&mut self, now_s: f64) -> Vec<Action> {
+        let mut actions = vec![];
+        for f in &mut self.faults {
+            if let State::Stopped { .. } = f.state {
+                f.state = State::Injected;
+                f.ended_s = Some(now_s);
+                actions.push(Action {
+                    service: f.service,
+                    signal: Signal::CONT,
+                });
+            }
+        }
+        actions
+    }
+}
+
+impl Fault {
+    /// `service:kind@at[,duration_s=d]`, the `--fault` form.
+    pub fn label(&self) -> String {
+        let at = match (self.spec.at_seq, self.spec.at_s) {
+            (Some(seq), _) => seq.to_string(),
+            (_, Some(s)) => format!("{s}s"),
+            _ => String::new(),
+        };
+        let d = self
+            .spec
+            .duration_s
+            .map_or(String::new(), |d| format!(",duration_s={d}"));
+        format!("{}:{}@{at}{d}", self.service.name(), self.spec.kind.name())
+    }
+
+    /// The report's entry; `lost` is what the service's inputs carried and it never
+    /// processed, `invariant_held` the run's accounting.
+    pub fn json(&self, lost: Option<u64>, invariant_held: bool) -> Value {
+        json!({
+            "service": self.service.name(),
+            "kind": self.spec.kind.name(),
+            "at_seq": self.spec.at_seq,
+            "at_s": self.spec.at_s,
+            "duration_s": self.spec.duration_s,
+            "injected_s": self.injected_s,
+            "ended_s": self.ended_s,
+            "detected_s": self.detected_s,
+            "detected_by": self.detected_by,
+            "recovered_s": self.recovered_s,
+            "restarts": 0,
+            "lost": lost,
+            "invariant_held": invariant_held,
+            // Against a fault-free run of the same seed: a campaign's comparison.
+            "science_equal": Value::Null,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn injector(specs: &[&str]) -> Injector {
+        let mut sc = Scenario::from_toml_str(
+            include_str!("../scenarios/debris-geo.toml"),
+            "debris-geo.toml",
+        )
+        .unwrap();
+        sc.fault = specs.iter().map(|s| FaultSpec::parse(s).unwrap()).collect();
+        sc.validate().unwrap();
+        Injector::new(&sc)
+    }
+
+    #[test]
+    fn a_stop_fires_at_its_message_and_continues_after_its_duration() {
+        let mut inj = injector(&["detector:stop@5,duration_s=0.5"]);
+        assert!(inj.step(1.0, |_| 5).is_empty(), "message 5 not yet carried");
+        let a = inj.step(1.1, |_| 6);
+        assert_eq!(
+            a,
+            [Action {
+                service: ServiceId::Detector,
+                signal: Signal::STOP
+            }]
+        );
+        assert!(inj.step(1.5, |_| 6).is_empty());
+        let a = inj.step(1.6, |_| 6);
+        assert_eq!(
+            a,
+            [Action {
+                service: ServiceId::Detector,
+                signal: Signal::CONT
+            }]
+        );
+        inj.heard_from(ServiceId::Detector, 1.55);
+        assert_eq!(
+            inj.faults[0].recovered_s, None,
+            "a heartbeat from before SIGCONT"
+        );
+        inj.heard_from(ServiceId::Tracker, 1.7);
+        assert_eq!(inj.faults[0].recovered_s, None, "another service");
+        inj.heard_from(ServiceId::Detector, 1.7);
+        let f = &inj.faults[0];
+        assert_eq!(
+            (f.injected_s, f.ended_s, f.recovered_s),
+            (Some(1.1), Some(1.6), Some(1.7))
+        );
+        assert!(inj.step(9.0, |_| 50).is_empty(), "fired once");
+    }
+
+    #[test]
+    fn a_kill_at_a_time_is_detected_once() {
+        let mut inj = injector(&["tracker:kill@0.25s"]);
+        assert!(inj.step(0.2, |_| 100).is_empty());
+        assert_eq!(inj.step(0.25, |_| 0)[0].signal, Signal::KILL);
+        inj.detected(ServiceId::Tracker, "exit", 0.27);
+        inj.detected(ServiceId::Tracker, "heartbeat deadline", 5.0);
+        let f = &inj.faults[0];
+        assert_eq!((f.detected_s, f.detected_by), (Some(0.27), Some("exit")));
+    }
+}
