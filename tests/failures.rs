@@ -23,17 +23,6 @@ fn long_debris(dir: &std::path::Path, run: &str) -> std::path::PathBuf {
     )
 }
 
-/// The `ending` of service `name` in a report.
-fn ending<'a>(report: &'a serde_json::Value, name: &str) -> &'a str {
-    report["services"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|s| s["name"] == name)
-        .and_then(|s| s["ending"].as_str())
-        .unwrap_or_else(|| panic!("no service {name} in the report"))
-}
-
 /// A detector killed (SIGKILL) in the middle of a run: `glint run` exits 1, the report says
 /// which service died and how; every topic's `published` is at least what its consumers
 /// received (a killed publisher's last heartbeat undercounted it), and the production time

@@ -124,13 +124,7 @@ fn a_stop_past_the_heartbeat_deadline_is_detected_by_it() {
     // supervision tick's margin.
     assert!((0.25..0.5).contains(&latency), "detected {latency} s after");
     // Continued at the end so that it could obey Shutdown, not killed.
-    let tracker = r.report["services"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|s| s["name"] == "tracker")
-        .unwrap();
-    assert_eq!(tracker["ending"], "shutdown", "{tracker}");
+    assert_eq!(ending(&r.report, "tracker"), "shutdown", "{}", r.report);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

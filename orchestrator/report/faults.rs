@@ -7,9 +7,9 @@ use std::path::Path;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use serde_json::Value;
-use shared_types::{ServiceId, TopicId};
+use shared_types::ServiceId;
 
-use super::{RunFacts, TopicFact};
+use super::{producer_of, RunFacts, TopicFact};
 use crate::plots::{BLUE, GREEN, ORANGE, RED};
 
 /// What the fault cost: for a consumer, the messages published on its inputs that it never
@@ -26,7 +26,7 @@ fn lost(f: &RunFacts, service: ServiceId) -> Option<u64> {
         return Some(
             f.topics
                 .iter()
-                .filter(|(t, _)| producer(**t) == ServiceId::Sensor)
+                .filter(|(t, _)| producer_of(**t) == ServiceId::Sensor)
                 .map(|(_, t)| t.expected - t.published.unwrap_or(0).min(t.expected))
                 .sum(),
         );
@@ -39,14 +39,6 @@ fn lost(f: &RunFacts, service: ServiceId) -> Option<u64> {
         sum += published.saturating_sub(taken);
     }
     Some(sum)
-}
-
-fn producer(t: TopicId) -> ServiceId {
-    match t {
-        TopicId::Detections => ServiceId::Detector,
-        TopicId::Tracks => ServiceId::Tracker,
-        _ => ServiceId::Sensor,
-    }
 }
 
 pub fn json(f: &RunFacts) -> Vec<Value> {

@@ -77,7 +77,7 @@ pub struct RunFacts {
 }
 
 /// The service that publishes a topic.
-fn producer_of(t: TopicId) -> ServiceId {
+pub(super) fn producer_of(t: TopicId) -> ServiceId {
     match t {
         TopicId::Detections => ServiceId::Detector,
         TopicId::Tracks => ServiceId::Tracker,

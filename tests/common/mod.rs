@@ -210,3 +210,14 @@ pub fn png_size(path: &Path) -> (u32, u32) {
     let be = |i: usize| u32::from_be_bytes(bytes[i..i + 4].try_into().unwrap());
     (be(16), be(20))
 }
+
+/// The `ending` of service `name` in a report (`shutdown`, `sigkill`, …).
+pub fn ending<'a>(report: &'a Value, name: &str) -> &'a str {
+    report["services"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == name)
+        .and_then(|s| s["ending"].as_str())
+        .unwrap_or_else(|| panic!("no service {name} in the report"))
+}
