@@ -14,8 +14,8 @@ use shared_types::topics::{
     spectrum_service, tracks_service, truth_service, Ipc, IpcNode,
 };
 use shared_types::{
-    deployment, Ack, Command, Control, Detections, Heartbeat, Scenario, ServiceId, Spectrum,
-    TopicCounters, TopicId, Tracks, Truth,
+    deployment, Ack, Command, Control, Detections, Heartbeat, Replay, Scenario, ServiceId,
+    Spectrum, TopicCounters, TopicId, Tracks, Truth,
 };
 use xxhash_rust::xxh3::Xxh3;
 
@@ -103,7 +103,10 @@ impl Consumer {
         } else {
             (None, None)
         };
-        let (heartbeats, hb_l) = Inbox::open(node, TopicId::Heartbeat, &heartbeat_service(node)?)?;
+        let (mut heartbeats, hb_l) =
+            Inbox::open(node, TopicId::Heartbeat, &heartbeat_service(node)?)?;
+        // A restarted service's heartbeats start again at seq 0.
+        heartbeats.stats.peers_restart();
         let control = Outbox::open(node, TopicId::Control, &control_service(node)?, me)?;
         let acks = Outbox::open(node, TopicId::Ack, &ack_service(node)?, me)?;
         let mut expected = BTreeMap::new();
@@ -155,6 +158,21 @@ impl Consumer {
                 tracks: tracks_l,
             },
         ))
+    }
+
+    /// Orders `producer` to send a topic again to a restarted consumer.
+    pub fn replay(&mut self, producer: ServiceId, order: Replay) -> Result<()> {
+        self.control.send(Control::replay(producer, order), 0)?;
+        Ok(())
+    }
+
+    /// Acknowledges again everything acknowledged so far: a restarted producer learns where
+    /// the orchestrator is (its credit).
+    pub fn refresh_acks(&mut self) -> Result<()> {
+        for (topic, next_seq) in self.acked.clone() {
+            self.send_ack(topic, next_seq)?;
+        }
+        Ok(())
     }
 
     pub fn command(&mut self, command: Command, target: u32) -> Result<()> {
@@ -259,17 +277,21 @@ impl Consumer {
     }
 
     fn ack(&mut self, topic: TopicId, next_seq: u64) -> Result<()> {
+        // Send only when something new arrived.
+        if self.acked.get(&topic) == Some(&next_seq) {
+            return Ok(());
+        }
+        self.acked.insert(topic, next_seq);
+        self.send_ack(topic, next_seq)
+    }
+
+    fn send_ack(&mut self, topic: TopicId, next_seq: u64) -> Result<()> {
         let a = Ack {
             topic: topic as u32,
             consumer: ServiceId::Orchestrator as u32,
             next_seq,
             ..Default::default()
         };
-        // Send only when something new arrived.
-        if self.acked.get(&topic) == Some(&next_seq) {
-            return Ok(());
-        }
-        self.acked.insert(topic, next_seq);
         self.acks.send(a, 0)?;
         Ok(())
     }

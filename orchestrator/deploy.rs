@@ -40,24 +40,39 @@ pub struct ServiceProcess {
     pub pid: u32,
     pub restarts: u32,
     pub ending: Ending,
+    /// Set once it exited: whether with status 0.
+    pub exit_ok: Option<bool>,
     child: Option<Child>,
     pub log_path: PathBuf,
 }
 
 impl ServiceProcess {
     /// Spawns `exe service <name> --prefix P --scenario FILE`; stderr goes to `logs/<name>.log`.
+    /// `restarts` > 0: a restart by supervision (`--restarted`); its log is appended to.
     pub fn spawn(
         exe: &Path,
         id: ServiceId,
         prefix: &str,
         scenario: &Path,
         log_dir: &Path,
+        restarts: u32,
     ) -> Result<Self> {
+        use std::io::Write;
         use std::os::unix::process::CommandExt;
         std::fs::create_dir_all(log_dir)?;
         let log_path = log_dir.join(format!("{}.log", id.name()));
-        let log = std::fs::File::create(&log_path)
-            .with_context(|| format!("creating {}", log_path.display()))?;
+        let mut log = if restarts == 0 {
+            std::fs::File::create(&log_path)
+        } else {
+            std::fs::OpenOptions::new()
+                .append(true)
+                .create(true)
+                .open(&log_path)
+        }
+        .with_context(|| format!("creating {}", log_path.display()))?;
+        if restarts > 0 {
+            let _ = writeln!(log, "--- restart {restarts} ---");
+        }
         let parent = rustix::process::getpid();
         let mut command = Command::new(exe);
         // SAFETY: the closure runs in the forked child before exec and makes only
@@ -72,6 +87,11 @@ impl ServiceProcess {
             .arg(prefix)
             .arg("--scenario")
             .arg(scenario)
+            .args(if restarts > 0 {
+                &["--restarted"][..]
+            } else {
+                &[]
+            })
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::from(log))
@@ -81,8 +101,9 @@ impl ServiceProcess {
         Ok(ServiceProcess {
             id,
             pid: child.id(),
-            restarts: 0,
+            restarts,
             ending: Ending::Running,
+            exit_ok: None,
             child: Some(child),
             log_path,
         })
@@ -95,6 +116,7 @@ impl ServiceProcess {
         };
         match child.try_wait() {
             Ok(Some(status)) => {
+                self.exit_ok = Some(status.success());
                 if self.ending == Ending::Running {
                     self.ending = Ending::Exited(status.to_string());
                 }

@@ -32,6 +32,8 @@ pub struct Fault {
     pub detected_s: Option<f64>,
     pub detected_by: Option<&'static str>,
     pub recovered_s: Option<f64>,
+    /// Restarts of the service after this fault.
+    pub restarts: u32,
 }
 
 /// A signal for the loop to send to a service's process group.
@@ -72,6 +74,7 @@ impl Injector {
                     detected_s: None,
                     detected_by: None,
                     recovered_s: None,
+                    restarts: 0,
                 })
             })
             .collect();
@@ -148,6 +151,23 @@ impl Injector {
         }
     }
 
+    /// Supervision restarted `service`, and its new incarnation was resumed at `now_s`: the
+    /// faults it had been injected with are recovered from (a stop that supervision ended by
+    /// killing the process ends when it was detected).
+    pub fn restarted(&mut self, service: ServiceId, now_s: f64) {
+        for f in self.faults.iter_mut().filter(|f| f.service == service) {
+            if f.injected_s.is_none() || f.state == State::Done {
+                continue;
+            }
+            f.restarts += 1;
+            f.recovered_s = Some(now_s);
+            if f.ended_s.is_none() {
+                f.ended_s = f.detected_s.or(Some(now_s));
+            }
+            f.state = State::Done;
+        }
+    }
+
     /// The faults injected into `service` so far, as the user wrote them (for messages).
     pub fn injected_into(&self, service: ServiceId) -> Vec<String> {
         self.faults
@@ -203,7 +223,7 @@ impl Fault {
             "detected_s": self.detected_s,
             "detected_by": self.detected_by,
             "recovered_s": self.recovered_s,
-            "restarts": 0,
+            "restarts": self.restarts,
             "lost": lost,
             "invariant_held": invariant_held,
             // Against a fault-free run of the same seed: a campaign's comparison.

@@ -21,6 +21,7 @@ mod run;
 mod run_dir;
 mod score_debris;
 mod sequence;
+mod supervise;
 mod tools;
 
 use std::io::IsTerminal;
@@ -118,6 +119,9 @@ enum Cmd {
         /// The resolved scenario file of the run.
         #[arg(long)]
         scenario: PathBuf,
+        /// Started again by supervision after a failure: recover from the producers' replay.
+        #[arg(long)]
+        restarted: bool,
     },
 }
 
@@ -400,6 +404,7 @@ fn main() -> ExitCode {
             name,
             prefix,
             scenario,
+            restarted,
         } => {
             glint_runtime::init_tracing(&name);
             // A service ends with the process that started it (see glint_runtime::lifeline).
@@ -412,10 +417,10 @@ fn main() -> ExitCode {
                 }
             };
             let result = match ServiceId::from_name(&name) {
-                Some(ServiceId::Sensor) => glint_sensor::node::run(&prefix, &sc),
-                Some(ServiceId::Detector) => glint_detector::node::run(&prefix, &sc),
-                Some(ServiceId::Tracker) => glint_tracker::node::run(&prefix, &sc),
-                Some(ServiceId::Inversion) => glint_inversion::node::run(&prefix, &sc),
+                Some(ServiceId::Sensor) => glint_sensor::node::run(&prefix, &sc, restarted),
+                Some(ServiceId::Detector) => glint_detector::node::run(&prefix, &sc, restarted),
+                Some(ServiceId::Tracker) => glint_tracker::node::run(&prefix, &sc, restarted),
+                Some(ServiceId::Inversion) => glint_inversion::node::run(&prefix, &sc, restarted),
                 _ => {
                     eprintln!(
                         "error: unknown service '{name}' (available: sensor, detector, tracker, inversion)"

@@ -6,12 +6,14 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use glint_runtime::{open_node, remove_shm, run_loop, shm_entries, Step, Wake};
-use shared_types::{deployment, Command, Control, Heartbeat, Scenario};
+use shared_types::scenario::Clock;
+use shared_types::{deployment, Command, Control, Heartbeat, Replay, Scenario, ServiceId};
 
 use crate::consume::Consumer;
 use crate::deploy::{stop_ladder, Ending, ServiceProcess};
 use crate::faults::Injector;
 use crate::report::{self, Outcome, RunFacts};
+use crate::supervise::{Action, Observation, Supervisor};
 
 /// Orchestrator tick: supervision and progress cadence.
 const TICK: Duration = Duration::from_millis(20);
@@ -102,7 +104,9 @@ fn deploy_and_run(
     let log_dir = out_dir.join("logs");
     let mut children: Vec<ServiceProcess> = vec![];
     for id in deployment::services(scenario) {
-        children.push(ServiceProcess::spawn(exe, id, prefix, resolved, &log_dir)?);
+        children.push(ServiceProcess::spawn(
+            exe, id, prefix, resolved, &log_dir, 0,
+        )?);
     }
     tracing::info!(prefix, services = children.len(), "deployed");
 
@@ -128,8 +132,31 @@ fn deploy_and_run(
     {
         inputs.push((l, None));
     }
+    // Solve answers wake the loop (the sequencer polls its call in flight).
+    let solve_reply = match &sequencer {
+        Some(_) => Some(
+            shared_types::topics::event_service(&node, shared_types::TopicId::Solve, true)?
+                .listener_builder()
+                .create()
+                .map_err(|e| anyhow::anyhow!("solve reply listener: {e:?}"))?,
+        ),
+        None => None,
+    };
+    if let Some(l) = &solve_reply {
+        inputs.push((l, None));
+    }
     let hb_deadline = Duration::from_millis(limits.heartbeat_deadline_ms);
     let mut injector = Injector::new(scenario);
+    let ids: Vec<ServiceId> = children.iter().map(|c| c.id).collect();
+    let mut supervisor = Supervisor::new(
+        &scenario.supervision,
+        &ids,
+        hb_deadline,
+        Duration::from_millis(limits.startup_timeout_ms),
+    );
+    let hb_period = Duration::from_millis(limits.heartbeat_period_ms);
+    let mut acks_refreshed = Instant::now();
+    let sim_clock = scenario.clock == Clock::Sim;
     let since_start = |t: Instant, t0: Option<Instant>| {
         t0.map_or(0.0, |t0| t.saturating_duration_since(t0).as_secs_f64())
     };
@@ -163,6 +190,7 @@ fn deploy_and_run(
             if ready {
                 consumer.command(Command::Start, Control::ALL)?;
                 t_running = Some(Instant::now());
+                supervisor.started(Instant::now());
                 phase = Phase::Running;
                 tracing::info!(
                     startup_ms = t_start.elapsed().as_millis() as u64,
@@ -178,7 +206,7 @@ fn deploy_and_run(
         }
         if phase == Phase::Running {
             if let Some(seq) = sequencer.as_mut() {
-                seq.step(&node, &consumer)?;
+                seq.step(&consumer, supervisor.is_up(ServiceId::Inversion))?;
                 if let Some(f) = &seq.failure {
                     failure = Some(f.clone());
                     return Ok(Step::Stop);
@@ -186,41 +214,100 @@ fn deploy_and_run(
             }
         }
         let solved = sequencer.as_ref().is_none_or(|s| s.done());
-        if phase == Phase::Running && consumer.complete() && solved {
+        if phase == Phase::Running && consumer.complete() && solved && supervisor.all_up() {
             t_done = Some(Instant::now());
             phase = Phase::Done;
             return Ok(Step::Stop);
         }
         if wakes.contains(&Wake::Tick) || wakes.contains(&Wake::Timeout) {
-            let now_s = since_start(Instant::now(), t_running);
-            for c in children.iter_mut() {
-                if !c.is_running() {
-                    injector.detected(c.id, "exit", now_s);
+            let now = Instant::now();
+            let now_s = since_start(now, t_running);
+            if phase == Phase::Starting {
+                // A failure during the initial startup fails the run.
+                let exited = children.iter_mut().position(|c| c.poll_exit());
+                if let Some(c) = exited.map(|i| &children[i]) {
                     failure = Some(format!(
-                        "service {} exited unexpectedly: {}{}\n{}",
+                        "service {} exited unexpectedly during startup: {}\n{}",
                         c.id.name(),
                         c.ending.label(),
-                        injected_note(&injector, c.id),
                         c.log_tail(8)
                     ));
                     return Ok(Step::Stop);
                 }
-                if phase == Phase::Running {
-                    let stale = consumer
-                        .seen
-                        .get(&c.id)
-                        .is_none_or(|s| s.at.elapsed() > hb_deadline);
-                    if stale {
-                        injector.detected(c.id, "heartbeat deadline", now_s);
-                        failure = Some(format!(
-                            "service {} sent no heartbeat for run.heartbeat_deadline_ms = {} ms{}",
-                            c.id.name(),
-                            limits.heartbeat_deadline_ms,
-                            injected_note(&injector, c.id)
-                        ));
-                        return Ok(Step::Stop);
+            }
+            if phase == Phase::Running {
+                let seen: Vec<Observation> = children
+                    .iter_mut()
+                    .map(|c| Observation {
+                        id: c.id,
+                        exited: (!c.is_running()).then(|| c.exit_ok.unwrap_or(false)),
+                        heartbeat: consumer
+                            .seen
+                            .get(&c.id)
+                            .filter(|s| s.heartbeat.pid == c.pid)
+                            .map(|s| (s.at, s.heartbeat.state)),
+                    })
+                    .collect();
+                for action in supervisor.step(now, &seen) {
+                    let Some(c) = children.iter_mut().find(|c| c.id == action.service()) else {
+                        continue;
+                    };
+                    match action {
+                        Action::Noticed { id, how } => {
+                            tracing::warn!(service = id.name(), how, "service failed");
+                            injector.detected(id, how, now_s);
+                        }
+                        Action::Kill(_) => c.signal(rustix::process::Signal::KILL),
+                        Action::Respawn(id) => {
+                            // The dead process's ports go before the new one opens its own.
+                            node.try_cleanup_dead_nodes();
+                            let n = supervisor.restarts(id);
+                            tracing::info!(service = id.name(), restart = n, "restarting");
+                            *c = ServiceProcess::spawn(exe, id, prefix, resolved, &log_dir, n)?;
+                        }
+                        Action::Resume(id) => {
+                            if sim_clock {
+                                for topic in deployment::inputs(scenario, id) {
+                                    let order = Replay {
+                                        consumer: id,
+                                        topic,
+                                        from_seq: 0,
+                                    };
+                                    consumer.replay(deployment::producer(topic), order)?;
+                                }
+                            }
+                            consumer.command(Command::Start, id as u32)?;
+                            injector.restarted(id, now_s);
+                            tracing::info!(service = id.name(), "restarted service resumed");
+                        }
+                        Action::GiveUp { id, how, why } => {
+                            let what = if how == "exit" {
+                                format!("exited unexpectedly: {}", c.ending.label())
+                            } else if how == "heartbeat deadline" {
+                                format!(
+                                    "sent no heartbeat for run.heartbeat_deadline_ms = {} ms",
+                                    limits.heartbeat_deadline_ms
+                                )
+                            } else {
+                                format!(
+                                    "was not ready again within run.startup_timeout_ms = {} ms",
+                                    limits.startup_timeout_ms
+                                )
+                            };
+                            failure = Some(format!(
+                                "service {} {what}{}; not restarted: {why}\n{}",
+                                id.name(),
+                                injected_note(&injector, id),
+                                c.log_tail(8)
+                            ));
+                            return Ok(Step::Stop);
+                        }
                     }
                 }
+            }
+            if now.duration_since(acks_refreshed) >= hb_period {
+                consumer.refresh_acks()?;
+                acks_refreshed = now;
             }
             if t_start.elapsed().as_secs_f64() > limits.timeout_s {
                 failure = Some(format!(
@@ -295,12 +382,12 @@ fn deploy_and_run(
     drop(sequencer);
     drop(consumer);
     drop(listeners);
+    drop(solve_reply);
     drop(node);
     Ok(facts)
 }
 
-/// " (injected fault: …)" when faults were injected into `id`; restarts are not built yet, so
-/// a detected fault ends the run.
+/// " (injected fault: …)" when faults were injected into `id`.
 fn injected_note(injector: &Injector, id: shared_types::ServiceId) -> String {
     let faults = injector.injected_into(id);
     if faults.is_empty() {

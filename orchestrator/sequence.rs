@@ -1,19 +1,23 @@
 //! Sequencing of the three-stage solve ([000]): stage 1 once the inversion holds the complete
 //! stable window, then stage 2, then stage 3 once it holds the motion window. Each stage is a
-//! request/response call with a request id and a timeout; `NotReady` and lost calls are retried
-//! on a later tick, up to a limit.
+//! request/response call with a request id and a timeout, polled from the run loop (which goes
+//! on supervising while a stage solves). `NotReady` is asked again on a later tick; a call lost
+//! with its server (the inversion restarted) is sent again with the same request id once the
+//! inversion is back.
 
 use std::time::Duration;
 
 use anyhow::Result;
-use glint_runtime::rpc::{CallOutcome, RpcClient, Solve};
+use glint_runtime::rpc::{CallOutcome, Pending, RpcClient, Solve};
 use shared_types::topics::IpcNode;
 use shared_types::{Scenario, ServiceId, SolveRequest, SolveResponse, SolveStatus, TopicId};
 
 use crate::consume::Consumer;
 
-/// Attempts per stage before the run is declared failed.
+/// `NotReady` answers per stage before the run is declared failed.
 const MAX_ATTEMPTS: u32 = 200;
+/// Calls lost per stage (their server gone) before the run is declared failed.
+const MAX_LOST: u32 = 10;
 
 pub struct Sequencer {
     client: RpcClient<Solve>,
@@ -22,6 +26,11 @@ pub struct Sequencer {
     timeout: Duration,
     next_stage: u32,
     attempts: u32,
+    lost: u32,
+    /// The call in flight.
+    in_flight: Option<Pending<Solve>>,
+    /// The id of a lost call, sent again.
+    retry_id: Option<u64>,
     /// Responses of stages 1, 2, 3 in order.
     pub responses: Vec<SolveResponse>,
     pub failure: Option<String>,
@@ -40,6 +49,9 @@ impl Sequencer {
             timeout: Duration::from_secs_f64(scenario.run.timeout_s),
             next_stage: 1,
             attempts: 0,
+            lost: 0,
+            in_flight: None,
+            retry_id: None,
             responses: vec![],
             failure: None,
         }))
@@ -49,10 +61,24 @@ impl Sequencer {
         self.next_stage > 3 || self.failure.is_some()
     }
 
-    /// Makes progress if the inversion holds what the next stage needs (judged from its
-    /// acknowledged spectra in its heartbeat; a premature call just answers `NotReady`).
-    pub fn step(&mut self, node: &IpcNode, consumer: &Consumer) -> Result<()> {
+    /// Makes progress: takes the answer of the call in flight, or — when the inversion is up
+    /// and holds what the next stage needs (judged from the acknowledged spectra in its
+    /// heartbeat; a premature call just answers `NotReady`) — sends the next call.
+    pub fn step(&mut self, consumer: &Consumer, inversion_up: bool) -> Result<()> {
         while !self.done() {
+            if let Some(p) = &self.in_flight {
+                let outcome = match self.client.poll(p)? {
+                    Some(o) => o,
+                    None if p.sent.elapsed() > self.timeout => CallOutcome::TimedOut,
+                    None => return Ok(()),
+                };
+                let id = p.id;
+                self.in_flight = None;
+                if !self.answered(id, outcome) {
+                    return Ok(());
+                }
+                continue;
+            }
             let have = consumer
                 .reported(ServiceId::Inversion, TopicId::Spectrum)
                 .map_or(0, |c| c.next_seq);
@@ -61,7 +87,7 @@ impl Sequencer {
             } else {
                 self.stable_samples
             };
-            if have < need {
+            if !inversion_up || have < need {
                 return Ok(());
             }
             let req = SolveRequest {
@@ -69,36 +95,64 @@ impl Sequencer {
                 flags: SolveRequest::FLAG_JOINT,
                 ..Default::default()
             };
-            self.attempts += 1;
-            match self.client.call(node, req, 0, self.timeout)? {
-                CallOutcome::Answered(resp) if resp.status == SolveStatus::NotReady as u32 => {
-                    if self.attempts >= MAX_ATTEMPTS {
-                        self.failure = Some(format!(
-                            "solve stage {} never became ready",
-                            self.next_stage
-                        ));
-                    }
-                    return Ok(());
-                }
-                CallOutcome::Answered(resp) => {
-                    tracing::info!(
-                        stage = self.next_stage,
-                        status = resp.status,
-                        "solve answered"
-                    );
-                    self.responses.push(resp);
-                    self.next_stage += 1;
-                    self.attempts = 0;
-                }
-                other => {
-                    tracing::warn!(stage = self.next_stage, ?other, "solve call lost; retrying");
-                    if self.attempts >= 3 {
-                        self.failure = Some(format!("solve stage {}: {other:?}", self.next_stage));
-                    }
-                    return Ok(());
-                }
-            }
+            let id = match self.retry_id.take() {
+                Some(id) => id,
+                None => self.client.new_id(),
+            };
+            self.in_flight = Some(self.client.send(req, id, 0)?);
         }
         Ok(())
+    }
+
+    /// Takes the outcome of call `id`; `true` when the next stage may be asked at once.
+    fn answered(&mut self, id: u64, outcome: CallOutcome<SolveResponse>) -> bool {
+        match outcome {
+            CallOutcome::Answered(resp) if resp.status == SolveStatus::NotReady as u32 => {
+                self.attempts += 1;
+                if self.attempts >= MAX_ATTEMPTS {
+                    self.failure = Some(format!(
+                        "solve stage {} never became ready",
+                        self.next_stage
+                    ));
+                }
+                false
+            }
+            CallOutcome::Answered(resp) => {
+                tracing::info!(
+                    stage = self.next_stage,
+                    status = resp.status,
+                    "solve answered"
+                );
+                self.responses.push(resp);
+                self.next_stage += 1;
+                self.attempts = 0;
+                self.lost = 0;
+                true
+            }
+            CallOutcome::Disconnected => {
+                tracing::warn!(
+                    stage = self.next_stage,
+                    request = id,
+                    "solve call lost; retrying"
+                );
+                self.lost += 1;
+                self.retry_id = Some(id);
+                if self.lost >= MAX_LOST {
+                    self.failure = Some(format!(
+                        "solve stage {}: {} calls lost",
+                        self.next_stage, self.lost
+                    ));
+                }
+                false
+            }
+            CallOutcome::TimedOut => {
+                self.failure = Some(format!(
+                    "solve stage {}: no answer within run.timeout_s = {} s",
+                    self.next_stage,
+                    self.timeout.as_secs_f64()
+                ));
+                false
+            }
+        }
     }
 }

@@ -23,7 +23,8 @@ fn long_debris(dir: &std::path::Path, run: &str) -> std::path::PathBuf {
     )
 }
 
-/// A detector killed (SIGKILL) in the middle of a run: `glint run` exits 1, the report says
+/// A detector killed (SIGKILL) in the middle of a run that may not restart it: `glint run`
+/// exits 1, the report says
 /// which service died and how; every topic's `published` is at least what its consumers
 /// received (a killed publisher's last heartbeat undercounted it), and the production time
 /// and rates cover the frames produced until the failure (they read 0).
@@ -32,7 +33,13 @@ fn a_killed_service_fails_the_run_with_a_consistent_report() {
     let dir = temp_dir("kill-detector");
     let file = scenario_variant(
         "debris-geo.toml",
-        &[("frames = 50", "frames = 20000")],
+        &[
+            ("frames = 50", "frames = 20000"),
+            (
+                "seed = 2016\n",
+                "seed = 2016\n\n[supervision]\nrestart = \"never\"\n",
+            ),
+        ],
         &dir,
     );
     let out = dir.join("out");
@@ -98,7 +105,7 @@ fn a_service_killed_during_startup_leaves_no_node_behind() {
 }
 
 /// A SIGSTOPped detector still looks alive to waitpid: only the heartbeat deadline catches it.
-/// The run fails with the deadline named; the stop ladder finds the detector deaf to
+/// Without restarts the run fails with the deadline named; the stop ladder finds the detector deaf to
 /// `Shutdown` and SIGTERM (both wait while it is stopped) and ends it with SIGKILL, while the
 /// others stop on `Shutdown`; the accounting shows the frames the detector never took.
 #[test]
@@ -106,7 +113,7 @@ fn a_hung_service_is_caught_by_the_heartbeat_deadline_and_killed_by_the_ladder()
     let dir = temp_dir("hang-detector");
     let file = long_debris(
         &dir,
-        "heartbeat_period_ms = 50\nheartbeat_deadline_ms = 400\nshutdown_grace_ms = 300",
+        "heartbeat_period_ms = 50\nheartbeat_deadline_ms = 400\nshutdown_grace_ms = 300\n\n[supervision]\nrestart = \"never\"",
     );
     let out = dir.join("out");
     let mut run = start_run(&file, &out, &[]);

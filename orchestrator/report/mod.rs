@@ -35,6 +35,8 @@ pub struct ServiceFact {
 pub struct ConsumerFact {
     pub received: u64,
     pub dropped: [u64; shared_types::DROP_REASONS],
+    /// Copies skipped because they were already accounted for (replays after a restart).
+    pub duplicates: u64,
 }
 
 pub struct TopicFact {
@@ -64,7 +66,13 @@ pub struct RunFacts {
     pub frame_latency_ns: Vec<u64>,
     pub spectrum_latency_ns: Vec<u64>,
     pub light_curve: Vec<(u64, [f64; 3], [f64; 3])>,
+    /// Range requests the sensor served (its current incarnation; retries included).
     pub range_requests: u64,
+    /// Laser shots the tracker fired (one per confirmed track and frame, from the tracks).
+    pub laser_shots: u64,
+    /// One digest of every result the run produced: each topic's content digest and the
+    /// solve's answers (send times left out). Equal digests, equal science.
+    pub science_digest: u64,
     pub wall_s: f64,
     pub prefix: String,
     pub scenario_file: String,
@@ -77,19 +85,32 @@ pub struct RunFacts {
 }
 
 /// The service that publishes a topic.
-pub(super) fn producer_of(t: TopicId) -> ServiceId {
-    match t {
-        TopicId::Detections => ServiceId::Detector,
-        TopicId::Tracks => ServiceId::Tracker,
-        _ => ServiceId::Sensor,
-    }
-}
+pub(super) use shared_types::deployment::producer as producer_of;
 
 fn consumer_fact(c: TopicCounters) -> ConsumerFact {
     ConsumerFact {
         received: c.received,
         dropped: c.dropped,
+        duplicates: u64::from(c.duplicates),
     }
+}
+
+/// The run's results in one digest: every topic's digest, then every solve answer's content.
+fn science_digest(topics: &BTreeMap<TopicId, u64>, solve: &[shared_types::SolveResponse]) -> u64 {
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    for (t, d) in topics {
+        h.update(&(*t as u32).to_le_bytes());
+        h.update(&d.to_le_bytes());
+    }
+    for r in solve {
+        // The answer, not its transport: which call (request id, seq) got it depends on how
+        // often a stage was asked before it was ready, or retried after a restart.
+        let mut r = *r;
+        r.meta = Default::default();
+        r.request_id = 0;
+        h.update(bytemuck::bytes_of(&r));
+    }
+    h.digest()
 }
 
 impl RunFacts {
@@ -112,6 +133,7 @@ impl RunFacts {
             })
             .collect();
         let digests = consumer.digests();
+        let science = science_digest(&digests, &solve);
         let mut topics = BTreeMap::new();
         for t in [
             TopicId::Frame,
@@ -197,6 +219,13 @@ impl RunFacts {
             range_requests: consumer
                 .reported(ServiceId::Sensor, TopicId::Range)
                 .map_or(0, |c| c.received + c.dropped.iter().sum::<u64>()),
+            laser_shots: consumer
+                .track_msgs
+                .iter()
+                .flat_map(|m| m.items[..(m.n as usize).min(m.items.len())].iter())
+                .filter(|e| e.range_status != u32::MAX)
+                .count() as u64,
+            science_digest: science,
             wall_s: 0.0,
             prefix: String::new(),
             scenario_file: String::new(),
@@ -250,6 +279,7 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
                         .collect();
                     json!({
                         "received": c.received,
+                        "duplicates": c.duplicates,
                         "dropped": c.dropped.iter().sum::<u64>(),
                         "dropped_by_reason": by_reason,
                         "accounted": c.received + c.dropped.iter().sum::<u64>() == tf.expected,
@@ -313,7 +343,8 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
             "name": s.name, "pid": s.pid, "restarts": s.restarts, "ending": s.ending.label(),
         })).collect::<Vec<_>>(),
         "topics": topics,
-        "laser": { "requests": f.range_requests },
+        "science": { "digest_xxh3": format!("{:016x}", f.science_digest) },
+        "laser": { "shots": f.laser_shots, "served": f.range_requests },
         "shared_memory": { "leftover": f.shm_leftover, "held_by": f.shm_held_by },
         "run": {
             "prefix": f.prefix,

@@ -51,3 +51,26 @@ pub fn expected_messages(scenario: &Scenario, topic: TopicId) -> u64 {
         _ => 0,
     }
 }
+
+/// The service that publishes a data topic (the sensor publishes frames, spectra and truth).
+pub fn producer(topic: TopicId) -> ServiceId {
+    match topic {
+        TopicId::Detections => ServiceId::Detector,
+        TopicId::Tracks => ServiceId::Tracker,
+        _ => ServiceId::Sensor,
+    }
+}
+
+/// The data topics `service` consumes in this scenario.
+pub fn inputs(scenario: &Scenario, service: ServiceId) -> Vec<TopicId> {
+    [
+        TopicId::Frame,
+        TopicId::Spectrum,
+        TopicId::Truth,
+        TopicId::Detections,
+        TopicId::Tracks,
+    ]
+    .into_iter()
+    .filter(|t| consumers(scenario, *t).contains(&service))
+    .collect()
+}

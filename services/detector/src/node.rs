@@ -125,7 +125,7 @@ pub fn to_message(
     out
 }
 
-pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
+pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
     let cam = scenario
         .camera
         .as_ref()
@@ -135,18 +135,23 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     let (mut frames, frame_l) = FrameInbox::open(&node, &frame_service(&node)?)?;
     // Integrity of the pixels is checked on receipt (one xxh3 pass, ~0.1 ms per 1024² frame).
     frames.verify_checksum = true;
+    let realtime = scenario.clock == Clock::Realtime;
+    if restarted && !realtime {
+        frames.stats.await_replay();
+    }
     let mut out = Outbox::open(
         &node,
         TopicId::Detections,
         &detections_service(&node)?,
         ServiceId::Detector,
     )?;
+    // Detections are not re-made from frames on demand: a restarted tracker is sent them again.
+    out.keep_log();
     let (mut acks, ack_l) = AckReader::open(&node)?;
     let mut credit = Credit::new(
         DETECTIONS_BUFFER,
         deployment::consumers(scenario, TopicId::Detections),
     );
-    let realtime = scenario.clock == Clock::Realtime;
     let (det_cfg, match_cfg) = configs(cam);
     let mut detector = Detector::new(det_cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut matcher = Matcher::new(match_cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -163,6 +168,20 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
             return Ok(Step::Stop);
         }
         acks.poll(&mut [(TopicId::Detections, &mut credit)])?;
+        for r in hk.take_replays() {
+            if r.topic == TopicId::Detections {
+                tracing::info!(consumer = r.consumer.name(), from = r.from_seq, "replay");
+                credit.reset(r.consumer, r.from_seq);
+                out.rewind(r.from_seq);
+            }
+        }
+        if out.replaying() {
+            out.resend(credit.available(out.next_seq()))?;
+            if out.replaying() {
+                // New frames wait until the restarted consumer has caught up.
+                return Ok(Step::Wait);
+            }
+        }
         let limit = credit.input_limit(out.stats.published, realtime);
         let mut last_t_ns = 0;
         frames.drain_up_to(limit, |header, pixels, latency_ns| {

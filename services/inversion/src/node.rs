@@ -121,7 +121,13 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
         stage: req.stage,
         n_bands: session.set.wavelengths_nm.len() as u32,
         stable_samples: session.set.stable.len() as u32,
-        motion_samples: session.set.motion.len() as u32,
+        // The window a stage used: stages 1 and 2 the stable one only (how much of the motion
+        // window had arrived by then is timing, not a result).
+        motion_samples: if req.stage == 3 {
+            session.set.motion.len() as u32
+        } else {
+            0
+        },
         ..Default::default()
     };
     let outcome = match req.stage {
@@ -172,7 +178,7 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
     out
 }
 
-pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
+pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
     let sp = scenario
         .spectra
         .as_ref()
@@ -181,6 +187,9 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     let (mut hk, control_l) = Housekeeping::open(&node, ServiceId::Inversion)?;
     let (mut spectra, spectra_l) =
         Inbox::<Spectrum>::open(&node, TopicId::Spectrum, &spectrum_service(&node)?)?;
+    if restarted && scenario.clock == shared_types::scenario::Clock::Sim {
+        spectra.stats.await_replay();
+    }
     let (mut server, solve_l) = RpcServer::<Solve>::open(&node, ServiceId::Inversion)?;
     let mut session = Session::new(
         sp.wavelengths_nm(),

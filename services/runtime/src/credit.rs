@@ -51,6 +51,13 @@ impl Credit {
         }
     }
 
+    /// A restarted consumer starts again at `next_seq`: its credit restarts there.
+    pub fn reset(&mut self, consumer: ServiceId, next_seq: u64) {
+        if let Some(a) = self.acked.get_mut(&consumer) {
+            *a = next_seq;
+        }
+    }
+
     pub fn record(&mut self, consumer: ServiceId, next_seq: u64) {
         if let Some(a) = self.acked.get_mut(&consumer) {
             *a = (*a).max(next_seq);
@@ -65,7 +72,8 @@ pub struct AckReader {
 
 impl AckReader {
     pub fn open(node: &IpcNode) -> Result<(Self, Listener<Ipc>)> {
-        let (inbox, l) = Inbox::open(node, TopicId::Ack, &ack_service(node)?)?;
+        let (mut inbox, l) = Inbox::open(node, TopicId::Ack, &ack_service(node)?)?;
+        inbox.stats.peers_restart();
         Ok((AckReader { inbox }, l))
     }
 
@@ -103,5 +111,9 @@ mod tests {
         assert_eq!(c.available(4), 2);
         c.record(ServiceId::Tracker, 100); // not a consumer of this topic: ignored
         assert_eq!(c.available(4), 2);
+        // A restarted detector starts over: its window is counted from 0 again.
+        c.record(ServiceId::Orchestrator, 4);
+        c.reset(ServiceId::Detector, 0);
+        assert!(c.allows(3) && !c.allows(4));
     }
 }

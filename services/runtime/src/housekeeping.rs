@@ -5,7 +5,7 @@ use anyhow::Result;
 use iceoryx2::port::listener::Listener;
 use shared_types::topics::{ack_service, control_service, heartbeat_service, Ipc, IpcNode};
 use shared_types::{
-    Ack, Command, Control, Heartbeat, ServiceId, TopicCounters, TopicId, MAX_TOPICS,
+    Ack, Command, Control, Heartbeat, Replay, ServiceId, TopicCounters, TopicId, MAX_TOPICS,
 };
 
 use crate::ports::{Inbox, Outbox};
@@ -17,6 +17,10 @@ pub struct Housekeeping {
     control: Inbox<Control>,
     acks: Outbox<Ack>,
     acked: Vec<(TopicId, u64)>,
+    /// Replays ordered and not yet taken ([`Housekeeping::take_replays`]).
+    replays: Vec<Replay>,
+    /// `Shutdown` has arrived (possibly while the service waited outside its loop).
+    pub shutdown_requested: bool,
     /// Heartbeat state (`Heartbeat::STARTING` …).
     pub state: u32,
     /// Last end-to-end latency seen by this service [ns].
@@ -27,7 +31,9 @@ impl Housekeeping {
     /// Opens the housekeeping ports; the returned listener wakes the loop on control messages.
     pub fn open(node: &IpcNode, id: ServiceId) -> Result<(Self, Listener<Ipc>)> {
         let heartbeat = Outbox::open(node, TopicId::Heartbeat, &heartbeat_service(node)?, id)?;
-        let (control, listener) = Inbox::open(node, TopicId::Control, &control_service(node)?)?;
+        let (mut control, listener) = Inbox::open(node, TopicId::Control, &control_service(node)?)?;
+        // A restarted service joins the control topic at whatever seq it has reached.
+        control.stats.peers_restart();
         let acks = Outbox::open(node, TopicId::Ack, &ack_service(node)?, id)?;
         Ok((
             Housekeeping {
@@ -36,6 +42,8 @@ impl Housekeeping {
                 control,
                 acks,
                 acked: vec![],
+                replays: vec![],
+                shutdown_requested: false,
                 state: Heartbeat::STARTING,
                 last_latency_ns: 0,
             },
@@ -43,14 +51,20 @@ impl Housekeeping {
         ))
     }
 
-    /// Commands addressed to this service (or to all) since the last call.
+    /// Commands addressed to this service (or to all) since the last call. A
+    /// [`Command::Replay`]'s order is kept for [`Housekeeping::take_replays`].
     pub fn poll_control(&mut self) -> Result<Vec<Command>> {
         let me = self.id as u32;
         let mut cmds = vec![];
+        let (replays, shutdown) = (&mut self.replays, &mut self.shutdown_requested);
         self.control.drain(|r| {
             if r.msg.target == me || r.msg.target == Control::ALL {
                 if let Some(c) = Command::from_u32(r.msg.command) {
+                    *shutdown |= c == Command::Shutdown;
                     cmds.push(c);
+                }
+                if let Some(order) = r.msg.as_replay() {
+                    replays.push(order);
                 }
             }
             Ok(())
@@ -58,20 +72,24 @@ impl Housekeeping {
         Ok(cmds)
     }
 
+    /// The replays ordered since the last call (a consumer of this service's output restarted).
+    pub fn take_replays(&mut self) -> Vec<Replay> {
+        std::mem::take(&mut self.replays)
+    }
+
     /// The control handling of a consuming service: `Start` marks it running; `Shutdown` sends a
     /// last heartbeat with `stats` and returns `true` (leave the loop). Other commands are for
     /// producers and are ignored here.
     pub fn obey(&mut self, stats: &[&TopicStats]) -> Result<bool> {
         for cmd in self.poll_control()? {
-            match cmd {
-                Command::Start => self.state = Heartbeat::RUNNING,
-                Command::Shutdown => {
-                    self.state = Heartbeat::STOPPING;
-                    self.beat(0, stats)?;
-                    return Ok(true);
-                }
-                _ => {}
+            if cmd == Command::Start {
+                self.state = Heartbeat::RUNNING;
             }
+        }
+        if self.shutdown_requested {
+            self.state = Heartbeat::STOPPING;
+            self.beat(0, stats)?;
+            return Ok(true);
         }
         Ok(false)
     }
@@ -94,6 +112,10 @@ impl Housekeeping {
         };
         self.heartbeat.send(hb, t_ns)?;
         tracing::trace!(state = self.state, "heartbeat");
+        // Acks again with every heartbeat: a restarted producer learns where its consumers are.
+        for (topic, next_seq) in self.acked.clone() {
+            self.send_ack(topic, next_seq, t_ns)?;
+        }
         Ok(())
     }
 
@@ -105,6 +127,10 @@ impl Housekeeping {
             Some((_, n)) => *n = next_seq,
             None => self.acked.push((topic, next_seq)),
         }
+        self.send_ack(topic, next_seq, t_ns)
+    }
+
+    fn send_ack(&mut self, topic: TopicId, next_seq: u64, t_ns: u64) -> Result<()> {
         let ack = Ack {
             topic: topic as u32,
             consumer: self.id as u32,

@@ -36,6 +36,10 @@ pub struct Outbox<T: Message> {
     publisher: Publisher<Ipc, T, ()>,
     notifier: Notifier<Ipc>,
     producer: ServiceId,
+    /// Seq of the next message: `stats.published` except while replaying.
+    next_seq: u64,
+    /// Every message sent, kept for replays to a restarted consumer ([`Outbox::keep_log`]).
+    log: Option<Vec<T>>,
     pub stats: TopicStats,
 }
 
@@ -54,26 +58,81 @@ impl<T: Message> Outbox<T> {
             publisher,
             notifier: notifier(node, topic)?,
             producer,
+            next_seq: 0,
+            log: None,
             stats: TopicStats::new(topic),
         })
+    }
+
+    /// Keeps every message sent, so that a restarted consumer can be sent them again
+    /// ([`Outbox::rewind`], [`Outbox::resend`]) when the producer cannot re-make them.
+    pub fn keep_log(&mut self) {
+        self.log.get_or_insert_with(Vec::new);
+    }
+
+    /// Whether messages below `stats.published` are still to be sent again.
+    pub fn replaying(&self) -> bool {
+        self.next_seq < self.stats.published
+    }
+
+    /// Sends logged messages again, exactly as first sent, from the rewound seq on, at most
+    /// `limit` of them (the consumers' credit). Returns how many were sent.
+    pub fn resend(&mut self, limit: u64) -> Result<u64> {
+        let Some(log) = self.log.as_ref() else {
+            return Ok(0);
+        };
+        let mut n = 0;
+        while n < limit && self.next_seq < self.stats.published {
+            let Some(msg) = log.get(self.next_seq as usize) else {
+                break;
+            };
+            self.publisher
+                .send_copy(*msg)
+                .map_err(|e| anyhow!("resend on {}: {e:?}", self.stats.topic.name()))?;
+            self.next_seq += 1;
+            n += 1;
+        }
+        if n > 0 {
+            self.notifier
+                .notify_with_custom_event_id(EVENT_DATA)
+                .map_err(|e| anyhow!("notify on {}: {e:?}", self.stats.topic.name()))?;
+        }
+        Ok(n)
     }
 
     /// Fills the header (next seq, `t_ns`, send time), seals and sends a copy, wakes consumers.
     /// Returns the seq used.
     pub fn send(&mut self, mut msg: T, t_ns: u64) -> Result<u64> {
-        let seq = self.stats.published;
+        let seq = self.next_seq;
         *msg.meta_mut() = Meta::new(seq, t_ns, mono_ns(), self.producer);
         msg.seal();
+        if let Some(log) = self.log.as_mut() {
+            if seq as usize == log.len() {
+                log.push(msg);
+            }
+        }
         let delivered = self
             .publisher
             .send_copy(msg)
             .map_err(|e| anyhow!("send on {}: {e:?}", self.stats.topic.name()))?;
         tracing::trace!(topic = self.stats.topic.name(), seq, delivered, "sent");
-        self.stats.published += 1;
+        self.next_seq += 1;
+        self.stats.published = self.stats.published.max(self.next_seq);
         self.notifier
             .notify_with_custom_event_id(EVENT_DATA)
             .map_err(|e| anyhow!("notify on {}: {e:?}", self.stats.topic.name()))?;
         Ok(seq)
+    }
+
+    /// Seq of the next message sent.
+    pub fn next_seq(&self) -> u64 {
+        self.next_seq
+    }
+
+    /// Sends again from `seq` (a consumer restarted): messages below `stats.published` are
+    /// replays, which the consumers that have them skip as duplicates.
+    pub fn rewind(&mut self, seq: u64) {
+        self.next_seq = seq.min(self.stats.published);
     }
 
     /// Sends a message exactly as given (fault injection and tests: no header rewrite, no seal).
@@ -156,7 +215,7 @@ impl<T: Message> Inbox<T> {
                 continue;
             }
             let (producer, seq) = (msg.meta().producer, msg.meta().seq);
-            if self.stats.observe(producer, seq) == SeqVerdict::Stale {
+            if self.stats.observe(producer, seq) == SeqVerdict::Duplicate {
                 continue;
             }
             let latency_ns = mono_ns().saturating_sub(msg.meta().send_mono_ns);
@@ -174,6 +233,8 @@ pub struct FrameOutbox {
     publisher: Publisher<Ipc, [u16], FrameHeader>,
     notifier: Notifier<Ipc>,
     pixels: usize,
+    /// Seq of the next frame: `stats.published` except while replaying.
+    next_seq: u64,
     pub stats: TopicStats,
 }
 
@@ -190,8 +251,25 @@ impl FrameOutbox {
             publisher,
             notifier: notifier(node, TopicId::Frame)?,
             pixels,
+            next_seq: 0,
             stats: TopicStats::new(TopicId::Frame),
         })
+    }
+
+    /// Seq (frame number) of the next frame published.
+    pub fn next_seq(&self) -> u64 {
+        self.next_seq
+    }
+
+    /// Whether frames below `stats.published` are still to be published again.
+    pub fn replaying(&self) -> bool {
+        self.next_seq < self.stats.published
+    }
+
+    /// Publishes again from frame `seq` (a consumer restarted): frames below
+    /// `stats.published` are replays, which the consumers that have them skip as duplicates.
+    pub fn rewind(&mut self, seq: u64) {
+        self.next_seq = seq.min(self.stats.published);
     }
 
     /// Loans a sample, lets `render` write every pixel in place and fill the header, then sends.
@@ -201,7 +279,7 @@ impl FrameOutbox {
         t_ns: u64,
         render: impl FnOnce(&mut FrameHeader, &mut [u16]),
     ) -> Result<u64> {
-        let seq = self.stats.published;
+        let seq = self.next_seq;
         let mut sample = self
             .publisher
             .loan_slice_uninit(self.pixels)
@@ -225,7 +303,8 @@ impl FrameOutbox {
         // SAFETY: see above; all pixels were written by `render`.
         let sample = unsafe { sample.assume_init() };
         sample.send().map_err(|e| anyhow!("frame send: {e:?}"))?;
-        self.stats.published += 1;
+        self.next_seq += 1;
+        self.stats.published = self.stats.published.max(self.next_seq);
         self.notifier
             .notify_with_custom_event_id(EVENT_DATA)
             .map_err(|e| anyhow!("frame notify: {e:?}"))?;
@@ -299,7 +378,7 @@ impl FrameInbox {
                 });
                 continue;
             }
-            if self.stats.observe_seq(header.meta.seq) == SeqVerdict::Stale {
+            if self.stats.observe_seq(header.meta.seq) == SeqVerdict::Duplicate {
                 continue;
             }
             match handle(&header, pixels, latency_ns) {

@@ -196,32 +196,35 @@ impl<R: Rpc> RpcClient<R> {
     pub fn call(
         &mut self,
         node: &IpcNode,
-        mut req: R::Req,
+        req: R::Req,
         t_ns: u64,
         timeout: Duration,
     ) -> Result<CallOutcome<R::Resp>> {
-        R::set_request_id(&mut req, self.next_id);
-        *req.meta_mut() = Meta::new(self.next_id, t_ns, mono_ns(), self.producer);
-        req.seal();
+        let id = self.new_id();
+        self.call_with_id(node, req, id, t_ns, timeout)
+    }
+
+    /// A fresh request id, for [`RpcClient::call_with_id`].
+    pub fn new_id(&mut self) -> u64 {
         self.next_id += 1;
-        let name = R::TOPIC.name();
-        let pending = self
-            .client
-            .send_copy(req)
-            .map_err(|e| anyhow!("{name} request: {e:?}"))?;
-        self.request
-            .notify_with_custom_event_id(EVENT_DATA)
-            .map_err(|e| anyhow!("{name} request notify: {e:?}"))?;
+        self.next_id - 1
+    }
+
+    /// As [`RpcClient::call`] with the request id given: a retry of a request that was lost (its
+    /// server restarted) carries the id of the first attempt, so the answer is the same.
+    pub fn call_with_id(
+        &mut self,
+        node: &IpcNode,
+        req: R::Req,
+        id: u64,
+        t_ns: u64,
+        timeout: Duration,
+    ) -> Result<CallOutcome<R::Resp>> {
+        let pending = self.send(req, id, t_ns)?;
         let t0 = Instant::now();
         loop {
-            if let Some(r) = pending
-                .receive()
-                .map_err(|e| anyhow!("{name} reply: {e:?}"))?
-            {
-                return Ok(CallOutcome::Answered(*r.payload()));
-            }
-            if !pending.is_connected() {
-                return Ok(CallOutcome::Disconnected);
+            if let Some(outcome) = self.poll(&pending)? {
+                return Ok(outcome);
             }
             let left = timeout.saturating_sub(t0.elapsed());
             if left.is_zero() {
@@ -229,10 +232,57 @@ impl<R: Rpc> RpcClient<R> {
             }
             self.reply
                 .timed_wait(|_| {}, left.min(Duration::from_millis(50)))
-                .map_err(|e| anyhow!("{name} reply wait: {e:?}"))?;
+                .map_err(|e| anyhow!("{} reply wait: {e:?}", R::TOPIC.name()))?;
             node.try_cleanup_dead_nodes();
         }
     }
+
+    /// Sends request `id` for simulated time `t_ns` without waiting: [`RpcClient::poll`] tells
+    /// when it is answered.
+    pub fn send(&mut self, mut req: R::Req, id: u64, t_ns: u64) -> Result<Pending<R>> {
+        R::set_request_id(&mut req, id);
+        *req.meta_mut() = Meta::new(id, t_ns, mono_ns(), self.producer);
+        req.seal();
+        let name = R::TOPIC.name();
+        let inner = self
+            .client
+            .send_copy(req)
+            .map_err(|e| anyhow!("{name} request: {e:?}"))?;
+        self.request
+            .notify_with_custom_event_id(EVENT_DATA)
+            .map_err(|e| anyhow!("{name} request notify: {e:?}"))?;
+        Ok(Pending {
+            inner,
+            id,
+            sent: Instant::now(),
+        })
+    }
+
+    /// The outcome of a sent request, or `None` while it is still unanswered. A server that
+    /// died is noticed once dead-node cleanup has run (the caller's, or any other node's).
+    pub fn poll(&self, pending: &Pending<R>) -> Result<Option<CallOutcome<R::Resp>>> {
+        let _ = self.reply.try_wait(|_| {});
+        if let Some(r) = pending
+            .inner
+            .receive()
+            .map_err(|e| anyhow!("{} reply: {e:?}", R::TOPIC.name()))?
+        {
+            return Ok(Some(CallOutcome::Answered(*r.payload())));
+        }
+        if !pending.inner.is_connected() {
+            return Ok(Some(CallOutcome::Disconnected));
+        }
+        Ok(None)
+    }
+}
+
+/// A request sent and not yet answered ([`RpcClient::send`]).
+pub struct Pending<R: Rpc> {
+    inner: iceoryx2::pending_response::PendingResponse<Ipc, R::Req, (), R::Resp, ()>,
+    /// The request's id.
+    pub id: u64,
+    /// When it was sent.
+    pub sent: Instant,
 }
 
 /// The laser's server and client.

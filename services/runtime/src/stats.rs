@@ -17,7 +17,15 @@ pub struct TopicStats {
     /// producer (every data topic) this is that producer's; many-to-one topics (heartbeat, ack)
     /// are accounted per producer in `per_producer`.
     pub next_seq: u64,
+    /// Copies of messages already accounted for (a producer's replay): skipped, not dropped.
+    pub duplicates: u64,
     per_producer: Vec<(u32, u64)>,
+    /// A restarted consumer: everything before its producer's replay reaches seq 0 (history,
+    /// messages in flight) is skipped as a duplicate; the replay brings it again in order.
+    awaiting_replay: bool,
+    /// Many-to-one housekeeping topics (heartbeat, ack, control): a producer joins at whatever
+    /// seq it is at, and a seq going back means that producer restarted.
+    peers_restart: bool,
 }
 
 /// What the consumer should do with a message after sequence accounting.
@@ -25,8 +33,8 @@ pub struct TopicStats {
 pub enum SeqVerdict {
     /// In order (possibly after a counted gap): process it.
     Accept,
-    /// Already seen: counted as stale, skip it.
-    Stale,
+    /// Already accounted for (a replay): counted as a duplicate, skip it.
+    Duplicate,
 }
 
 impl TopicStats {
@@ -37,8 +45,21 @@ impl TopicStats {
             received: 0,
             dropped: [0; DROP_REASONS],
             next_seq: 0,
+            duplicates: 0,
             per_producer: Vec::new(),
+            awaiting_replay: false,
+            peers_restart: false,
         }
+    }
+
+    /// Accounting of a restarted consumer whose producer replays from seq 0.
+    pub fn await_replay(&mut self) {
+        self.awaiting_replay = true;
+    }
+
+    /// Accounting of a many-to-one housekeeping topic whose producers may restart.
+    pub fn peers_restart(&mut self) {
+        self.peers_restart = true;
     }
 
     /// Accounts for the arrival of `seq` from the topic's single producer: gaps before it
@@ -49,17 +70,29 @@ impl TopicStats {
 
     /// Accounts for the arrival of `seq` from `producer` (sequence numbers are per producer).
     pub fn observe(&mut self, producer: u32, seq: u64) -> SeqVerdict {
+        if self.awaiting_replay {
+            if seq != 0 {
+                self.duplicates += 1;
+                return SeqVerdict::Duplicate;
+            }
+            self.awaiting_replay = false;
+        }
         let slot = match self.per_producer.iter().position(|(p, _)| *p == producer) {
             Some(i) => i,
             None => {
-                self.per_producer.push((producer, 0));
+                let first = if self.peers_restart { seq } else { 0 };
+                self.per_producer.push((producer, first));
                 self.per_producer.len() - 1
             }
         };
         let next = &mut self.per_producer[slot].1;
+        if seq < *next && self.peers_restart {
+            // A new incarnation of that producer.
+            *next = seq;
+        }
         if seq < *next {
-            self.dropped[DropReason::Stale as usize] += 1;
-            return SeqVerdict::Stale;
+            self.duplicates += 1;
+            return SeqVerdict::Duplicate;
         }
         if seq > *next {
             self.dropped[DropReason::Overflow as usize] += seq - *next;
@@ -86,7 +119,7 @@ impl TopicStats {
     pub fn counters(&self) -> TopicCounters {
         TopicCounters {
             topic: self.topic as u32,
-            _pad: 0,
+            duplicates: self.duplicates.min(u64::from(u32::MAX)) as u32,
             published: self.published,
             received: self.received,
             dropped: self.dropped,
@@ -108,7 +141,41 @@ mod tests {
         }
         assert_eq!(s.received, 6);
         assert_eq!(s.dropped_total(), 0);
-        assert_eq!(s.observe(2, 1), SeqVerdict::Stale);
+        assert_eq!(s.observe(2, 1), SeqVerdict::Duplicate);
+    }
+
+    #[test]
+    fn a_restarted_consumer_skips_everything_before_the_replay_starts() {
+        let mut s = TopicStats::new(TopicId::Frame);
+        s.await_replay();
+        // History and frames in flight first, then the replay from 0.
+        for seq in [36, 37, 38, 0, 1, 2, 3] {
+            if s.observe_seq(seq) == SeqVerdict::Accept {
+                s.accept();
+            }
+        }
+        assert_eq!((s.received, s.duplicates, s.dropped_total()), (4, 3, 0));
+        assert_eq!(s.next_seq, 4);
+    }
+
+    #[test]
+    fn housekeeping_peers_join_late_and_restart() {
+        let mut s = TopicStats::new(TopicId::Heartbeat);
+        s.peers_restart();
+        // The orchestrator's control seq is at 7 when a restarted service subscribes.
+        assert_eq!(s.observe(1, 7), SeqVerdict::Accept);
+        assert_eq!(s.observe(1, 8), SeqVerdict::Accept);
+        // Producer 2 restarted: its seq starts over.
+        for seq in [0, 1, 2, 0, 1] {
+            assert_eq!(s.observe(2, seq), SeqVerdict::Accept);
+        }
+        assert_eq!((s.dropped_total(), s.duplicates), (0, 0));
+        s.observe(2, 4);
+        assert_eq!(
+            s.dropped[DropReason::Overflow as usize],
+            2,
+            "a real gap still counts"
+        );
     }
 
     #[test]
@@ -121,7 +188,7 @@ mod tests {
         }
         assert_eq!(s.received, 4);
         assert_eq!(s.dropped[DropReason::Overflow as usize], 2);
-        assert_eq!(s.dropped[DropReason::Stale as usize], 1);
+        assert_eq!(s.duplicates, 1);
         // invariant: every seq below next_seq is received or dropped (duplicates are extra)
         assert_eq!(
             s.received + s.dropped[DropReason::Overflow as usize],

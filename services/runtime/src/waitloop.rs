@@ -118,3 +118,14 @@ pub fn run_loop(
         step = handler(&wakes)?;
     }
 }
+
+/// Sleeps `d` outside the loop (a blocked call being retried); `false` when the process was
+/// asked to end meanwhile (a termination signal, SIGHUP, its parent gone).
+pub fn pause(node: &shared_types::topics::IpcNode, d: Duration) -> bool {
+    // `Interrupt` is also raised by SIGCONT (see the module docs): not an end.
+    let terminated = matches!(
+        node.wait(d),
+        Err(iceoryx2::node::NodeWaitFailure::TerminationRequest)
+    );
+    !terminated && crate::lifeline::end_requested().is_none()
+}

@@ -25,7 +25,12 @@ use crate::spectra_scene::SpectraScene;
 const BATCH: usize = 8;
 const LASER_STREAM: u64 = 1 << 56;
 
-pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
+/// `restarted`: a new incarnation after a crash; it produces everything again from the start
+/// (rendering is stateless), and its consumers skip what they already have as duplicates.
+pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
+    if restarted {
+        tracing::info!("restarted: producing again from the start");
+    }
     let node = open_node(prefix, "sensor")?;
     let (mut hk, control_listener) = Housekeeping::open(&node, ServiceId::Sensor)?;
     let (mut acks, ack_listener) = AckReader::open(&node)?;
@@ -111,6 +116,31 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                 }
                 Command::Pause => paused = true,
                 Command::Resume => paused = false,
+                Command::Replay => {
+                    for r in hk.take_replays() {
+                        tracing::info!(
+                            consumer = r.consumer.name(),
+                            topic = r.topic.name(),
+                            from = r.from_seq,
+                            "replay"
+                        );
+                        match r.topic {
+                            TopicId::Frame => {
+                                frame_credit.reset(r.consumer, r.from_seq);
+                                if let Some(f) = frames.as_mut() {
+                                    f.rewind(r.from_seq);
+                                }
+                            }
+                            TopicId::Spectrum => {
+                                spectrum_credit.reset(r.consumer, r.from_seq);
+                                if let Some(s) = spectrum_out.as_mut() {
+                                    s.rewind(r.from_seq);
+                                }
+                            }
+                            _ => {}
+                        }
+                    }
+                }
                 Command::Shutdown => {
                     hk.state = Heartbeat::STOPPING;
                     let f = frames.as_ref().map(|f| &f.stats);
@@ -140,15 +170,15 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                 // emits strictly in simulated-time order (frames before spectra on a tie), so the
                 // interleaving — and with it every sequence number — is deterministic.
                 let next_frame = match (frames.as_ref(), debris.as_ref()) {
-                    (Some(out), Some(scene)) if out.stats.published < n_frames => {
-                        let k = out.stats.published;
+                    (Some(out), Some(scene)) if out.next_seq() < n_frames => {
+                        let k = out.next_seq();
                         Some((k, (scene.exposure_end_s(k) * 1e9).round() as u64))
                     }
                     _ => None,
                 };
                 let next_spectrum = match (spectrum_out.as_ref(), spectra.as_ref()) {
-                    (Some(out), Some(scene)) if out.stats.published < n_spectra => {
-                        let k = out.stats.published;
+                    (Some(out), Some(scene)) if out.next_seq() < n_spectra => {
+                        let k = out.next_seq();
                         Some((k, scene.t_ns(k)))
                     }
                     _ => None,
@@ -172,9 +202,11 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                         }
                         now >= at
                     } else {
-                        frame_first && frame_credit.allows(k) && truth_ok
+                        // A replay (a restarted consumer) carries no truth: it was sent once.
+                        frame_first && frame_credit.allows(k) && (truth_ok || out.replaying())
                     };
                     if due {
+                        let replay = out.replaying();
                         out.publish(t_ns, |h, px| {
                             h.frame_index = k;
                             h.exposure_start_ns = (scene.exposure_start_s(k) * 1e9).round() as u64;
@@ -187,21 +219,26 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                             h.height_px = scene.camera.height_px;
                             scene.render(k, px);
                         })?;
-                        truth_out.send(scene.truth(k), t_ns)?;
+                        if !replay {
+                            truth_out.send(scene.truth(k), t_ns)?;
+                        }
                         progressed = true;
                     }
                 }
                 if let (Some((k, _)), Some(out), Some(scene)) =
                     (next_spectrum, spectrum_out.as_mut(), spectra.as_ref())
                 {
+                    let replay = out.replaying();
                     let due = realtime
                         || (!frame_first
                             && spectrum_credit.allows(k)
-                            && truth_credit.allows(truth_out.stats.published));
+                            && (replay || truth_credit.allows(truth_out.stats.published)));
                     if due {
                         let (sp, truth, t_ns) = scene.sample(k).context("spectrum sample")?;
                         out.send(sp, t_ns)?;
-                        truth_out.send(truth, t_ns)?;
+                        if !replay {
+                            truth_out.send(truth, t_ns)?;
+                        }
                         progressed = true;
                     }
                 }
@@ -210,12 +247,10 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
                 }
                 produced += 1;
             }
-            let frames_done = frames
-                .as_ref()
-                .is_none_or(|f| f.stats.published >= n_frames);
+            let frames_done = frames.as_ref().is_none_or(|f| f.next_seq() >= n_frames);
             let spectra_done = spectrum_out
                 .as_ref()
-                .is_none_or(|s| s.stats.published >= n_spectra);
+                .is_none_or(|s| s.next_seq() >= n_spectra);
             if frames_done && spectra_done && hk.state == Heartbeat::RUNNING {
                 hk.state = Heartbeat::FINISHED;
                 tracing::info!("sensor finished producing");

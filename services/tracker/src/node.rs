@@ -14,8 +14,8 @@ use glint_runtime::{open_node, run_loop, AckReader, Credit, Exit, Housekeeping, 
 use shared_types::scenario::{CameraScenario, Clock};
 use shared_types::topics::{detections_service, tracks_service, IpcNode, TRACKS_BUFFER};
 use shared_types::{
-    deployment, Detections, Heartbeat, RangeRequest, RangeStatus, Scenario, ServiceId, TopicId,
-    TrackEstimate, Tracks, MAX_TRACKS,
+    deployment, Detections, Heartbeat, RangeRequest, RangeResponse, RangeStatus, Scenario,
+    ServiceId, TopicId, TrackEstimate, Tracks, MAX_TRACKS,
 };
 
 use crate::angle_filter::AngleFilterConfig;
@@ -57,7 +57,17 @@ struct FrameWork<'a> {
     exposure_s: f64,
     /// σ(end point) / σ(centroid) of eq (9).
     end_point_factor: f64,
+    /// Sim clock: a shot the laser did not answer (its sensor restarting or stopped) is fired
+    /// again with the same request id until answered; simulated time waits for it.
+    sim_clock: bool,
+    /// Called while a shot is being retried: the service's heartbeat and control; `false`
+    /// once `Shutdown` arrived (the shot is given up).
+    keepalive: &'a mut dyn FnMut() -> Result<bool>,
 }
+
+/// How long a sim-clock shot is retried before the run is given up on (the orchestrator fails
+/// the run long before, when the sensor does not come back).
+const LASER_RETRY_LIMIT: Duration = Duration::from_secs(600);
 
 impl FrameWork<'_> {
     fn process(&mut self, d: &Detections) -> Result<Tracks> {
@@ -136,7 +146,16 @@ impl FrameWork<'_> {
                         track_id: est.track_id,
                         ..Default::default()
                     };
-                    match client.call(self.node, req, d.exposure_end_ns, self.timeout)? {
+                    let outcome = fire(
+                        client,
+                        self.node,
+                        req,
+                        d.exposure_end_ns,
+                        self.timeout,
+                        self.sim_clock,
+                        &mut *self.keepalive,
+                    )?;
+                    match outcome {
                         CallOutcome::Answered(resp) => {
                             est.range_status = resp.status;
                             if resp.status == RangeStatus::Hit as u32 {
@@ -190,7 +209,50 @@ impl FrameWork<'_> {
     }
 }
 
-pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
+/// One laser shot. In sim-clock mode an unanswered shot (timed out, or its server gone) is
+/// fired again with the same request id, heartbeating in between, until it is answered.
+fn fire(
+    client: &mut RangeClient,
+    node: &IpcNode,
+    req: RangeRequest,
+    t_ns: u64,
+    timeout: Duration,
+    sim_clock: bool,
+    keepalive: &mut dyn FnMut() -> Result<bool>,
+) -> Result<CallOutcome<RangeResponse>> {
+    let id = client.new_id();
+    let t0 = std::time::Instant::now();
+    let mut retries = 0u32;
+    loop {
+        let wait = if sim_clock {
+            timeout.min(Duration::from_millis(100))
+        } else {
+            timeout
+        };
+        let outcome = client.call_with_id(node, req, id, t_ns, wait)?;
+        if matches!(outcome, CallOutcome::Answered(_)) || !sim_clock {
+            if retries > 0 {
+                tracing::info!(request = id, retries, "laser shot answered after retries");
+            }
+            return Ok(outcome);
+        }
+        if t0.elapsed() > LASER_RETRY_LIMIT {
+            anyhow::bail!("the laser did not answer request {id} for {LASER_RETRY_LIMIT:?}");
+        }
+        if retries == 0 {
+            tracing::warn!(request = id, ?outcome, "laser shot unanswered; retrying");
+        }
+        retries += 1;
+        if !keepalive()? {
+            return Ok(outcome);
+        }
+        if !glint_runtime::waitloop::pause(node, Duration::from_millis(20)) {
+            anyhow::bail!("terminated while waiting for the laser");
+        }
+    }
+}
+
+pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
     let cam = scenario
         .camera
         .as_ref()
@@ -199,6 +261,10 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
     let (mut hk, control_l) = Housekeeping::open(&node, ServiceId::Tracker)?;
     let (mut dets, dets_l) =
         Inbox::<Detections>::open(&node, TopicId::Detections, &detections_service(&node)?)?;
+    let realtime = scenario.clock == Clock::Realtime;
+    if restarted && !realtime {
+        dets.stats.await_replay();
+    }
     let mut out = Outbox::open(
         &node,
         TopicId::Tracks,
@@ -216,7 +282,6 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
         None
     };
     let mut tm = TrackManager::new(config(cam)).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let realtime = scenario.clock == Clock::Realtime;
     let timeout = Duration::from_millis(cam.tracker.range_timeout_ms);
     let camera = PinholeCamera {
         width_px: cam.width_px,
@@ -244,17 +309,29 @@ pub fn run(prefix: &str, scenario: &Scenario) -> Result<()> {
         })?;
         let mut last_t_ns = 0;
         for d in &pending {
-            let mut work = FrameWork {
-                tm: &mut tm,
-                laser: client.as_mut(),
-                node: &node,
-                delay_s: cam.laser.delay_s,
-                timeout,
-                camera,
-                exposure_s: cam.exposure_s,
-                end_point_factor,
+            let msg = {
+                let (hk, stats) = (&mut hk, [&dets.stats, &out.stats]);
+                let mut keepalive = || {
+                    if hk.poll_control()?.contains(&shared_types::Command::Start) {
+                        hk.state = Heartbeat::RUNNING;
+                    }
+                    hk.beat(d.exposure_end_ns, &stats)?;
+                    Ok(!hk.shutdown_requested)
+                };
+                let mut work = FrameWork {
+                    tm: &mut tm,
+                    laser: client.as_mut(),
+                    node: &node,
+                    delay_s: cam.laser.delay_s,
+                    timeout,
+                    camera,
+                    exposure_s: cam.exposure_s,
+                    end_point_factor,
+                    sim_clock: !realtime,
+                    keepalive: &mut keepalive,
+                };
+                work.process(d)?
             };
-            let msg = work.process(d)?;
             out.send(msg, d.exposure_end_ns)?;
             last_t_ns = d.exposure_end_ns;
         }

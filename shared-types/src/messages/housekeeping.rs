@@ -49,7 +49,9 @@ impl DropReason {
 pub struct TopicCounters {
     /// [`crate::TopicId`] as u32, or `u32::MAX` for an unused slot.
     pub topic: u32,
-    pub _pad: u32,
+    /// Copies of messages already accounted for (a producer replaying after a consumer's
+    /// restart): skipped, neither received nor dropped.
+    pub duplicates: u32,
     /// Messages published (producer side) on this topic.
     pub published: u64,
     /// Messages received and accepted.
@@ -120,6 +122,9 @@ pub enum Command {
     Resume = 3,
     /// Start producing (sensor): sent once every consumer is ready.
     Start = 4,
+    /// Send a topic again from a seq on, to a consumer that restarted (`arg`: see
+    /// [`Control::replay`]).
+    Replay = 5,
 }
 
 impl Command {
@@ -129,6 +134,7 @@ impl Command {
             2 => Some(Command::Pause),
             3 => Some(Command::Resume),
             4 => Some(Command::Start),
+            5 => Some(Command::Replay),
             _ => None,
         }
     }
@@ -147,13 +153,53 @@ pub struct Control {
     pub arg: [u64; 2],
 }
 
+/// A [`Command::Replay`]: the producer sends `topic` again from `from_seq` on, and counts the
+/// consumer's credit from there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Replay {
+    pub consumer: crate::ServiceId,
+    pub topic: crate::TopicId,
+    pub from_seq: u64,
+}
+
 impl Control {
     pub const ALL: u32 = u32::MAX;
+
+    /// The replay order to `producer` for a restarted consumer.
+    pub fn replay(producer: crate::ServiceId, r: Replay) -> Control {
+        Control {
+            command: Command::Replay as u32,
+            target: producer as u32,
+            arg: [
+                u64::from(r.consumer as u32) | (u64::from(r.topic as u32) << 32),
+                r.from_seq,
+            ],
+            ..Default::default()
+        }
+    }
+
+    /// The replay this message orders, if it is a well-formed [`Command::Replay`].
+    pub fn as_replay(&self) -> Option<Replay> {
+        if self.command != Command::Replay as u32 {
+            return None;
+        }
+        Some(Replay {
+            consumer: crate::ServiceId::from_u32(self.arg[0] as u32)?,
+            topic: crate::TopicId::from_u32((self.arg[0] >> 32) as u32)?,
+            from_seq: self.arg[1],
+        })
+    }
 
     pub fn validate(&self) -> Result<(), Reject> {
         self.meta.validate()?;
         if Command::from_u32(self.command).is_none() {
             return Err(Reject::new("control.command", "unknown command"));
+        }
+        if self.command == Command::Replay as u32 && self.as_replay().is_none() {
+            return Err(Reject::new(
+                "control.arg",
+                "replay of an unknown consumer or topic",
+            ));
         }
         Ok(())
     }

@@ -217,7 +217,7 @@ pub struct SolveResponse {
     pub chosen_band: u32,
     /// Samples the stable window had.
     pub stable_samples: u32,
-    /// Frames the motion window had.
+    /// Frames the motion window had (stage 3; 0 for stages 1 and 2, which do not use it).
     pub motion_samples: u32,
     /// Stage 1: reconstruction error ε_rec per band.
     pub recon_err: [f32; MAX_BANDS],

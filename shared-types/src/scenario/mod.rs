@@ -11,11 +11,13 @@ mod camera;
 mod campaign;
 mod fault;
 mod spectra;
+mod supervision;
 
 pub use camera::*;
 pub use campaign::*;
 pub use fault::*;
 pub use spectra::*;
+pub use supervision::*;
 
 /// A scenario problem: where it is and what is allowed.
 #[derive(Debug, Clone, PartialEq)]
@@ -91,6 +93,9 @@ pub struct Scenario {
     /// Faults to inject (`[[fault]]`; also `glint run --fault`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub fault: Vec<FaultSpec>,
+    /// Restarts of failed services (`[supervision]`).
+    #[serde(default)]
+    pub supervision: Supervision,
 }
 
 fn default_seed() -> u64 {
@@ -235,6 +240,7 @@ impl Scenario {
             check_spectra(&mut c, sp);
         }
         fault::check_faults(&mut c, self);
+        supervision::check_supervision(&mut c, self);
         if let Some(camp) = &self.campaign {
             c.range_u("campaign.values (count)", camp.values.len() as u64, 1, 100);
             c.range_u("campaign.seeds", camp.seeds as u64, 1, 1000);
