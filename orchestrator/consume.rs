@@ -9,13 +9,14 @@ use anyhow::Result;
 use glint_runtime::ports::{FrameInbox, Inbox, Outbox};
 use glint_runtime::TopicStats;
 use iceoryx2::port::listener::Listener;
+use shared_types::scenario::FaultKind;
 use shared_types::topics::{
     ack_service, control_service, detections_service, frame_service, heartbeat_service,
     spectrum_service, tracks_service, truth_service, Ipc, IpcNode,
 };
 use shared_types::{
-    deployment, Ack, Command, Control, Detections, Heartbeat, Replay, Scenario, ServiceId,
-    Spectrum, TopicCounters, TopicId, Tracks, Truth,
+    deployment, Ack, Command, Control, Detections, DropReason, Heartbeat, InBandFault, Replay,
+    Scenario, ServiceId, Spectrum, TopicCounters, TopicId, Tracks, Truth,
 };
 use xxhash_rust::xxh3::Xxh3;
 
@@ -164,6 +165,31 @@ impl Consumer {
     pub fn replay(&mut self, producer: ServiceId, order: Replay) -> Result<()> {
         self.control.send(Control::replay(producer, order), 0)?;
         Ok(())
+    }
+
+    /// Sends an in-band fault command to `service`.
+    pub fn order_fault(&mut self, service: ServiceId, f: InBandFault) -> Result<()> {
+        self.control.send(Control::fault(service, f), 0)?;
+        Ok(())
+    }
+
+    /// Whether the orchestrator, a consumer of `topic`, has counted every output its producer
+    /// reported dropping (`Drop`: as sequence gaps) or sending invalid (`Corrupt`: as
+    /// malformed) on purpose.
+    pub fn counted(&self, topic: TopicId, kind: FaultKind) -> bool {
+        let (theirs, ours) = match kind {
+            FaultKind::Drop => (DropReason::Injected, DropReason::Overflow),
+            _ => (DropReason::Malformed, DropReason::Malformed),
+        };
+        let injected = self
+            .reported(deployment::producer(topic), topic)
+            .map_or(0, |c| c.dropped[theirs as usize]);
+        let seen = self
+            .own_stats()
+            .iter()
+            .find(|s| s.topic == topic)
+            .map_or(0, |s| s.dropped[ours as usize]);
+        injected > 0 && seen >= injected
     }
 
     /// Acknowledges again everything acknowledged so far: a restarted producer learns where
@@ -317,10 +343,26 @@ impl Consumer {
 
     /// True once every expected message of every consumed topic is accounted for.
     pub fn complete(&self) -> bool {
-        self.own_stats().iter().all(|s| {
-            let want = self.expected.get(&s.topic).copied().unwrap_or(0);
-            s.next_seq >= want
-        })
+        self.own_stats()
+            .iter()
+            .all(|s| s.next_seq >= self.expected_now(s.topic))
+    }
+
+    /// Messages of `topic` the run will carry: the scenario's count, less what the services
+    /// upstream of it dropped with a counted reason (a detector publishes one message per frame
+    /// it processed; a dropped or malformed frame makes none).
+    pub fn expected_now(&self, topic: TopicId) -> u64 {
+        let want = self.expected.get(&topic).copied().unwrap_or(0);
+        let (service, input) = match topic {
+            TopicId::Detections => (ServiceId::Detector, TopicId::Frame),
+            TopicId::Tracks => (ServiceId::Tracker, TopicId::Detections),
+            _ => return want,
+        };
+        let upstream = self.expected_now(input).min(want);
+        let dropped = self
+            .reported(service, input)
+            .map_or(0, |c| c.dropped.iter().sum::<u64>());
+        upstream.saturating_sub(dropped)
     }
 
     /// How many messages of `topic` the orchestrator has taken so far (0 if it does not

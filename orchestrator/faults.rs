@@ -6,13 +6,13 @@
 use rustix::process::Signal;
 use serde_json::{json, Value};
 use shared_types::scenario::{FaultKind, FaultSpec};
-use shared_types::{Scenario, ServiceId, TopicId};
+use shared_types::{InBandFault, Scenario, ServiceId, TopicId};
 
 /// Where a fault is in its life.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum State {
     Armed,
-    /// SIGSTOPped; SIGCONT is due at this time [s since start].
+    /// SIGSTOPped, or delayed; it ends (SIGCONT for a stop) at this time [s since start].
     Stopped {
         until_s: f64,
     },
@@ -36,11 +36,19 @@ pub struct Fault {
     pub restarts: u32,
 }
 
-/// A signal for the loop to send to a service's process group.
+/// What the loop sends to a service.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Act {
+    /// A signal to its process group.
+    Signal(Signal),
+    /// An in-band fault command.
+    Order(InBandFault),
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Action {
     pub service: ServiceId,
-    pub signal: Signal,
+    pub act: Act,
 }
 
 /// The input topic whose progress triggers an `at_seq` fault: what the service consumes (for
@@ -51,6 +59,24 @@ pub fn trigger_topic(scenario: &Scenario, service: ServiceId) -> TopicId {
         ServiceId::Sensor | ServiceId::Detector => TopicId::Frame,
         ServiceId::Tracker => TopicId::Detections,
         _ => TopicId::Spectrum,
+    }
+}
+
+/// The output an in-band `drop` or `corrupt` fault hits: the sensor's frames (or spectra
+/// without a camera), the detector's detections, the tracker's tracks; the inversion's are its
+/// solve answers ([`TopicId::Solve`]).
+pub fn output_topic(scenario: &Scenario, service: ServiceId) -> TopicId {
+    output_topic_of(scenario.camera.is_some(), service)
+}
+
+/// [`output_topic`] for a deployment with or without a camera.
+pub fn output_topic_of(camera: bool, service: ServiceId) -> TopicId {
+    match service {
+        ServiceId::Sensor if !camera => TopicId::Spectrum,
+        ServiceId::Sensor => TopicId::Frame,
+        ServiceId::Detector => TopicId::Detections,
+        ServiceId::Tracker => TopicId::Tracks,
+        _ => TopicId::Solve,
     }
 }
 
@@ -97,31 +123,34 @@ impl Injector {
                         continue;
                     }
                     f.injected_s = Some(now_s);
-                    let (signal, next) = match f.spec.kind {
-                        FaultKind::Kill => (Signal::KILL, State::Injected),
-                        FaultKind::Stop => (
-                            Signal::STOP,
-                            State::Stopped {
-                                until_s: now_s + f.spec.duration_s.unwrap_or(0.0),
-                            },
+                    let until_s = now_s + f.spec.duration_s.unwrap_or(0.0);
+                    let (act, next) = match f.spec.kind {
+                        FaultKind::Kill => (Act::Signal(Signal::KILL), State::Injected),
+                        FaultKind::Stop => (Act::Signal(Signal::STOP), State::Stopped { until_s }),
+                        FaultKind::Delay => (
+                            Act::Order(InBandFault::of(&f.spec)),
+                            State::Stopped { until_s },
                         ),
+                        _ => (Act::Order(InBandFault::of(&f.spec)), State::Injected),
                     };
-                    if f.spec.kind == FaultKind::Kill {
+                    if !matches!(next, State::Stopped { .. }) {
                         f.ended_s = Some(now_s);
                     }
                     f.state = next;
                     actions.push(Action {
                         service: f.service,
-                        signal,
+                        act,
                     });
                 }
                 State::Stopped { until_s } if now_s >= until_s => {
                     f.state = State::Injected;
                     f.ended_s = Some(now_s);
-                    actions.push(Action {
-                        service: f.service,
-                        signal: Signal::CONT,
-                    });
+                    if f.spec.kind == FaultKind::Stop {
+                        actions.push(Action {
+                            service: f.service,
+                            act: Act::Signal(Signal::CONT),
+                        });
+                    }
                 }
                 _ => {}
             }
@@ -144,7 +173,8 @@ impl Injector {
     pub fn heard_from(&mut self, service: ServiceId, heard_s: f64) {
         for f in self.faults.iter_mut().filter(|f| f.service == service) {
             let continued = f.ended_s.is_some_and(|e| heard_s >= e);
-            if f.state == State::Injected && f.spec.kind == FaultKind::Stop && continued {
+            let timed = matches!(f.spec.kind, FaultKind::Stop | FaultKind::Delay);
+            if f.state == State::Injected && timed && continued {
                 f.recovered_s = Some(heard_s);
                 f.state = State::Done;
             }
@@ -156,7 +186,9 @@ impl Injector {
     /// killing the process ends when it was detected).
     pub fn restarted(&mut self, service: ServiceId, now_s: f64) {
         for f in self.faults.iter_mut().filter(|f| f.service == service) {
-            if f.injected_s.is_none() || f.state == State::Done {
+            // Supervision acted on it: noticed, or not yet over.
+            let acted_on = f.state != State::Done || (f.detected_s.is_some() && f.restarts == 0);
+            if f.injected_s.is_none() || !acted_on {
                 continue;
             }
             f.restarts += 1;
@@ -164,6 +196,33 @@ impl Injector {
             if f.ended_s.is_none() {
                 f.ended_s = f.detected_s.or(Some(now_s));
             }
+            f.state = State::Done;
+        }
+    }
+
+    /// The drop and corrupt faults injected into `service` and not yet seen counted.
+    pub fn awaiting_count(&self) -> Vec<(usize, ServiceId, FaultKind)> {
+        self.faults
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| {
+                matches!(f.spec.kind, FaultKind::Drop | FaultKind::Corrupt)
+                    && f.state == State::Injected
+            })
+            .map(|(i, f)| (i, f.service, f.spec.kind))
+            .collect()
+    }
+
+    /// Fault `i`'s drops or corruptions were all counted by the consumers at `now_s`: noticed,
+    /// and (the chain having gone on) recovered from.
+    pub fn counted(&mut self, i: usize, now_s: f64) {
+        if let Some(f) = self.faults.get_mut(i) {
+            f.detected_s = Some(now_s);
+            f.detected_by = Some(match f.spec.kind {
+                FaultKind::Drop => "sequence gap",
+                _ => "validation",
+            });
+            f.recovered_s = Some(now_s);
             f.state = State::Done;
         }
     }
@@ -184,10 +243,12 @@ impl Injector {
             if let State::Stopped { .. } = f.state {
                 f.state = State::Injected;
                 f.ended_s = Some(now_s);
-                actions.push(Action {
-                    service: f.service,
-                    signal: Signal::CONT,
-                });
+                if f.spec.kind == FaultKind::Stop {
+                    actions.push(Action {
+                        service: f.service,
+                        act: Act::Signal(Signal::CONT),
+                    });
+                }
             }
         }
         actions
@@ -256,7 +317,7 @@ mod tests {
             a,
             [Action {
                 service: ServiceId::Detector,
-                signal: Signal::STOP
+                act: Act::Signal(Signal::STOP)
             }]
         );
         assert!(inj.step(1.5, |_| 6).is_empty());
@@ -265,7 +326,7 @@ mod tests {
             a,
             [Action {
                 service: ServiceId::Detector,
-                signal: Signal::CONT
+                act: Act::Signal(Signal::CONT)
             }]
         );
         inj.heard_from(ServiceId::Detector, 1.55);
@@ -288,7 +349,7 @@ mod tests {
     fn a_kill_at_a_time_is_detected_once() {
         let mut inj = injector(&["tracker:kill@0.25s"]);
         assert!(inj.step(0.2, |_| 100).is_empty());
-        assert_eq!(inj.step(0.25, |_| 0)[0].signal, Signal::KILL);
+        assert_eq!(inj.step(0.25, |_| 0)[0].act, Act::Signal(Signal::KILL));
         inj.detected(ServiceId::Tracker, "exit", 0.27);
         inj.detected(ServiceId::Tracker, "heartbeat deadline", 5.0);
         let f = &inj.faults[0];

@@ -12,6 +12,7 @@ mod faults;
 mod invert;
 #[cfg(feature = "lab")]
 mod lab;
+mod matrix;
 mod observations;
 mod plots;
 mod png;
@@ -198,6 +199,8 @@ fn add_faults(sc: &mut Scenario, args: &[String]) -> Result<(), String> {
     for a in args {
         let spec = shared_types::scenario::FaultSpec::parse(a)
             .map_err(|e| format!("--fault `{a}`: {e}"))?;
+        // Asked for on the command line: the in-band kinds are wanted, so obeyed.
+        sc.faults.enabled |= spec.kind.in_band();
         sc.fault.push(spec);
     }
     sc.validate().map_err(|errors| {
@@ -301,13 +304,17 @@ fn main() -> ExitCode {
                 );
                 return ExitCode::from(2);
             }
-            finish(run::run(run::RunOptions {
+            let opts = run::RunOptions {
                 scenario: sc,
                 scenario_file: file,
                 out_dir: out,
                 replace: force,
                 progress: std::io::stderr().is_terminal(),
-            }))
+            };
+            if opts.scenario.matrix.is_some() {
+                return finish(matrix::run_matrix(opts));
+            }
+            finish(run::run(opts))
         }
         #[cfg(feature = "lab")]
         Cmd::Lab {

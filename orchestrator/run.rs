@@ -11,7 +11,7 @@ use shared_types::{deployment, Command, Control, Heartbeat, Replay, Scenario, Se
 
 use crate::consume::Consumer;
 use crate::deploy::{stop_ladder, Ending, ServiceProcess};
-use crate::faults::Injector;
+use crate::faults::{Act, Injector};
 use crate::report::{self, Outcome, RunFacts};
 use crate::supervise::{Action, Observation, Supervisor};
 
@@ -40,7 +40,6 @@ enum Phase {
 static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 /// An error if a deployment of this process was interrupted by a signal.
-#[cfg(feature = "lab")]
 pub fn bail_if_interrupted(what: &str) -> Result<()> {
     if INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst) {
         anyhow::bail!("{what} interrupted by a signal");
@@ -168,9 +167,24 @@ fn deploy_and_run(
                 consumer.carried(crate::faults::trigger_topic(scenario, s))
             });
             for a in due {
-                if let Some(c) = children.iter().find(|c| c.id == a.service) {
-                    tracing::info!(service = c.id.name(), signal = ?a.signal, "fault injected");
-                    c.signal(a.signal);
+                tracing::info!(service = a.service.name(), act = ?a.act, "fault injected");
+                match a.act {
+                    Act::Signal(sig) => {
+                        if let Some(c) = children.iter().find(|c| c.id == a.service) {
+                            c.signal(sig);
+                        }
+                    }
+                    Act::Order(f) => consumer.order_fault(a.service, f)?,
+                }
+            }
+            // Drops and corruptions are noticed where they are counted.
+            for (i, service, kind) in injector.awaiting_count() {
+                let counted = match (service, &sequencer) {
+                    (ServiceId::Inversion, Some(seq)) => seq.counted(kind),
+                    _ => consumer.counted(crate::faults::output_topic(scenario, service), kind),
+                };
+                if counted {
+                    injector.counted(i, since_start(Instant::now(), t_running));
                 }
             }
             for (id, seen) in &consumer.seen {
@@ -236,10 +250,14 @@ fn deploy_and_run(
                 }
             }
             if phase == Phase::Running {
+                // A solve in flight: the inversion computes without beating; the call has its
+                // own timeout, and the process's exit is still noticed.
+                let solving = sequencer.as_ref().is_some_and(|s| s.solving());
                 let seen: Vec<Observation> = children
                     .iter_mut()
                     .map(|c| Observation {
                         id: c.id,
+                        busy: solving && c.id == ServiceId::Inversion,
                         exited: (!c.is_running()).then(|| c.exit_ok.unwrap_or(false)),
                         heartbeat: consumer
                             .seen
@@ -278,6 +296,9 @@ fn deploy_and_run(
                             }
                             consumer.command(Command::Start, id as u32)?;
                             injector.restarted(id, now_s);
+                            if let (ServiceId::Inversion, Some(seq)) = (id, sequencer.as_mut()) {
+                                seq.inversion_restarted();
+                            }
                             tracing::info!(service = id.name(), "restarted service resumed");
                         }
                         Action::GiveUp { id, how, why } => {
@@ -333,8 +354,8 @@ fn deploy_and_run(
 
     // A service still SIGSTOPped by a fault is continued, so that it can obey the ladder.
     for a in injector.release(since_start(t_stopped, t_running)) {
-        if let Some(c) = children.iter().find(|c| c.id == a.service) {
-            c.signal(a.signal);
+        if let (Some(c), Act::Signal(sig)) = (children.iter().find(|c| c.id == a.service), a.act) {
+            c.signal(sig);
         }
     }
     // Stop ladder; drain final heartbeats while waiting so the last counters are captured.
@@ -360,7 +381,17 @@ fn deploy_and_run(
 
     // A run that failed produced until it stopped: its rates are over that time.
     let production_s = t_running.map_or(0.0, |a| (t_done.unwrap_or(t_stopped) - a).as_secs_f64());
-    let facts = RunFacts::collect(
+    let server = consumer.reported(ServiceId::Inversion, shared_types::TopicId::Solve);
+    let solve_tampered = match (&sequencer, server) {
+        (Some(seq), Some(c)) => [
+            c.dropped[shared_types::DropReason::Injected as usize],
+            c.dropped[shared_types::DropReason::Malformed as usize],
+            seq.unanswered,
+            seq.malformed,
+        ],
+        _ => [0; 4],
+    };
+    let mut facts = RunFacts::collect(
         &consumer,
         &children,
         scenario,
@@ -375,6 +406,7 @@ fn deploy_and_run(
             production_s,
         },
     );
+    facts.solve_tampered = solve_tampered;
     if children.iter().any(|c| c.ending == Ending::Running) {
         bail!("a child survived the stop ladder");
     }

@@ -9,6 +9,7 @@ use std::time::Duration;
 
 use anyhow::Result;
 use glint_runtime::rpc::{CallOutcome, Pending, RpcClient, Solve};
+use shared_types::scenario::FaultKind;
 use shared_types::topics::IpcNode;
 use shared_types::{Scenario, ServiceId, SolveRequest, SolveResponse, SolveStatus, TopicId};
 
@@ -16,6 +17,8 @@ use crate::consume::Consumer;
 
 /// `NotReady` answers per stage before the run is declared failed.
 const MAX_ATTEMPTS: u32 = 200;
+/// The pause before asking again after `NotReady`.
+const NOT_READY_PAUSE: Duration = Duration::from_millis(20);
 /// Calls lost per stage (their server gone) before the run is declared failed.
 const MAX_LOST: u32 = 10;
 
@@ -31,6 +34,12 @@ pub struct Sequencer {
     in_flight: Option<Pending<Solve>>,
     /// The id of a lost call, sent again.
     retry_id: Option<u64>,
+    /// After `NotReady`, not asked again before this instant.
+    not_before: Option<std::time::Instant>,
+    /// Answers rejected as malformed (each asked again).
+    pub malformed: u64,
+    /// Calls that ended unanswered (the server gone or the request discarded; asked again).
+    pub unanswered: u64,
     /// Responses of stages 1, 2, 3 in order.
     pub responses: Vec<SolveResponse>,
     pub failure: Option<String>,
@@ -52,9 +61,29 @@ impl Sequencer {
             lost: 0,
             in_flight: None,
             retry_id: None,
+            not_before: None,
+            malformed: 0,
+            unanswered: 0,
             responses: vec![],
             failure: None,
         }))
+    }
+
+    /// The inversion restarted: its new incarnation holds no stage, so the solve starts again
+    /// from stage 1 (the answers come out the same: the replay gives it the same spectra).
+    pub fn inversion_restarted(&mut self) {
+        if self.done() {
+            return;
+        }
+        self.next_stage = 1;
+        self.responses.clear();
+        self.attempts = 0;
+        self.in_flight = None;
+    }
+
+    /// Whether a call is in flight (the inversion is computing: its heartbeats may pause).
+    pub fn solving(&self) -> bool {
+        self.in_flight.is_some()
     }
 
     pub fn done(&self) -> bool {
@@ -67,6 +96,7 @@ impl Sequencer {
     pub fn step(&mut self, consumer: &Consumer, inversion_up: bool) -> Result<()> {
         while !self.done() {
             if let Some(p) = &self.in_flight {
+                // A request the inversion discards unanswered (an injected drop) disconnects.
                 let outcome = match self.client.poll(p)? {
                     Some(o) => o,
                     None if p.sent.elapsed() > self.timeout => CallOutcome::TimedOut,
@@ -87,7 +117,10 @@ impl Sequencer {
             } else {
                 self.stable_samples
             };
-            if !inversion_up || have < need {
+            let waiting = self
+                .not_before
+                .is_some_and(|t| std::time::Instant::now() < t);
+            if !inversion_up || have < need || waiting {
                 return Ok(());
             }
             let req = SolveRequest {
@@ -104,11 +137,21 @@ impl Sequencer {
         Ok(())
     }
 
+    /// Whether the sequencer noticed the inversion's dropped (`Drop`) or malformed
+    /// (`Corrupt`) answers.
+    pub fn counted(&self, kind: FaultKind) -> bool {
+        match kind {
+            FaultKind::Drop => self.unanswered > 0,
+            _ => self.malformed > 0,
+        }
+    }
+
     /// Takes the outcome of call `id`; `true` when the next stage may be asked at once.
     fn answered(&mut self, id: u64, outcome: CallOutcome<SolveResponse>) -> bool {
         match outcome {
             CallOutcome::Answered(resp) if resp.status == SolveStatus::NotReady as u32 => {
                 self.attempts += 1;
+                self.not_before = Some(std::time::Instant::now() + NOT_READY_PAUSE);
                 if self.attempts >= MAX_ATTEMPTS {
                     self.failure = Some(format!(
                         "solve stage {} never became ready",
@@ -129,7 +172,22 @@ impl Sequencer {
                 self.lost = 0;
                 true
             }
+            CallOutcome::Malformed => {
+                self.malformed += 1;
+                self.retry_id = Some(id);
+                self.lost += 1;
+                if self.lost >= MAX_LOST {
+                    self.failure = Some(format!(
+                        "solve stage {}: {} answers malformed or lost",
+                        self.next_stage, self.lost
+                    ));
+                }
+                // Asked again at once.
+                true
+            }
             CallOutcome::Disconnected => {
+                // The server gone, or (it still being up) the request discarded unanswered.
+                self.unanswered += 1;
                 tracing::warn!(
                     stage = self.next_stage,
                     request = id,

@@ -7,7 +7,8 @@ use std::path::Path;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use serde_json::Value;
-use shared_types::ServiceId;
+use shared_types::scenario::FaultKind;
+use shared_types::{DropReason, ServiceId};
 
 use super::{producer_of, RunFacts, TopicFact};
 use crate::plots::{BLUE, GREEN, ORANGE, RED};
@@ -41,10 +42,50 @@ fn lost(f: &RunFacts, service: ServiceId) -> Option<u64> {
     Some(sum)
 }
 
+/// A drop or corrupt fault's accounting: (outputs the service dropped or sent invalid on
+/// purpose, the fewest of them any consumer counted as a gap or as malformed).
+fn tampered(f: &RunFacts, service: ServiceId, kind: FaultKind) -> (u64, u64) {
+    let drop = kind == FaultKind::Drop;
+    if service == ServiceId::Inversion {
+        let t = &f.solve_tampered;
+        return if drop { (t[0], t[2]) } else { (t[1], t[3]) };
+    }
+    let (theirs, ours) = if drop {
+        (DropReason::Injected, DropReason::Overflow)
+    } else {
+        (DropReason::Malformed, DropReason::Malformed)
+    };
+    let topic = f
+        .topics
+        .iter()
+        .find(|(t, _)| crate::faults::output_topic_of(f.debris.is_some(), service) == **t);
+    let Some((_, t)) = topic else {
+        return (0, 0);
+    };
+    let injected = t.producer_dropped[theirs as usize];
+    let counted = t
+        .consumers
+        .values()
+        .map(|c| c.as_ref().map_or(0, |c| c.dropped[ours as usize]))
+        .min()
+        .unwrap_or(0);
+    (injected, counted)
+}
+
 pub fn json(f: &RunFacts) -> Vec<Value> {
     f.faults
         .iter()
-        .map(|fault| fault.json(lost(f, fault.service), f.invariant_held()))
+        .map(|fault| match fault.spec.kind {
+            FaultKind::Drop | FaultKind::Corrupt => {
+                // Lost by design; the invariant is that every one of them was counted.
+                let (injected, counted) = tampered(f, fault.service, fault.spec.kind);
+                let mut v = fault.json(Some(injected), f.invariant_held() && injected == counted);
+                v["injected"] = injected.into();
+                v["counted"] = counted.into();
+                v
+            }
+            _ => fault.json(lost(f, fault.service), f.invariant_held()),
+        })
         .collect()
 }
 

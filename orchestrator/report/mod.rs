@@ -40,8 +40,13 @@ pub struct ConsumerFact {
 }
 
 pub struct TopicFact {
+    /// What the run had to carry: the scenario's count less what was dropped upstream with a
+    /// counted reason.
     pub expected: u64,
     pub published: Option<u64>,
+    /// The producer's own counts of what it dropped (`injected`) or sent invalid
+    /// (`malformed`) on purpose: in-band faults.
+    pub producer_dropped: [u64; shared_types::DROP_REASONS],
     pub digest: Option<u64>,
     pub consumers: BTreeMap<String, Option<ConsumerFact>>,
 }
@@ -82,6 +87,9 @@ pub struct RunFacts {
     pub shm_held_by: Vec<String>,
     /// The injected faults and what supervision saw of them.
     pub faults: Vec<crate::faults::Fault>,
+    /// Solve answers the inversion dropped and sent invalid on purpose, and those the
+    /// sequencer noticed as unanswered and rejected as malformed.
+    pub solve_tampered: [u64; 4],
 }
 
 /// The service that publishes a topic.
@@ -142,10 +150,10 @@ impl RunFacts {
             TopicId::Spectrum,
             TopicId::Truth,
         ] {
-            let expected = deployment::expected_messages(scenario, t);
-            if expected == 0 {
+            if deployment::expected_messages(scenario, t) == 0 {
                 continue;
             }
+            let expected = consumer.expected_now(t);
             let mut consumers = BTreeMap::new();
             for c in deployment::consumers(scenario, t) {
                 let fact = if c == ServiceId::Orchestrator {
@@ -176,6 +184,9 @@ impl RunFacts {
                 TopicFact {
                     expected,
                     published,
+                    producer_dropped: consumer
+                        .reported(producer_of(t), t)
+                        .map_or([0; shared_types::DROP_REASONS], |c| c.dropped),
                     digest: digests.get(&t).copied(),
                     consumers,
                 },
@@ -233,6 +244,7 @@ impl RunFacts {
             shm_leftover: vec![],
             shm_held_by: vec![],
             faults,
+            solve_tampered: [0; 4],
         }
     }
 

@@ -132,6 +132,8 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
         .context("the detector needs a [camera] section")?;
     let node = open_node(prefix, "detector")?;
     let (mut hk, control_l) = Housekeeping::open(&node, ServiceId::Detector)?;
+    hk.faults_enabled = scenario.faults.enabled;
+    hk.heartbeat_period = Duration::from_millis(scenario.run.heartbeat_period_ms);
     let (mut frames, frame_l) = FrameInbox::open(&node, &frame_service(&node)?)?;
     // Integrity of the pixels is checked on receipt (one xxh3 pass, ~0.1 ms per 1024² frame).
     frames.verify_checksum = true;
@@ -168,6 +170,9 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
             return Ok(Step::Stop);
         }
         acks.poll(&mut [(TopicId::Detections, &mut credit)])?;
+        for f in hk.take_output_faults() {
+            out.tamper.arm(&f);
+        }
         for r in hk.take_replays() {
             if r.topic == TopicId::Detections {
                 tracing::info!(consumer = r.consumer.name(), from = r.from_seq, "replay");
@@ -185,6 +190,9 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
         let limit = credit.input_limit(out.stats.published, realtime);
         let mut last_t_ns = 0;
         frames.drain_up_to(limit, |header, pixels, latency_ns| {
+            if let Err(e) = hk.pace() {
+                send_error.get_or_insert(e);
+            }
             hk.last_latency_ns = latency_ns;
             let found = detector
                 .detect(pixels, w, h)

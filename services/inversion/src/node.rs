@@ -185,6 +185,8 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
         .context("the inversion needs a [spectra] section")?;
     let node = open_node(prefix, "inversion")?;
     let (mut hk, control_l) = Housekeeping::open(&node, ServiceId::Inversion)?;
+    hk.faults_enabled = scenario.faults.enabled;
+    hk.heartbeat_period = Duration::from_millis(scenario.run.heartbeat_period_ms);
     let (mut spectra, spectra_l) =
         Inbox::<Spectrum>::open(&node, TopicId::Spectrum, &spectrum_service(&node)?)?;
     if restarted && scenario.clock == shared_types::scenario::Clock::Sim {
@@ -207,12 +209,22 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
             return Ok(Step::Stop);
         }
         let mut last_t_ns = 0;
+        for f in hk.take_output_faults() {
+            server.tamper.arm(&f);
+        }
+        let mut pace_error = None;
         spectra.drain(|r| {
+            if let Err(e) = hk.pace() {
+                pace_error.get_or_insert(e);
+            }
             hk.last_latency_ns = r.latency_ns;
             last_t_ns = r.msg.meta.t_ns;
             session.push(r.msg.window == Window::Motion as u32, observation(r.msg));
             Ok(())
         })?;
+        if let Some(e) = pace_error {
+            return Err(e);
+        }
         hk.ack(TopicId::Spectrum, spectra.stats.next_seq, last_t_ns)?;
         server.serve(|req| (answer(&mut session, req), req.meta.t_ns))?;
         if wakes.contains(&Wake::Tick) {

@@ -3,9 +3,11 @@
 
 use anyhow::Result;
 use iceoryx2::port::listener::Listener;
+use shared_types::scenario::FaultKind;
 use shared_types::topics::{ack_service, control_service, heartbeat_service, Ipc, IpcNode};
 use shared_types::{
-    Ack, Command, Control, Heartbeat, Replay, ServiceId, TopicCounters, TopicId, MAX_TOPICS,
+    Ack, Command, Control, Heartbeat, InBandFault, Replay, ServiceId, TopicCounters, TopicId,
+    MAX_TOPICS,
 };
 
 use crate::ports::{Inbox, Outbox};
@@ -21,6 +23,18 @@ pub struct Housekeeping {
     replays: Vec<Replay>,
     /// `Shutdown` has arrived (possibly while the service waited outside its loop).
     pub shutdown_requested: bool,
+    /// Obey in-band fault commands (the scenario's `faults.enabled`); refused ones are counted.
+    pub faults_enabled: bool,
+    /// In-band fault commands refused because faults are not enabled.
+    pub faults_refused: u64,
+    /// An injected delay: added before each message until the instant.
+    delay: Option<(std::time::Duration, std::time::Instant)>,
+    /// Drop and corrupt orders not yet armed on an output ([`Housekeeping::take_output_faults`]).
+    output_faults: Vec<InBandFault>,
+    /// The scenario's `run.heartbeat_period_ms`: a slowed service still beats this often.
+    pub heartbeat_period: std::time::Duration,
+    /// The last heartbeat: when, and the counters it carried.
+    last_beat: Option<(std::time::Instant, [TopicCounters; MAX_TOPICS])>,
     /// Heartbeat state (`Heartbeat::STARTING` …).
     pub state: u32,
     /// Last end-to-end latency seen by this service [ns].
@@ -44,6 +58,12 @@ impl Housekeeping {
                 acked: vec![],
                 replays: vec![],
                 shutdown_requested: false,
+                faults_enabled: false,
+                faults_refused: 0,
+                delay: None,
+                output_faults: vec![],
+                heartbeat_period: std::time::Duration::from_millis(100),
+                last_beat: None,
                 state: Heartbeat::STARTING,
                 last_latency_ns: 0,
             },
@@ -57,6 +77,7 @@ impl Housekeeping {
         let me = self.id as u32;
         let mut cmds = vec![];
         let (replays, shutdown) = (&mut self.replays, &mut self.shutdown_requested);
+        let mut faults = vec![];
         self.control.drain(|r| {
             if r.msg.target == me || r.msg.target == Control::ALL {
                 if let Some(c) = Command::from_u32(r.msg.command) {
@@ -66,10 +87,66 @@ impl Housekeeping {
                 if let Some(order) = r.msg.as_replay() {
                     replays.push(order);
                 }
+                if let Some(f) = r.msg.as_fault() {
+                    faults.push(f);
+                }
             }
             Ok(())
         })?;
+        for f in faults {
+            self.obey_fault(f);
+        }
         Ok(cmds)
+    }
+
+    fn obey_fault(&mut self, f: InBandFault) {
+        if !self.faults_enabled {
+            self.faults_refused += 1;
+            tracing::warn!(
+                kind = f.kind.name(),
+                "fault command refused: faults.enabled is false"
+            );
+            return;
+        }
+        tracing::warn!(kind = f.kind.name(), "injected fault");
+        match f.kind {
+            FaultKind::Panic => panic!("injected fault: panic"),
+            FaultKind::Delay => {
+                let until = std::time::Instant::now()
+                    + std::time::Duration::from_millis(u64::from(f.duration_ms));
+                self.delay = Some((
+                    std::time::Duration::from_millis(u64::from(f.delay_ms)),
+                    until,
+                ));
+            }
+            FaultKind::Drop | FaultKind::Corrupt => self.output_faults.push(f),
+            FaultKind::Kill | FaultKind::Stop => {}
+        }
+    }
+
+    /// An injected delay, before a message is processed (nothing without one). A service
+    /// slowed this way still beats on time (with the counters of its last heartbeat): slow is
+    /// not hung.
+    pub fn pace(&mut self) -> Result<()> {
+        let Some((d, until)) = self.delay else {
+            return Ok(());
+        };
+        if std::time::Instant::now() >= until {
+            self.delay = None;
+            return Ok(());
+        }
+        std::thread::sleep(d);
+        if let Some((at, topics)) = self.last_beat {
+            if at.elapsed() >= self.heartbeat_period {
+                self.send_beat(0, topics)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Drop and corrupt orders to arm on this service's output.
+    pub fn take_output_faults(&mut self) -> Vec<InBandFault> {
+        std::mem::take(&mut self.output_faults)
     }
 
     /// The replays ordered since the last call (a consumer of this service's output restarted).
@@ -103,6 +180,16 @@ impl Housekeeping {
         for (slot, s) in topics.iter_mut().zip(stats.iter()) {
             *slot = s.counters();
         }
+        self.send_beat(t_ns, topics)?;
+        // Acks again with every heartbeat: a restarted producer learns where its consumers are.
+        for (topic, next_seq) in self.acked.clone() {
+            self.send_ack(topic, next_seq, t_ns)?;
+        }
+        Ok(())
+    }
+
+    fn send_beat(&mut self, t_ns: u64, topics: [TopicCounters; MAX_TOPICS]) -> Result<()> {
+        self.last_beat = Some((std::time::Instant::now(), topics));
         let hb = Heartbeat {
             pid: std::process::id(),
             state: self.state,
@@ -112,10 +199,6 @@ impl Housekeeping {
         };
         self.heartbeat.send(hb, t_ns)?;
         tracing::trace!(state = self.state, "heartbeat");
-        // Acks again with every heartbeat: a restarted producer learns where its consumers are.
-        for (topic, next_seq) in self.acked.clone() {
-            self.send_ack(topic, next_seq, t_ns)?;
-        }
         Ok(())
     }
 

@@ -14,6 +14,7 @@ pub mod ports;
 pub mod rng;
 pub mod rpc;
 pub mod stats;
+pub mod tamper;
 pub mod waitloop;
 
 pub use clock::mono_ns;

@@ -16,6 +16,9 @@ use shared_types::{DropReason, FrameHeader, Message, Meta, Reject, ServiceId, To
 
 use crate::clock::mono_ns;
 use crate::stats::{SeqVerdict, TopicStats};
+use crate::tamper::{Tamper, Verdict};
+use shared_types::scenario::Corruption;
+use shared_types::CONTRACT_VERSION;
 
 /// The listener a consumer attaches to its WaitSet for a topic.
 pub fn listener(node: &IpcNode, topic: TopicId) -> Result<Listener<Ipc>> {
@@ -40,6 +43,8 @@ pub struct Outbox<T: Message> {
     next_seq: u64,
     /// Every message sent, kept for replays to a restarted consumer ([`Outbox::keep_log`]).
     log: Option<Vec<T>>,
+    /// Injected drops and corruptions still to apply.
+    pub tamper: Tamper,
     pub stats: TopicStats,
 }
 
@@ -60,6 +65,7 @@ impl<T: Message> Outbox<T> {
             producer,
             next_seq: 0,
             log: None,
+            tamper: Tamper::default(),
             stats: TopicStats::new(topic),
         })
     }
@@ -109,6 +115,31 @@ impl<T: Message> Outbox<T> {
         if let Some(log) = self.log.as_mut() {
             if seq as usize == log.len() {
                 log.push(msg);
+            }
+        }
+        let verdict = if seq < self.stats.published {
+            Verdict::Send
+        } else {
+            self.tamper.verdict()
+        };
+        match verdict {
+            Verdict::Send => {}
+            Verdict::Drop => {
+                tracing::info!(topic = self.stats.topic.name(), seq, "injected drop");
+                self.stats.drop_for(DropReason::Injected);
+                self.next_seq += 1;
+                self.stats.published = self.stats.published.max(self.next_seq);
+                return Ok(seq);
+            }
+            Verdict::Corrupt(how) => {
+                tracing::info!(
+                    topic = self.stats.topic.name(),
+                    seq,
+                    how = how.name(),
+                    "injected corruption"
+                );
+                msg.corrupt(how);
+                self.stats.drop_for(DropReason::Malformed);
             }
         }
         let delivered = self
@@ -210,7 +241,7 @@ impl<T: Message> Inbox<T> {
             let msg: &T = sample.payload();
             if let Err(r) = msg.check() {
                 // A corrupted message cannot be trusted to carry a valid seq; count it only.
-                self.stats.drop_for(DropReason::Malformed);
+                self.stats.malformed();
                 self.last_reject = Some(r);
                 continue;
             }
@@ -235,6 +266,8 @@ pub struct FrameOutbox {
     pixels: usize,
     /// Seq of the next frame: `stats.published` except while replaying.
     next_seq: u64,
+    /// Injected drops and corruptions still to apply.
+    pub tamper: Tamper,
     pub stats: TopicStats,
 }
 
@@ -252,6 +285,7 @@ impl FrameOutbox {
             notifier: notifier(node, TopicId::Frame)?,
             pixels,
             next_seq: 0,
+            tamper: Tamper::default(),
             stats: TopicStats::new(TopicId::Frame),
         })
     }
@@ -299,6 +333,30 @@ impl FrameOutbox {
         render(&mut header, pixels);
         header.pixels_xxh3 = shared_types::pixels_xxh3(pixels);
         header.meta.send_mono_ns = mono_ns();
+        let verdict = if self.replaying() {
+            Verdict::Send
+        } else {
+            self.tamper.verdict()
+        };
+        match verdict {
+            Verdict::Send => {}
+            Verdict::Drop => {
+                tracing::info!(seq, "injected frame drop");
+                self.stats.drop_for(DropReason::Injected);
+                self.next_seq += 1;
+                self.stats.published = self.stats.published.max(self.next_seq);
+                return Ok(seq);
+            }
+            Verdict::Corrupt(how) => {
+                tracing::info!(seq, how = how.name(), "injected frame corruption");
+                match how {
+                    Corruption::Nan => header.exposure_ns = 0,
+                    Corruption::Count => header.width_px += 1,
+                    Corruption::Version => header.meta.contract_version = !CONTRACT_VERSION,
+                }
+                self.stats.drop_for(DropReason::Malformed);
+            }
+        }
         *sample.user_header_mut() = header;
         // SAFETY: see above; all pixels were written by `render`.
         let sample = unsafe { sample.assume_init() };
@@ -365,7 +423,7 @@ impl FrameInbox {
             let latency_ns = mono_ns().saturating_sub(header.meta.send_mono_ns);
             let pixels: &[u16] = sample.payload();
             if let Err(r) = header.validate(pixels.len()) {
-                self.stats.drop_for(DropReason::Malformed);
+                self.stats.malformed();
                 self.last_reject = Some(r);
                 continue;
             }

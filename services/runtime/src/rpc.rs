@@ -19,6 +19,7 @@ use shared_types::{
 
 use crate::clock::mono_ns;
 use crate::stats::TopicStats;
+use crate::tamper::{Tamper, Verdict};
 
 /// The iceoryx2 service of a request/response pair.
 pub type RpcService<Req, Resp> = PortFactory<Ipc, Req, (), Resp, ()>;
@@ -83,8 +84,11 @@ pub struct RpcServer<R: Rpc> {
     server: Server<Ipc, R::Req, (), R::Resp, ()>,
     reply: Notifier<Ipc>,
     producer: ServiceId,
-    /// `received`/`dropped` count requests; `published` counts responses.
+    /// `received`/`dropped` count requests; `published` counts responses (an injected drop
+    /// or corruption of a response is counted as `dropped[injected]` / `dropped[malformed]`).
     pub stats: TopicStats,
+    /// Injected drops and corruptions of responses still to apply.
+    pub tamper: Tamper,
 }
 
 impl<R: Rpc> RpcServer<R> {
@@ -109,6 +113,7 @@ impl<R: Rpc> RpcServer<R> {
                 reply,
                 producer,
                 stats: TopicStats::new(R::TOPIC),
+                tamper: Tamper::default(),
             },
             listener,
         ))
@@ -137,6 +142,20 @@ impl<R: Rpc> RpcServer<R> {
             };
             *resp.meta_mut() = Meta::new(self.stats.published, t_ns, mono_ns(), self.producer);
             resp.seal();
+            match self.tamper.verdict() {
+                Verdict::Send => {}
+                Verdict::Drop => {
+                    tracing::info!(topic = R::TOPIC.name(), "injected drop of a response");
+                    self.stats.drop_for(DropReason::Injected);
+                    self.stats.published += 1;
+                    continue;
+                }
+                Verdict::Corrupt(how) => {
+                    tracing::info!(topic = R::TOPIC.name(), "injected corruption of a response");
+                    resp.corrupt(how);
+                    self.stats.drop_for(DropReason::Malformed);
+                }
+            }
             active
                 .send_copy(resp)
                 .map_err(|e| anyhow!("{} respond: {e:?}", R::TOPIC.name()))?;
@@ -165,6 +184,8 @@ pub enum CallOutcome<T> {
     TimedOut,
     /// The server disappeared (dead-node cleanup disconnected the request).
     Disconnected,
+    /// The answer failed validation: not trusted (the caller may ask again).
+    Malformed,
 }
 
 impl<R: Rpc> RpcClient<R> {
@@ -267,7 +288,12 @@ impl<R: Rpc> RpcClient<R> {
             .receive()
             .map_err(|e| anyhow!("{} reply: {e:?}", R::TOPIC.name()))?
         {
-            return Ok(Some(CallOutcome::Answered(*r.payload())));
+            let resp = *r.payload();
+            if let Err(e) = resp.check() {
+                tracing::warn!(topic = R::TOPIC.name(), "malformed answer rejected: {e}");
+                return Ok(Some(CallOutcome::Malformed));
+            }
+            return Ok(Some(CallOutcome::Answered(resp)));
         }
         if !pending.inner.is_connected() {
             return Ok(Some(CallOutcome::Disconnected));

@@ -26,6 +26,9 @@ pub struct TopicStats {
     /// Many-to-one housekeeping topics (heartbeat, ack, control): a producer joins at whatever
     /// seq it is at, and a seq going back means that producer restarted.
     peers_restart: bool,
+    /// Messages rejected as malformed since the last accepted one: each held a seq the
+    /// consumer could not trust, so the gap they leave is theirs, not an overflow.
+    unread_malformed: u64,
 }
 
 /// What the consumer should do with a message after sequence accounting.
@@ -49,7 +52,15 @@ impl TopicStats {
             per_producer: Vec::new(),
             awaiting_replay: false,
             peers_restart: false,
+            unread_malformed: 0,
         }
+    }
+
+    /// A message failed validation: counted as `malformed`; the seq it held is accounted for
+    /// by the next gap.
+    pub fn malformed(&mut self) {
+        self.dropped[DropReason::Malformed as usize] += 1;
+        self.unread_malformed += 1;
     }
 
     /// Accounting of a restarted consumer whose producer replays from seq 0.
@@ -95,8 +106,11 @@ impl TopicStats {
             return SeqVerdict::Duplicate;
         }
         if seq > *next {
-            self.dropped[DropReason::Overflow as usize] += seq - *next;
+            let gap = seq - *next;
+            let theirs = gap.min(self.unread_malformed);
+            self.dropped[DropReason::Overflow as usize] += gap - theirs;
         }
+        self.unread_malformed = 0;
         *next = seq + 1;
         self.next_seq = *next;
         SeqVerdict::Accept
@@ -156,6 +170,25 @@ mod tests {
         }
         assert_eq!((s.received, s.duplicates, s.dropped_total()), (4, 3, 0));
         assert_eq!(s.next_seq, 4);
+    }
+
+    #[test]
+    fn a_malformed_message_accounts_for_the_gap_it_leaves() {
+        let mut s = TopicStats::new(TopicId::Detections);
+        for seq in 0..3 {
+            s.observe_seq(seq);
+            s.accept();
+        }
+        s.malformed(); // seq 3, unreadable
+        s.observe_seq(4);
+        s.accept();
+        // seqs 5 and 6 lost in the transport
+        s.observe_seq(7);
+        s.accept();
+        assert_eq!(s.received, 5);
+        assert_eq!(s.dropped[DropReason::Malformed as usize], 1);
+        assert_eq!(s.dropped[DropReason::Overflow as usize], 2);
+        assert_eq!(s.received + s.dropped_total(), s.next_seq);
     }
 
     #[test]

@@ -33,6 +33,8 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
     }
     let node = open_node(prefix, "sensor")?;
     let (mut hk, control_listener) = Housekeeping::open(&node, ServiceId::Sensor)?;
+    hk.faults_enabled = scenario.faults.enabled;
+    hk.heartbeat_period = Duration::from_millis(scenario.run.heartbeat_period_ms);
     let (mut acks, ack_listener) = AckReader::open(&node)?;
     let (mut range, range_listener) = RangeServer::open(&node, ServiceId::Sensor)?;
     let mut truth_out = Outbox::open(
@@ -155,6 +157,14 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
                 _ => {}
             }
         }
+        // In-band drops and corruptions hit the sensor's main output: frames, or spectra.
+        for f in hk.take_output_faults() {
+            match (frames.as_mut(), spectrum_out.as_mut()) {
+                (Some(out), _) => out.tamper.arm(&f),
+                (None, Some(out)) => out.tamper.arm(&f),
+                (None, None) => {}
+            }
+        }
         acks.poll(&mut [
             (TopicId::Frame, &mut frame_credit),
             (TopicId::Spectrum, &mut spectrum_credit),
@@ -206,6 +216,7 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
                         frame_first && frame_credit.allows(k) && (truth_ok || out.replaying())
                     };
                     if due {
+                        hk.pace()?;
                         let replay = out.replaying();
                         out.publish(t_ns, |h, px| {
                             h.frame_index = k;
@@ -234,6 +245,7 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
                             && spectrum_credit.allows(k)
                             && (replay || truth_credit.allows(truth_out.stats.published)));
                     if due {
+                        hk.pace()?;
                         let (sp, truth, t_ns) = scene.sample(k).context("spectrum sample")?;
                         out.send(sp, t_ns)?;
                         if !replay {

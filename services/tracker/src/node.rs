@@ -173,7 +173,9 @@ impl FrameWork<'_> {
                                 est.direct_position_m = [p.x, p.y, p.z];
                             }
                         }
-                        CallOutcome::TimedOut | CallOutcome::Disconnected => {
+                        CallOutcome::TimedOut
+                        | CallOutcome::Disconnected
+                        | CallOutcome::Malformed => {
                             msg.range_timeouts += 1;
                         }
                     }
@@ -259,6 +261,8 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
         .context("the tracker needs a [camera] section")?;
     let node = open_node(prefix, "tracker")?;
     let (mut hk, control_l) = Housekeeping::open(&node, ServiceId::Tracker)?;
+    hk.faults_enabled = scenario.faults.enabled;
+    hk.heartbeat_period = Duration::from_millis(scenario.run.heartbeat_period_ms);
     let (mut dets, dets_l) =
         Inbox::<Detections>::open(&node, TopicId::Detections, &detections_service(&node)?)?;
     let realtime = scenario.clock == Clock::Realtime;
@@ -300,6 +304,9 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
             return Ok(Step::Stop);
         }
         acks.poll(&mut [(TopicId::Tracks, &mut credit)])?;
+        for f in hk.take_output_faults() {
+            out.tamper.arm(&f);
+        }
         let limit = credit.input_limit(out.stats.published, realtime);
         let mut pending: Vec<Detections> = vec![];
         dets.drain_up_to(limit, |r| {
@@ -309,6 +316,7 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
         })?;
         let mut last_t_ns = 0;
         for d in &pending {
+            hk.pace()?;
             let msg = {
                 let (hk, stats) = (&mut hk, [&dets.stats, &out.stats]);
                 let mut keepalive = || {

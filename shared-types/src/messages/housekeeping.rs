@@ -125,6 +125,9 @@ pub enum Command {
     /// Send a topic again from a seq on, to a consumer that restarted (`arg`: see
     /// [`Control::replay`]).
     Replay = 5,
+    /// An in-band fault (`arg`: see [`Control::fault`]); obeyed only where the scenario sets
+    /// `faults.enabled = true`.
+    Fault = 6,
 }
 
 impl Command {
@@ -135,6 +138,7 @@ impl Command {
             3 => Some(Command::Resume),
             4 => Some(Command::Start),
             5 => Some(Command::Replay),
+            6 => Some(Command::Fault),
             _ => None,
         }
     }
@@ -162,8 +166,68 @@ pub struct Replay {
     pub from_seq: u64,
 }
 
+/// An in-band fault order ([`Command::Fault`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InBandFault {
+    /// `panic`, `delay`, `drop` or `corrupt`.
+    pub kind: crate::scenario::FaultKind,
+    pub how: crate::scenario::Corruption,
+    /// Outputs dropped or corrupted.
+    pub count: u32,
+    /// Drop every this many-th output.
+    pub every: u16,
+    pub delay_ms: u32,
+    pub duration_ms: u32,
+}
+
+impl InBandFault {
+    /// The order for a fault of the scenario.
+    pub fn of(spec: &crate::scenario::FaultSpec) -> InBandFault {
+        InBandFault {
+            kind: spec.kind,
+            how: spec.how.unwrap_or_default(),
+            count: spec.count.unwrap_or(1),
+            every: spec.every.unwrap_or(1).min(u32::from(u16::MAX)) as u16,
+            delay_ms: spec.delay_ms.unwrap_or(0).min(u64::from(u32::MAX)) as u32,
+            duration_ms: (spec.duration_s.unwrap_or(0.0) * 1e3).round() as u32,
+        }
+    }
+}
+
 impl Control {
     pub const ALL: u32 = u32::MAX;
+
+    /// The in-band fault order to `service`.
+    pub fn fault(service: crate::ServiceId, f: InBandFault) -> Control {
+        Control {
+            command: Command::Fault as u32,
+            target: service as u32,
+            arg: [
+                u64::from(f.kind.code())
+                    | (u64::from(f.how.code()) << 8)
+                    | (u64::from(f.every) << 16)
+                    | (u64::from(f.count) << 32),
+                u64::from(f.delay_ms) | (u64::from(f.duration_ms) << 32),
+            ],
+            ..Default::default()
+        }
+    }
+
+    /// The in-band fault this message orders, if it is a well-formed [`Command::Fault`].
+    pub fn as_fault(&self) -> Option<InBandFault> {
+        if self.command != Command::Fault as u32 {
+            return None;
+        }
+        let kind = crate::scenario::FaultKind::from_code(self.arg[0] as u8)?;
+        Some(InBandFault {
+            kind: kind.in_band().then_some(kind)?,
+            how: crate::scenario::Corruption::from_code((self.arg[0] >> 8) as u8)?,
+            every: ((self.arg[0] >> 16) as u16).max(1),
+            count: (self.arg[0] >> 32) as u32,
+            delay_ms: self.arg[1] as u32,
+            duration_ms: (self.arg[1] >> 32) as u32,
+        })
+    }
 
     /// The replay order to `producer` for a restarted consumer.
     pub fn replay(producer: crate::ServiceId, r: Replay) -> Control {
@@ -201,6 +265,42 @@ impl Control {
                 "replay of an unknown consumer or topic",
             ));
         }
+        if self.command == Command::Fault as u32 && self.as_fault().is_none() {
+            return Err(Reject::new("control.arg", "an unknown in-band fault"));
+        }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::{Corruption, FaultKind, FaultSpec};
+    use crate::{ServiceId, TopicId};
+
+    #[test]
+    fn replay_and_fault_orders_survive_the_wire() {
+        let r = Replay {
+            consumer: ServiceId::Tracker,
+            topic: TopicId::Detections,
+            from_seq: 17,
+        };
+        let mut c = Control::replay(ServiceId::Detector, r);
+        assert_eq!(c.as_replay(), Some(r));
+        c.meta.contract_version = crate::CONTRACT_VERSION; // what the outbox stamps
+        assert!(c.validate().is_ok());
+        let spec = FaultSpec::parse("detector:drop@10,count=3,every=2").unwrap();
+        let f = InBandFault::of(&spec);
+        let c = Control::fault(ServiceId::Detector, f);
+        assert_eq!(c.as_fault(), Some(f));
+        assert_eq!((f.count, f.every), (3, 2));
+        let spec = FaultSpec::parse("tracker:corrupt@1,how=nan").unwrap();
+        assert_eq!(InBandFault::of(&spec).how, Corruption::Nan);
+        // A signal fault is not an in-band order; garbage is rejected, not trusted.
+        let mut bad = Control::fault(ServiceId::Detector, f);
+        bad.arg[0] = (bad.arg[0] & !0xff) | FaultKind::Kill.code() as u64;
+        assert_eq!(bad.as_fault(), None);
+        bad.meta.contract_version = crate::CONTRACT_VERSION;
+        assert!(bad.validate().is_err());
     }
 }

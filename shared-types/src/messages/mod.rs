@@ -124,9 +124,33 @@ pub trait Message: std::fmt::Debug + Copy + ZeroCopySend + bytemuck::NoUninit + 
     fn seal(&mut self) {}
     /// Checks a received message; a failure is a counted `Malformed` drop.
     fn check(&self) -> Result<(), Reject>;
+    /// Fault injection: makes this message invalid as `how` says, so that [`Message::check`]
+    /// rejects it. A type without a field of that kind gets a wrong contract version.
+    fn corrupt(&mut self, how: crate::scenario::Corruption) {
+        let _ = how;
+        self.meta_mut().contract_version = !CONTRACT_VERSION;
+    }
 }
 
 macro_rules! message {
+    ($t:ty, $check:expr, $corrupt:expr) => {
+        impl Message for $t {
+            fn meta(&self) -> &Meta {
+                &self.meta
+            }
+            fn meta_mut(&mut self) -> &mut Meta {
+                &mut self.meta
+            }
+            fn check(&self) -> Result<(), Reject> {
+                #[allow(clippy::redundant_closure_call)]
+                ($check)(self)
+            }
+            fn corrupt(&mut self, how: crate::scenario::Corruption) {
+                #[allow(clippy::redundant_closure_call)]
+                ($corrupt)(self, how)
+            }
+        }
+    };
     ($t:ty, $check:expr) => {
         impl Message for $t {
             fn meta(&self) -> &Meta {
@@ -156,13 +180,59 @@ impl Message for Spectrum {
     fn check(&self) -> Result<(), Reject> {
         self.validate()
     }
+    fn corrupt(&mut self, how: crate::scenario::Corruption) {
+        use crate::scenario::Corruption;
+        match how {
+            Corruption::Nan => self.flux_w[0] = f64::NAN,
+            Corruption::Count => self.n_bands = MAX_BANDS as u32 + 1,
+            Corruption::Version => self.meta.contract_version = !CONTRACT_VERSION,
+        }
+        // Sealed again: the validator, not the checksum, must be what rejects it.
+        self.seal();
+    }
 }
 
 message!(Truth, |m: &Truth| m.validate());
-message!(Detections, |m: &Detections| m.validate());
-message!(Tracks, |m: &Tracks| m.validate());
+message!(
+    Detections,
+    |m: &Detections| m.validate(),
+    |m: &mut Detections, how| {
+        use crate::scenario::Corruption;
+        match how {
+            Corruption::Nan => {
+                m.n = m.n.max(1);
+                m.items[0].x_px = f64::NAN;
+            }
+            Corruption::Count => m.n = MAX_DETECTIONS as u32 + 1,
+            Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
+        }
+    }
+);
+message!(Tracks, |m: &Tracks| m.validate(), |m: &mut Tracks, how| {
+    use crate::scenario::Corruption;
+    match how {
+        Corruption::Nan => {
+            m.n = m.n.max(1);
+            m.items[0].azimuth_filt_rad = f64::NAN;
+        }
+        Corruption::Count => m.n = MAX_TRACKS as u32 + 1,
+        Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
+    }
+});
 message!(SolveRequest, |m: &SolveRequest| m.validate());
-message!(SolveResponse, |m: &SolveResponse| m.validate());
+message!(
+    SolveResponse,
+    |m: &SolveResponse| m.validate(),
+    |m: &mut SolveResponse, how| {
+        use crate::scenario::Corruption;
+        match how {
+            // An answer's numbers may be NaN by design (no rate); its status may not be unknown.
+            Corruption::Nan => m.status = u32::MAX,
+            Corruption::Count => m.stage = 0,
+            Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
+        }
+    }
+);
 message!(RangeRequest, |m: &RangeRequest| m.validate());
 message!(RangeResponse, |m: &RangeResponse| m.meta.validate());
 message!(Heartbeat, |m: &Heartbeat| m.validate());

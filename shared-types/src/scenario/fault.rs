@@ -4,7 +4,12 @@
 //! A fault targets one service. It fires once the service's input topic has carried message
 //! `at_seq` (for the sensor: once it has published it), as the orchestrator sees it, or
 //! `at_s` seconds after the services were started. Signal faults come from the orchestrator:
-//! `kill` is SIGKILL, `stop` is SIGSTOP for `duration_s`, then SIGCONT.
+//! `kill` is SIGKILL, `stop` is SIGSTOP for `duration_s`, then SIGCONT. In-band faults are
+//! control commands the service's runtime obeys only when the scenario sets
+//! `faults.enabled = true`: `panic` (it panics in its loop), `delay` (`delay_ms` before each
+//! message it processes, for `duration_s`), `drop` (`count` of its outputs, every `every`-th,
+//! are not sent), `corrupt` (`count` outputs sent invalid: `how` = `nan`, a non-finite value;
+//! `count`, a count or length field out of range; `version`, a wrong contract version).
 
 use serde::{Deserialize, Serialize};
 
@@ -22,21 +27,101 @@ pub enum FaultKind {
     Kill,
     /// SIGSTOP for `duration_s`, then SIGCONT.
     Stop,
+    /// The service panics in its loop.
+    Panic,
+    /// `delay_ms` before each message the service processes, for `duration_s`.
+    Delay,
+    /// `count` outputs not sent (every `every`-th).
+    Drop,
+    /// `count` outputs sent invalid (`how`).
+    Corrupt,
 }
 
 impl FaultKind {
-    pub const ALL: [FaultKind; 2] = [FaultKind::Kill, FaultKind::Stop];
+    pub const ALL: [FaultKind; 6] = [
+        FaultKind::Kill,
+        FaultKind::Stop,
+        FaultKind::Panic,
+        FaultKind::Delay,
+        FaultKind::Drop,
+        FaultKind::Corrupt,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             FaultKind::Kill => "kill",
             FaultKind::Stop => "stop",
+            FaultKind::Panic => "panic",
+            FaultKind::Delay => "delay",
+            FaultKind::Drop => "drop",
+            FaultKind::Corrupt => "corrupt",
         }
     }
 
     pub fn from_name(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|k| k.name() == name)
     }
+
+    /// Obeyed by the service's runtime (a control command), not a signal.
+    pub fn in_band(self) -> bool {
+        !matches!(self, FaultKind::Kill | FaultKind::Stop)
+    }
+
+    /// Its wire code in [`crate::InBandFault`].
+    pub fn code(self) -> u8 {
+        Self::ALL.iter().position(|k| *k == self).unwrap_or(0) as u8
+    }
+
+    pub fn from_code(code: u8) -> Option<Self> {
+        Self::ALL.get(code as usize).copied()
+    }
+}
+
+/// How a `corrupt` fault makes an output invalid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Corruption {
+    /// A non-finite value (a frame: a zero exposure time, its pixels being integers).
+    Nan,
+    /// A count or length field out of range (a frame: a width that does not match its pixels).
+    Count,
+    /// A wrong contract version.
+    #[default]
+    Version,
+}
+
+impl Corruption {
+    pub const ALL: [Corruption; 3] = [Corruption::Nan, Corruption::Count, Corruption::Version];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Corruption::Nan => "nan",
+            Corruption::Count => "count",
+            Corruption::Version => "version",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    pub fn code(self) -> u8 {
+        Self::ALL.iter().position(|k| *k == self).unwrap_or(0) as u8
+    }
+
+    pub fn from_code(code: u8) -> Option<Self> {
+        Self::ALL.get(code as usize).copied()
+    }
+}
+
+/// `[faults]`: whether the services obey in-band fault commands at all.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct FaultsSection {
+    /// Obey `panic`, `delay`, `drop` and `corrupt` commands (default false: a deployment that
+    /// did not ask for them ignores such commands and counts them). `glint run --fault` with an
+    /// in-band kind sets it.
+    pub enabled: bool,
 }
 
 /// One fault.
@@ -53,9 +138,21 @@ pub struct FaultSpec {
     /// Or fire this long after the services were started [s], 0–86400.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub at_s: Option<f64>,
-    /// How long a `stop` lasts [s], 0.001–3600; not used by `kill`.
+    /// How long a `stop` or a `delay` lasts [s], 0.001–3600; only for those.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub duration_s: Option<f64>,
+    /// `delay`: added before each message the service processes [ms], 1–10000.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub delay_ms: Option<u64>,
+    /// `drop`, `corrupt`: how many outputs, 1–1000 (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub count: Option<u32>,
+    /// `drop`: every this many-th output, 1–1000 (default 1: a burst of `count`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub every: Option<u32>,
+    /// `corrupt`: `nan`, `count` or `version` (default).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub how: Option<Corruption>,
 }
 
 impl FaultSpec {
@@ -96,25 +193,47 @@ impl FaultSpec {
                 None,
             ),
         };
-        let mut duration_s = None;
-        for opt in options.into_iter().flat_map(|o| o.split(',')) {
-            match opt.split_once('=') {
-                Some(("duration_s", v)) => {
-                    duration_s = Some(
-                        v.parse::<f64>()
-                            .map_err(|_| format!("duration_s `{v}` is not a number"))?,
-                    )
-                }
-                _ => return Err(format!("unknown option `{opt}`; allowed: duration_s=S")),
-            }
-        }
-        Ok(FaultSpec {
+        let mut f = FaultSpec {
             service: service.to_string(),
             kind,
             at_seq,
             at_s,
-            duration_s,
-        })
+            duration_s: None,
+            delay_ms: None,
+            count: None,
+            every: None,
+            how: None,
+        };
+        let int = |name: &str, v: &str| {
+            v.parse::<u32>()
+                .map_err(|_| format!("{name} `{v}` is not a whole number"))
+        };
+        for opt in options.into_iter().flat_map(|o| o.split(',')) {
+            match opt.split_once('=') {
+                Some(("duration_s", v)) => {
+                    f.duration_s = Some(
+                        v.parse::<f64>()
+                            .map_err(|_| format!("duration_s `{v}` is not a number"))?,
+                    )
+                }
+                Some(("delay_ms", v)) => f.delay_ms = Some(u64::from(int("delay_ms", v)?)),
+                Some(("count", v)) => f.count = Some(int("count", v)?),
+                Some(("every", v)) => f.every = Some(int("every", v)?),
+                Some(("how", v)) => {
+                    f.how = Some(Corruption::from_name(v).ok_or(format!(
+                        "how `{v}` is not one of {}",
+                        Corruption::ALL.map(Corruption::name).join(", ")
+                    ))?)
+                }
+                _ => {
+                    return Err(format!(
+                        "unknown option `{opt}`; allowed: duration_s=S, delay_ms=N, count=N, \
+                         every=N, how=nan|count|version"
+                    ))
+                }
+            }
+        }
+        Ok(f)
     }
 }
 
@@ -146,17 +265,60 @@ pub(super) fn check_faults(c: &mut Checker, scenario: &super::Scenario) {
             (None, Some(s)) => c.range(&at("at_s"), s, 0.0, 86400.0),
             _ => c.fail(&at("at_seq"), "give exactly one of at_seq and at_s".into()),
         }
-        match (f.kind, f.duration_s) {
-            (FaultKind::Stop, Some(d)) => c.range(&at("duration_s"), d, 0.001, 3600.0),
-            (FaultKind::Stop, None) => c.fail(
+        let kind = f.kind.name();
+        let timed = matches!(f.kind, FaultKind::Stop | FaultKind::Delay);
+        match (timed, f.duration_s) {
+            (true, Some(d)) => c.range(&at("duration_s"), d, 0.001, 3600.0),
+            (true, None) => c.fail(
                 &at("duration_s"),
-                "a stop needs its duration; allowed 0.001..=3600".into(),
+                format!("a {kind} needs its duration; allowed 0.001..=3600"),
             ),
-            (FaultKind::Kill, Some(_)) => c.fail(
+            (false, Some(_)) => c.fail(
                 &at("duration_s"),
-                "a kill has no duration; leave it out".into(),
+                format!("a {kind} has no duration; leave it out"),
             ),
-            (FaultKind::Kill, None) => {}
+            (false, None) => {}
+        }
+        let only = |c: &mut Checker, field: &str, set: bool, kinds: &[FaultKind]| {
+            if set && !kinds.contains(&f.kind) {
+                let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
+                c.fail(
+                    &at(field),
+                    format!("only for {}; a {kind} has none", names.join(" and ")),
+                );
+            }
+        };
+        only(c, "delay_ms", f.delay_ms.is_some(), &[FaultKind::Delay]);
+        only(
+            c,
+            "count",
+            f.count.is_some(),
+            &[FaultKind::Drop, FaultKind::Corrupt],
+        );
+        only(c, "every", f.every.is_some(), &[FaultKind::Drop]);
+        only(c, "how", f.how.is_some(), &[FaultKind::Corrupt]);
+        match (f.kind, f.delay_ms) {
+            (FaultKind::Delay, Some(ms)) => c.range_u(&at("delay_ms"), ms, 1, 10_000),
+            (FaultKind::Delay, None) => c.fail(
+                &at("delay_ms"),
+                "a delay needs delay_ms; allowed 1..=10000".into(),
+            ),
+            _ => {}
+        }
+        if let Some(n) = f.count {
+            c.range_u(&at("count"), u64::from(n), 1, 1000);
+        }
+        if let Some(k) = f.every {
+            c.range_u(&at("every"), u64::from(k), 1, 1000);
+        }
+        if f.kind.in_band() && !scenario.faults.enabled {
+            c.fail(
+                &at("kind"),
+                format!(
+                    "a {kind} fault is obeyed only with faults.enabled = true (add [faults] \
+                     enabled = true; glint run --fault sets it)"
+                ),
+            );
         }
     }
 }
@@ -182,7 +344,7 @@ mod tests {
             ("detector:kill", "no `@`"),
             (
                 "detector:explode@3",
-                "unknown kind `explode`; allowed: kill, stop",
+                "unknown kind `explode`; allowed: kill, stop, panic, delay, drop, corrupt",
             ),
             ("detector:kill@x", "`x` is not a message number"),
             ("detector:kill@xs", "`xs` is not a time in seconds"),

@@ -10,12 +10,14 @@ use serde::{Deserialize, Serialize};
 mod camera;
 mod campaign;
 mod fault;
+mod matrix;
 mod spectra;
 mod supervision;
 
 pub use camera::*;
 pub use campaign::*;
 pub use fault::*;
+pub use matrix::*;
 pub use spectra::*;
 pub use supervision::*;
 
@@ -93,6 +95,13 @@ pub struct Scenario {
     /// Faults to inject (`[[fault]]`; also `glint run --fault`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub fault: Vec<FaultSpec>,
+    /// A fault-injection campaign (`[matrix]`): a baseline, then one deployment per
+    /// (service × kind).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub matrix: Option<FaultMatrix>,
+    /// Whether in-band faults are obeyed (`[faults]`).
+    #[serde(default)]
+    pub faults: FaultsSection,
     /// Restarts of failed services (`[supervision]`).
     #[serde(default)]
     pub supervision: Supervision,
@@ -241,6 +250,7 @@ impl Scenario {
         }
         fault::check_faults(&mut c, self);
         supervision::check_supervision(&mut c, self);
+        matrix::check_matrix(&mut c, self);
         if let Some(camp) = &self.campaign {
             c.range_u("campaign.values (count)", camp.values.len() as u64, 1, 100);
             c.range_u("campaign.seeds", camp.seeds as u64, 1, 1000);

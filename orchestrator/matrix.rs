@@ -1,0 +1,311 @@
+//! `glint run` of a `[matrix]` scenario: the fault-free baseline, then one deployment per
+//! (service × kind) with that one fault, each in `DIR/<service>-<kind>`. `DIR/report.json`
+//! lists every case's `faults[]` entries with its `case` name and whether its science equals
+//! the baseline's; `DIR/summary.md` leads with the verdict and shows the matrix. The verdict
+//! (and `glint run`'s exit code) is the invariants'; the time targets are figures beside it.
+
+use std::fmt::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use serde_json::{json, Value};
+use shared_types::scenario::FaultKind;
+use shared_types::{deployment, Scenario, ServiceId};
+
+use crate::run::{self, RunOptions};
+
+/// Detection within this long of the injection (a stop: the heartbeat deadline and this).
+const DETECT_S: f64 = 0.5;
+const STOP_MARGIN_S: f64 = 0.1;
+/// Recovery within this long of the fault's end.
+const RECOVER_S: f64 = 2.0;
+
+/// One case's outcome, as the matrix shows it.
+struct Case {
+    name: String,
+    service: ServiceId,
+    kind: FaultKind,
+    success: bool,
+    fault: Value,
+    science_equal: Option<bool>,
+    /// Invariants it broke (empty: held): not detected, not recovered, lost, science unequal,
+    /// counts unequal, the run failed.
+    misses: Vec<String>,
+    /// Time targets it missed (a figure of this machine, not an invariant).
+    late: Vec<String>,
+}
+
+pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
+    let scenario = opts.scenario.clone();
+    let matrix = scenario.matrix.clone().context("no [matrix] section")?;
+    let id = format!("{:08x}", std::process::id());
+    let dir = crate::run_dir::prepare(opts.out_dir.as_deref(), &scenario.name, &id, opts.replace)?;
+    let root = dir.path.clone();
+    std::fs::write(root.join("scenario.toml"), scenario.to_toml())?;
+    let mut base = scenario.clone();
+    base.matrix = None;
+
+    let deploy = |sc: Scenario, case: &str| -> Result<Value> {
+        let (sub, _) = run::run(RunOptions {
+            scenario: sc,
+            scenario_file: opts.scenario_file.clone(),
+            out_dir: Some(root.join(case)),
+            replace: opts.replace,
+            progress: false,
+        })?;
+        run::bail_if_interrupted("the fault matrix")?;
+        let text = std::fs::read_to_string(sub.join("report.json"))
+            .with_context(|| format!("reading {case}'s report"))?;
+        Ok(serde_json::from_str(&text)?)
+    };
+    eprintln!("fault matrix: baseline");
+    let baseline = deploy(base.clone(), "baseline")?;
+    let deadline_s = scenario.run.heartbeat_deadline_ms as f64 * 1e-3;
+
+    let mut cases = vec![];
+    for (si, service) in matrix.services_of(&scenario).into_iter().enumerate() {
+        let trigger = crate::faults::trigger_topic(&scenario, service);
+        let at_seq = deployment::expected_messages(&scenario, trigger) * 3 / 10;
+        for kind in matrix.kinds_of() {
+            let name = format!("{}-{}", service.name(), kind.name());
+            eprintln!("fault matrix: {name}");
+            let mut sc = base.clone();
+            sc.fault = vec![matrix.fault(service, si, kind, at_seq)];
+            sc.faults.enabled |= kind.in_band();
+            let report = deploy(sc, &name)?;
+            cases.push(judge(&name, service, kind, &report, &baseline, deadline_s));
+        }
+    }
+    let baseline_ok = baseline["success"] == true;
+    let passed = baseline_ok && cases.iter().all(|c| c.misses.is_empty());
+    let report = json!({
+        "scenario": scenario.name,
+        "success": passed,
+        "baseline": {
+            "success": baseline["success"],
+            "science": baseline["science"],
+        },
+        "cases": cases.iter().map(|c| json!({
+            "case": c.name,
+            "success": c.success,
+            "science_equal": c.science_equal,
+            "passed": c.misses.is_empty(),
+            "misses": c.misses,
+            "within_targets": c.late.is_empty(),
+            "late": c.late,
+        })).collect::<Vec<_>>(),
+        "faults": cases.iter().map(|c| {
+            let mut f = c.fault.clone();
+            f["case"] = c.name.clone().into();
+            f["science_equal"] = c.science_equal.map_or(Value::Null, Value::from);
+            f
+        }).collect::<Vec<_>>(),
+    });
+    std::fs::write(
+        root.join("report.json"),
+        serde_json::to_string_pretty(&report)? + "\n",
+    )?;
+    std::fs::write(
+        root.join("summary.md"),
+        summary(&scenario, &cases, baseline_ok, passed),
+    )?;
+    drop(dir);
+    Ok((root, passed))
+}
+
+fn secs(v: &Value, key: &str) -> Option<f64> {
+    v[key].as_f64()
+}
+
+/// A case against the targets: detected in time, recovered in time, nothing lost and the
+/// science equal (kill, stop, panic, delay), or exact counts (drop, corrupt).
+fn judge(
+    name: &str,
+    service: ServiceId,
+    kind: FaultKind,
+    report: &Value,
+    baseline: &Value,
+    deadline_s: f64,
+) -> Case {
+    let fault = report["faults"]
+        .as_array()
+        .and_then(|a| a.first())
+        .cloned()
+        .unwrap_or(Value::Null);
+    let success = report["success"] == true;
+    let mut misses = vec![];
+    let mut late = vec![];
+    if !success {
+        misses.push(format!(
+            "the run failed: {}",
+            report["failure"].as_str().unwrap_or("invariant")
+        ));
+    }
+    let injected = secs(&fault, "injected_s");
+    let detected = secs(&fault, "detected_s");
+    let ended = secs(&fault, "ended_s");
+    let recovered = secs(&fault, "recovered_s");
+    let detect_limit = match kind {
+        FaultKind::Stop => deadline_s + STOP_MARGIN_S,
+        _ => DETECT_S,
+    };
+    // A delay is not a failure: nothing to detect, only to recover from.
+    if kind != FaultKind::Delay {
+        match (injected, detected) {
+            (Some(i), Some(d)) if d - i < detect_limit => {}
+            (Some(i), Some(d)) => late.push(format!(
+                "detected {:.3} s after injection (target < {detect_limit} s)",
+                d - i
+            )),
+            _ => misses.push("not detected".into()),
+        }
+    }
+    match (ended, recovered) {
+        (Some(e), Some(r)) if r - e < RECOVER_S => {}
+        (Some(e), Some(r)) => late.push(format!(
+            "recovered {:.3} s after the fault ended (target < {RECOVER_S} s)",
+            r - e
+        )),
+        _ => misses.push("not recovered".into()),
+    }
+    if fault["invariant_held"] != true {
+        misses.push("accounting invariant broken".into());
+    }
+    let science_equal = match kind {
+        FaultKind::Drop | FaultKind::Corrupt => {
+            if fault["injected"] != fault["counted"] || fault["injected"] == 0 {
+                misses.push(format!(
+                    "{} injected, {} counted",
+                    fault["injected"], fault["counted"]
+                ));
+            }
+            None
+        }
+        _ => {
+            let equal = report["science"] == baseline["science"]
+                && report["science"]["digest_xxh3"].is_string();
+            if !equal {
+                misses.push("science differs from the baseline".into());
+            }
+            if fault["lost"] != 0 {
+                misses.push(format!("lost {}", fault["lost"]));
+            }
+            Some(equal)
+        }
+    };
+    Case {
+        name: name.to_string(),
+        service,
+        kind,
+        success,
+        fault,
+        science_equal,
+        misses,
+        late,
+    }
+}
+
+fn summary(scenario: &Scenario, cases: &[Case], baseline_ok: bool, passed: bool) -> String {
+    let mut s = String::new();
+    let verdict = if passed { "PASS" } else { "FAIL" };
+    let held = cases.iter().filter(|c| c.misses.is_empty()).count();
+    let on_time = cases.iter().filter(|c| c.late.is_empty()).count();
+    let _ = writeln!(
+        s,
+        "# {} — fault matrix: {verdict}\n\n{held} of {} faults detected, recovered from and \
+         accounted for (lost 0 and the science equal to the baseline for kill, stop, panic and \
+         delay; every drop and corruption counted for drop and corrupt). {on_time} of {} within \
+         the time targets on this machine (detected < {DETECT_S} s after injection, a stop < \
+         heartbeat deadline + {STOP_MARGIN_S} s; recovered < {RECOVER_S} s after the fault \
+         ended). Baseline: {}.\n",
+        scenario.name,
+        cases.len(),
+        cases.len(),
+        if baseline_ok { "ok" } else { "FAILED" }
+    );
+    // The grid: one row per service, one column per kind.
+    let mut kinds: Vec<FaultKind> = vec![];
+    let mut services: Vec<ServiceId> = vec![];
+    for c in cases {
+        if !kinds.contains(&c.kind) {
+            kinds.push(c.kind);
+        }
+        if !services.contains(&c.service) {
+            services.push(c.service);
+        }
+    }
+    let _ = writeln!(
+        s,
+        "| service | {} |\n|---|{}",
+        kinds
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>()
+            .join(" | "),
+        "---|".repeat(kinds.len())
+    );
+    for svc in &services {
+        let cells: Vec<String> = kinds
+            .iter()
+            .map(|k| {
+                cases
+                    .iter()
+                    .find(|c| c.service == *svc && c.kind == *k)
+                    .map_or("—".into(), |c| {
+                        match (c.misses.is_empty(), c.late.is_empty()) {
+                            (true, true) => "✓".into(),
+                            (true, false) => "✓ late".into(),
+                            _ => "✗".into(),
+                        }
+                    })
+            })
+            .collect();
+        let _ = writeln!(s, "| {} | {} |", svc.name(), cells.join(" | "));
+    }
+    let _ = writeln!(
+        s,
+        "\n## Cases\n\nTimes in seconds after the fault was injected (detected) or ended (recovered).\n\n\
+         | case | detected (by) | recovered | restarts | lost | counted | science equal | misses |\n\
+         |---|---|---|---|---|---|---|---|"
+    );
+    for c in cases {
+        let f = &c.fault;
+        let after = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) => format!("{:.3}", a - b),
+            _ => "—".into(),
+        };
+        let detected = match f["detected_by"].as_str() {
+            Some(by) => format!(
+                "{} ({by})",
+                after(secs(f, "detected_s"), secs(f, "injected_s"))
+            ),
+            None => "—".into(),
+        };
+        let counted = if f["injected"].is_null() {
+            "—".into()
+        } else {
+            format!("{} of {}", f["counted"], f["injected"])
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {detected} | {} | {} | {} | {counted} | {} | {} |",
+            c.name,
+            after(secs(f, "recovered_s"), secs(f, "ended_s")),
+            f["restarts"],
+            f["lost"],
+            c.science_equal
+                .map_or("—", |e| if e { "yes" } else { "no" }),
+            if c.misses.is_empty() && c.late.is_empty() {
+                "—".into()
+            } else {
+                [c.misses.clone(), c.late.clone()].concat().join("; ")
+            }
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nEach case's run directory is `<case>/` beside this file (its report, summary and fault \
+         timeline); the baseline's is `baseline/`."
+    );
+    s
+}

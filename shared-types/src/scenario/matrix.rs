@@ -1,0 +1,139 @@
+//! `[matrix]`: a fault-injection campaign. `glint run` first runs the scenario fault-free (the
+//! baseline), then one deployment per (service × kind), each with one fault, and tabulates
+//! whether each fault was detected, recovered from, what it lost, and whether the science
+//! equals the baseline's.
+//!
+//! ```toml
+//! [matrix]
+//! services = ["sensor", "detector", "tracker", "inversion"]   # default: every deployed one
+//! kinds = ["kill", "stop", "panic", "delay", "drop", "corrupt"] # default: all
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+use super::{Checker, Corruption, FaultKind, FaultSpec};
+use crate::{deployment, ServiceId};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct FaultMatrix {
+    /// Services to fault (default: every service the scenario deploys).
+    pub services: Vec<String>,
+    /// Kinds of fault (default: all six).
+    pub kinds: Vec<FaultKind>,
+    /// How long a stop lasts [s] (default 1.0: past a short heartbeat deadline).
+    pub stop_s: Option<f64>,
+    /// A delay's added time per message [ms] and its duration [s] (default 5 ms for 0.3 s).
+    pub delay_ms: Option<u64>,
+    pub delay_s: Option<f64>,
+    /// Outputs dropped, and every how many (default 2, every 3rd).
+    pub drop_count: Option<u32>,
+    pub drop_every: Option<u32>,
+    /// Outputs corrupted (default 2); the way rotates over the services (nan, count, version).
+    pub corrupt_count: Option<u32>,
+}
+
+impl FaultMatrix {
+    /// The services of the matrix, in deployment order.
+    pub fn services_of(&self, scenario: &super::Scenario) -> Vec<ServiceId> {
+        deployment::services(scenario)
+            .into_iter()
+            .filter(|s| self.services.is_empty() || self.services.iter().any(|n| n == s.name()))
+            .collect()
+    }
+
+    pub fn kinds_of(&self) -> Vec<FaultKind> {
+        if self.kinds.is_empty() {
+            FaultKind::ALL.to_vec()
+        } else {
+            self.kinds.clone()
+        }
+    }
+
+    /// The fault of one case, at message `at_seq` of the service's trigger topic.
+    pub fn fault(
+        &self,
+        service: ServiceId,
+        index: usize,
+        kind: FaultKind,
+        at_seq: u64,
+    ) -> FaultSpec {
+        let mut f = FaultSpec {
+            service: service.name().to_string(),
+            kind,
+            at_seq: Some(at_seq),
+            at_s: None,
+            duration_s: None,
+            delay_ms: None,
+            count: None,
+            every: None,
+            how: None,
+        };
+        match kind {
+            FaultKind::Stop => f.duration_s = Some(self.stop_s.unwrap_or(1.0)),
+            FaultKind::Delay => {
+                f.delay_ms = Some(self.delay_ms.unwrap_or(5));
+                f.duration_s = Some(self.delay_s.unwrap_or(0.3));
+            }
+            FaultKind::Drop => {
+                f.count = Some(self.drop_count.unwrap_or(2));
+                f.every = Some(self.drop_every.unwrap_or(3));
+            }
+            FaultKind::Corrupt => {
+                f.count = Some(self.corrupt_count.unwrap_or(2));
+                f.how = Some(Corruption::ALL[index % Corruption::ALL.len()]);
+            }
+            FaultKind::Kill | FaultKind::Panic => {}
+        }
+        f
+    }
+}
+
+pub(super) fn check_matrix(c: &mut Checker, scenario: &super::Scenario) {
+    let Some(m) = &scenario.matrix else {
+        return;
+    };
+    let deployed = deployment::services(scenario);
+    let names: Vec<&str> = deployed.iter().map(|s| s.name()).collect();
+    for (i, s) in m.services.iter().enumerate() {
+        if !names.contains(&s.as_str()) {
+            c.fail(
+                &format!("matrix.services[{i}]"),
+                format!(
+                    "`{s}` is not a service this scenario deploys; allowed: {}",
+                    names.join(", ")
+                ),
+            );
+        }
+    }
+    if let Some(v) = m.stop_s {
+        c.range("matrix.stop_s", v, 0.001, 3600.0);
+    }
+    if let Some(v) = m.delay_ms {
+        c.range_u("matrix.delay_ms", v, 1, 10_000);
+    }
+    if let Some(v) = m.delay_s {
+        c.range("matrix.delay_s", v, 0.001, 3600.0);
+    }
+    for (field, v) in [
+        ("matrix.drop_count", m.drop_count),
+        ("matrix.drop_every", m.drop_every),
+        ("matrix.corrupt_count", m.corrupt_count),
+    ] {
+        if let Some(v) = v {
+            c.range_u(field, u64::from(v), 1, 1000);
+        }
+    }
+    if scenario.campaign.is_some() {
+        c.fail(
+            "matrix",
+            "a scenario has a [matrix] or a [campaign], not both".into(),
+        );
+    }
+    if !scenario.fault.is_empty() {
+        c.fail(
+            "matrix",
+            "a [matrix] makes its own faults; leave [[fault]] and --fault out".into(),
+        );
+    }
+}
