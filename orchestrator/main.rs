@@ -13,6 +13,7 @@ mod invert;
 #[cfg(feature = "lab")]
 mod lab;
 mod matrix;
+mod membership;
 mod observations;
 mod plots;
 mod png;

@@ -12,11 +12,14 @@ use shared_types::{deployment, Command, Control, Heartbeat, Replay, Scenario, Se
 use crate::consume::Consumer;
 use crate::deploy::{stop_ladder, Ending, ServiceProcess};
 use crate::faults::{Act, Injector};
+use crate::membership::Membership;
 use crate::report::{self, Outcome, RunFacts};
 use crate::supervise::{Action, Observation, Supervisor};
 
 /// Orchestrator tick: supervision and progress cadence.
 const TICK: Duration = Duration::from_millis(20);
+/// How often the live nodes under the prefix are checked against the deployment.
+const MEMBERSHIP_SCAN: Duration = Duration::from_millis(250);
 
 pub struct RunOptions {
     pub scenario: Scenario,
@@ -156,6 +159,8 @@ fn deploy_and_run(
     let hb_period = Duration::from_millis(limits.heartbeat_period_ms);
     let mut acks_refreshed = Instant::now();
     let sim_clock = scenario.clock == Clock::Sim;
+    let mut membership = Membership::default();
+    let mut scanned = Instant::now();
     let since_start = |t: Instant, t0: Option<Instant>| {
         t0.map_or(0.0, |t0| t.saturating_duration_since(t0).as_secs_f64())
     };
@@ -326,6 +331,15 @@ fn deploy_and_run(
                     }
                 }
             }
+            if now.duration_since(scanned) >= MEMBERSHIP_SCAN {
+                scanned = now;
+                let mut ours: Vec<u32> = children.iter().map(|c| c.pid).collect();
+                ours.push(std::process::id());
+                if let Some(f) = membership.scan(prefix, &ours, now_s) {
+                    failure = Some(f);
+                    return Ok(Step::Stop);
+                }
+            }
             if now.duration_since(acks_refreshed) >= hb_period {
                 consumer.refresh_acks()?;
                 acks_refreshed = now;
@@ -407,6 +421,7 @@ fn deploy_and_run(
         },
     );
     facts.solve_tampered = solve_tampered;
+    facts.membership = membership.json();
     if children.iter().any(|c| c.ending == Ending::Running) {
         bail!("a child survived the stop ladder");
     }
@@ -429,16 +444,22 @@ fn injected_note(injector: &Injector, id: shared_types::ServiceId) -> String {
     }
 }
 
-/// A prefix unique to this deployment (pid and time), short enough for iceoryx2's file names.
+/// A prefix unique to this deployment, short enough for iceoryx2's file names: 32 bits from
+/// the OS's random source (mixed with the time and pid), so another deployment's — or a
+/// guesser's — prefix does not collide with it.
 fn run_prefix() -> String {
+    use std::io::Read;
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
         .unwrap_or(0);
+    let mut random = [0u8; 16];
+    let _ = std::fs::File::open("/dev/urandom").and_then(|mut f| f.read_exact(&mut random));
     let h = xxhash_rust::xxh3::xxh3_64(
         &[
             nanos.to_le_bytes().as_slice(),
             &std::process::id().to_le_bytes(),
+            &random,
         ]
         .concat(),
     );

@@ -193,3 +193,22 @@ fn out_into_a_previous_run_needs_force_and_leaves_nothing_of_it() {
     assert!(err.contains("is a file, not a directory"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// No shared-memory file of a deployment is readable or writable by other users (iceoryx2
+/// creates its global management segment 0666; glint restricts it to the owner).
+#[test]
+fn no_file_of_a_deployment_is_open_to_other_users() {
+    use std::os::unix::fs::PermissionsExt;
+    let prefix = "glint_0a11ce55_";
+    let node = glint_runtime::open_node(prefix, "probe").expect("node");
+    let files = glint_runtime::shm_entries(prefix);
+    let in_shm: Vec<_> = files.iter().filter(|p| p.starts_with("/dev/shm")).collect();
+    assert!(!in_shm.is_empty(), "{files:?}");
+    for p in in_shm {
+        let mode = std::fs::metadata(p).unwrap().permissions().mode();
+        assert_eq!(mode & 0o077, 0, "{} is {:o}", p.display(), mode & 0o777);
+    }
+    drop(node);
+    glint_runtime::remove_shm(prefix);
+    assert!(glint_runtime::shm_entries(prefix).is_empty());
+}

@@ -309,3 +309,59 @@ fn sighup_ends_a_run_cleanly() {
     assert!(shm_left(prefix).is_empty(), "{:?}", shm_left(prefix));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A stranger that joins a running deployment as one of its services (`glint service detector
+/// --prefix <the live prefix>`) is named in the report and fails the run with a clear reason;
+/// an observer (any other node) is named too, and does not fail it.
+#[test]
+fn a_stranger_joining_a_deployment_as_a_service_fails_the_run_and_is_named() {
+    let dir = temp_dir("stranger");
+    let file = long_debris(&dir, "timeout_s = 60.0");
+    let out = dir.join("out");
+    let mut run = start_run(&file, &out, &[]);
+    let pid = wait_for_service(&run, "detector", Duration::from_millis(5));
+    wait_for_start(&out);
+    let prefix = prefix_of(pid);
+    let observer = glint_runtime::open_node(&prefix, "viewer").expect("a node under the prefix");
+    let stranger = KillOnDrop(
+        glint()
+            .args(["service", "detector", "--prefix", &prefix, "--scenario"])
+            .arg(out.join("scenario.toml"))
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("spawn the stranger"),
+    );
+    let status = wait_for_exit(&mut run, Duration::from_secs(60));
+    assert_eq!(status.code(), Some(1));
+    let report = read_json(&out.join("report.json"));
+    let failure = report["failure"].as_str().unwrap_or_default();
+    let stranger_pid = stranger.0.id();
+    assert!(
+        failure.contains(&format!(
+            "a process outside the deployment (pid {stranger_pid}) joined it as node `detector`"
+        )),
+        "{failure}"
+    );
+    let strangers = report["membership"]["strangers"].as_array().unwrap();
+    let role = |name: &str| {
+        strangers
+            .iter()
+            .find(|s| s["name"] == name)
+            .map(|s| s["role"].as_str().unwrap().to_string())
+    };
+    assert_eq!(
+        role("detector").as_deref(),
+        Some("impostor"),
+        "{strangers:?}"
+    );
+    assert_eq!(role("viewer").as_deref(), Some("observer"), "{strangers:?}");
+    drop(stranger);
+    drop(observer);
+    let cleaned = glint()
+        .args(["clean", "--prefix", &prefix])
+        .output()
+        .unwrap();
+    assert!(cleaned.status.success());
+    assert!(shm_left(&prefix).is_empty(), "{:?}", shm_left(&prefix));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -90,6 +90,8 @@ pub struct RunFacts {
     /// Solve answers the inversion dropped and sent invalid on purpose, and those the
     /// sequencer noticed as unanswered and rejected as malformed.
     pub solve_tampered: [u64; 4],
+    /// Nodes under the prefix that were not the deployment's ([`crate::membership`]).
+    pub membership: Value,
 }
 
 /// The service that publishes a topic.
@@ -245,6 +247,7 @@ impl RunFacts {
             shm_held_by: vec![],
             faults,
             solve_tampered: [0; 4],
+            membership: Value::Null,
         }
     }
 
@@ -356,6 +359,7 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
         })).collect::<Vec<_>>(),
         "topics": topics,
         "science": { "digest_xxh3": format!("{:016x}", f.science_digest) },
+        "membership": f.membership,
         "laser": { "shots": f.laser_shots, "served": f.range_requests },
         "shared_memory": { "leftover": f.shm_leftover, "held_by": f.shm_held_by },
         "run": {

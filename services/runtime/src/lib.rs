@@ -22,7 +22,8 @@ pub use config_error::ConfigError;
 pub use credit::{AckReader, Credit};
 pub use housekeeping::Housekeeping;
 pub use node::{
-    glint_prefixes, init_tracing, is_deployment_prefix, open_node, remove_shm, shm_entries,
+    glint_prefixes, init_tracing, is_deployment_prefix, live_nodes, open_node, remove_shm,
+    shm_entries,
 };
 pub use ports::{Inbox, Outbox};
 pub use stats::TopicStats;

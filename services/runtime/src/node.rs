@@ -21,7 +21,24 @@ pub fn open_node(prefix: &str, name: &str) -> Result<IpcNode> {
         .map_err(|e| anyhow!("{e:?}"))
         .with_context(|| format!("creating iceoryx2 node '{name}' with prefix '{prefix}'"))?;
     node.try_cleanup_dead_nodes();
+    restrict_to_owner(prefix);
     Ok(node)
+}
+
+/// iceoryx2 creates its global management segment world-writable (0666); every other file of
+/// a deployment is the user's alone. Closes that: no file of the prefix stays writable by
+/// other users. (Isolation between users, not between one user's processes.)
+fn restrict_to_owner(prefix: &str) {
+    use std::os::unix::fs::PermissionsExt;
+    for p in prefixed_in(std::path::Path::new("/dev/shm"), prefix) {
+        if let Ok(meta) = std::fs::metadata(&p) {
+            let mode = meta.permissions().mode();
+            if mode & 0o066 != 0 {
+                let _ =
+                    std::fs::set_permissions(&p, std::fs::Permissions::from_mode(mode & !0o077));
+            }
+        }
+    }
 }
 
 /// What a prefix left behind: its entries in `/dev/shm`, and the node and service
@@ -132,6 +149,34 @@ pub fn remove_shm(prefix: &str) -> (usize, Vec<String>) {
         n += ok as usize;
     }
     (n, alive)
+}
+
+/// The live nodes under `prefix`: each one's name (or id, where it published no details) and
+/// the pid of the process that created it. Another user's node is listed with no pid.
+pub fn live_nodes(prefix: &str) -> Vec<(String, Option<u32>)> {
+    use iceoryx2::node::NodeView;
+    let mut out = vec![];
+    let Ok(name) = FileName::new(prefix.as_bytes()) else {
+        return out;
+    };
+    let mut config = Config::global_config().clone();
+    config.global.prefix = name;
+    let _ = Node::<ipc::Service>::list(&config, |state| {
+        match state {
+            NodeState::Alive(view) => {
+                let pid = view
+                    .id()
+                    .pid::<ipc::Service>()
+                    .ok()
+                    .and_then(|p| u32::try_from(p.value()).ok());
+                out.push((node_label(&view), pid));
+            }
+            NodeState::Inaccessible(id) => out.push((format!("{id:?}"), None)),
+            NodeState::Dead(_) | NodeState::Undefined(_) => {}
+        }
+        CallbackProgression::Continue
+    });
+    out
 }
 
 /// A live node's name, or its id where it published no details.
