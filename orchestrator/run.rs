@@ -255,14 +255,10 @@ fn deploy_and_run(
                 }
             }
             if phase == Phase::Running {
-                // A solve in flight: the inversion computes without beating; the call has its
-                // own timeout, and the process's exit is still noticed.
-                let solving = sequencer.as_ref().is_some_and(|s| s.solving());
                 let seen: Vec<Observation> = children
                     .iter_mut()
                     .map(|c| Observation {
                         id: c.id,
-                        busy: solving && c.id == ServiceId::Inversion,
                         exited: (!c.is_running()).then(|| c.exit_ok.unwrap_or(false)),
                         heartbeat: consumer
                             .seen

@@ -81,11 +81,6 @@ impl Sequencer {
         self.in_flight = None;
     }
 
-    /// Whether a call is in flight (the inversion is computing: its heartbeats may pause).
-    pub fn solving(&self) -> bool {
-        self.in_flight.is_some()
-    }
-
     pub fn done(&self) -> bool {
         self.next_stage > 3 || self.failure.is_some()
     }

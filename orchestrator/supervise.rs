@@ -18,8 +18,6 @@ pub struct Observation {
     pub exited: Option<bool>,
     /// The last heartbeat of the current process (its pid): when, and its state.
     pub heartbeat: Option<(Instant, u32)>,
-    /// Computing on request (a solve in flight): its heartbeat deadline does not apply.
-    pub busy: bool,
 }
 
 /// What the run loop must do.
@@ -69,8 +67,6 @@ struct Supervised {
     life: Life,
     /// When each restart happened (the budget counts those within the window).
     restarts_at: Vec<Instant>,
-    /// When it was last seen busy: its deadline counts from then too.
-    busy_at: Option<Instant>,
 }
 
 pub struct Supervisor {
@@ -95,7 +91,6 @@ impl Supervisor {
                     id,
                     life: Life::Starting(Instant::now()),
                     restarts_at: vec![],
-                    busy_at: None,
                 })
                 .collect(),
             deadline,
@@ -137,17 +132,12 @@ impl Supervisor {
             let Some(i) = self.services.iter().position(|s| s.id == o.id) else {
                 continue;
             };
-            if o.busy {
-                self.services[i].busy_at = Some(now);
-            }
-            let busy_at = self.services[i].busy_at;
             let life = self.services[i].life;
             let next = match life {
                 Life::Up(since) => match o.exited {
                     Some(clean) => self.failed(i, now, "exit", clean, &mut actions),
                     None => {
                         let last = o.heartbeat.map_or(since, |(at, _)| at.max(since));
-                        let last = busy_at.map_or(last, |b| b.max(last));
                         if now.saturating_duration_since(last) > self.deadline {
                             self.hung(i, now, "heartbeat deadline", &mut actions)
                         } else {
@@ -277,7 +267,6 @@ mod tests {
             id: D,
             exited,
             heartbeat,
-            busy: false,
         }
     }
 
@@ -354,19 +343,6 @@ mod tests {
             s.step(ms(531), &[obs(Some(false), None)]),
             [Action::Respawn(D)]
         );
-    }
-
-    #[test]
-    fn a_busy_service_is_not_hung_until_a_deadline_after_it_was_last_busy() {
-        let (mut s, t0) = supervisor(Supervision::default());
-        let ms = |n| t0 + Duration::from_millis(n);
-        let busy = |b| Observation {
-            busy: b,
-            ..obs(None, Some((ms(100), 2)))
-        };
-        assert!(s.step(ms(900), &[busy(true)]).is_empty(), "solving");
-        assert!(s.step(ms(1100), &[busy(false)]).is_empty(), "just answered");
-        assert_eq!(s.step(ms(1201), &[busy(false)]).len(), 2, "silent since");
     }
 
     #[test]

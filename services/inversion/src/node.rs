@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use glint_runtime::ports::Inbox;
-use glint_runtime::rpc::{RpcServer, Solve};
+use glint_runtime::rpc::{Request, RpcServer, Solve};
 use glint_runtime::{open_node, run_loop, Exit, Housekeeping, Step, Wake};
 use nalgebra::Vector3;
 use shared_types::scenario::{AttitudeConvention, SpectraScenario};
@@ -15,12 +15,22 @@ use shared_types::{
     Heartbeat, Scenario, ServiceId, SolveRequest, SolveResponse, SolveStatus, Spectrum, TopicId,
     Window,
 };
+use std::thread::JoinHandle;
 
 use crate::model::MotionModelConfig;
 use crate::rotation::AttitudeModel;
 use crate::session::{Session, StageOutcome};
 use crate::stage3::{RateSolution, Stage3Config};
 use crate::{Answer, AnswerFit, Observation};
+
+/// A stage being solved: its request, and the thread that gives the session back with the
+/// answer.
+type Solving = (Request<Solve>, JoinHandle<(Session, SolveResponse)>);
+
+/// Stack of the solve thread (the main thread's size: the solves were written for it).
+const SOLVE_STACK_BYTES: usize = 8 << 20;
+/// How often the loop looks for the end of a solve.
+const SOLVE_POLL: Duration = Duration::from_millis(2);
 
 /// The motion model the scenario's simulator used (attitude convention; n_b = +X; panel (a)).
 pub fn model_config(sp: &SpectraScenario) -> MotionModelConfig {
@@ -193,13 +203,18 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
         spectra.stats.await_replay();
     }
     let (mut server, solve_l) = RpcServer::<Solve>::open(&node, ServiceId::Inversion)?;
-    let mut session = Session::new(
+    // The session, or the thread holding it while a stage solves: the loop goes on beating,
+    // obeying control and taking spectra (held until the session is back) meanwhile, so a long
+    // solve never looks like a hang.
+    let mut idle = Some(Session::new(
         sp.wavelengths_nm(),
         sp.stable_samples as usize,
         sp.motion_frames as usize,
         model_config(sp),
         stage3_config(sp),
-    );
+    ));
+    let mut solving: Option<Solving> = None;
+    let mut held: Vec<(bool, Observation)> = vec![];
     hk.state = Heartbeat::READY;
 
     let inputs = [(&control_l, None), (&spectra_l, None), (&solve_l, None)];
@@ -219,18 +234,53 @@ pub fn run(prefix: &str, scenario: &Scenario, restarted: bool) -> Result<()> {
             }
             hk.last_latency_ns = r.latency_ns;
             last_t_ns = r.msg.meta.t_ns;
-            session.push(r.msg.window == Window::Motion as u32, observation(r.msg));
+            let (motion, o) = (r.msg.window == Window::Motion as u32, observation(r.msg));
+            match idle.as_mut() {
+                Some(session) => session.push(motion, o),
+                None => held.push((motion, o)),
+            }
             Ok(())
         })?;
         if let Some(e) = pace_error {
             return Err(e);
         }
         hk.ack(TopicId::Spectrum, spectra.stats.next_seq, last_t_ns)?;
-        server.serve(|req| (answer(&mut session, req), req.meta.t_ns))?;
+        if solving.as_ref().is_some_and(|(_, h)| h.is_finished()) {
+            if let Some((req, h)) = solving.take() {
+                let (mut session, resp) = h
+                    .join()
+                    .map_err(|_| anyhow::anyhow!("solve stage {} panicked", req.payload.stage))?;
+                for (motion, o) in held.drain(..) {
+                    session.push(motion, o);
+                }
+                idle = Some(session);
+                let t_ns = req.payload.meta.t_ns;
+                server.respond(req, resp, t_ns)?;
+            }
+        }
+        if solving.is_none() {
+            if let Some(req) = server.take_request()? {
+                let mut session = idle.take().context("the session is away")?;
+                let payload = req.payload;
+                let worker = std::thread::Builder::new()
+                    .name("solve".into())
+                    .stack_size(SOLVE_STACK_BYTES)
+                    .spawn(move || {
+                        let resp = answer(&mut session, &payload);
+                        (session, resp)
+                    })
+                    .context("starting the solve thread")?;
+                solving = Some((req, worker));
+            }
+        }
         if wakes.contains(&Wake::Tick) {
             hk.beat(last_t_ns, &[&spectra.stats, &server.stats])?;
         }
-        Ok(Step::Wait)
+        // While a stage solves, look for its end often (the worker does not wake the loop).
+        Ok(match solving {
+            Some(_) => Step::WaitAtMost(SOLVE_POLL),
+            None => Step::Wait,
+        })
     })?;
     if exit == Exit::Terminated {
         tracing::info!("inversion terminated by signal");

@@ -123,49 +123,92 @@ impl<R: Rpc> RpcServer<R> {
     /// requests are counted and answered with the rejection response.
     pub fn serve(&mut self, mut answer: impl FnMut(&R::Req) -> (R::Resp, u64)) -> Result<usize> {
         let mut n = 0;
-        while let Some(active) = self
-            .server
-            .receive()
-            .map_err(|e| anyhow!("{} receive: {e:?}", R::TOPIC.name()))?
-        {
+        while let Some(req) = self.take_request()? {
             n += 1;
-            let req = *active.payload();
-            let (mut resp, t_ns) = match req.check() {
-                Ok(()) => {
-                    self.stats.accept();
-                    answer(&req)
-                }
-                Err(_) => {
-                    self.stats.drop_for(DropReason::Malformed);
-                    (R::rejected(&req), req.meta().t_ns)
-                }
-            };
-            *resp.meta_mut() = Meta::new(self.stats.published, t_ns, mono_ns(), self.producer);
-            resp.seal();
-            match self.tamper.verdict() {
-                Verdict::Send => {}
-                Verdict::Drop => {
-                    tracing::info!(topic = R::TOPIC.name(), "injected drop of a response");
-                    self.stats.drop_for(DropReason::Injected);
-                    self.stats.published += 1;
-                    continue;
-                }
-                Verdict::Corrupt(how) => {
-                    tracing::info!(topic = R::TOPIC.name(), "injected corruption of a response");
-                    resp.corrupt(how);
-                    self.stats.drop_for(DropReason::Malformed);
-                }
-            }
-            active
-                .send_copy(resp)
-                .map_err(|e| anyhow!("{} respond: {e:?}", R::TOPIC.name()))?;
-            self.stats.published += 1;
-            self.reply
-                .notify_with_custom_event_id(EVENT_DATA)
-                .map_err(|e| anyhow!("{} reply notify: {e:?}", R::TOPIC.name()))?;
+            let (resp, t_ns) = answer(&req.payload);
+            self.respond(req, resp, t_ns)?;
         }
         Ok(n)
     }
+
+    /// The next valid request, to be answered later with [`RpcServer::respond`] (a long
+    /// computation need not block the loop). Malformed requests are counted and answered with
+    /// the rejection response on the way.
+    pub fn take_request(&mut self) -> Result<Option<Request<R>>> {
+        loop {
+            let Some(active) = self
+                .server
+                .receive()
+                .map_err(|e| anyhow!("{} receive: {e:?}", R::TOPIC.name()))?
+            else {
+                return Ok(None);
+            };
+            let payload = *active.payload();
+            let req = Request { active, payload };
+            match payload.check() {
+                Ok(()) => {
+                    self.stats.accept();
+                    return Ok(Some(req));
+                }
+                Err(_) => {
+                    self.stats.drop_for(DropReason::Malformed);
+                    let t_ns = payload.meta().t_ns;
+                    self.send_response(req, R::rejected(&payload), t_ns)?;
+                }
+            }
+        }
+    }
+
+    /// Answers a request taken with [`RpcServer::take_request`] (or drops or corrupts the answer,
+    /// as an injected fault says).
+    pub fn respond(&mut self, req: Request<R>, resp: R::Resp, t_ns: u64) -> Result<()> {
+        match self.tamper.verdict() {
+            Verdict::Send => self.send_response(req, resp, t_ns),
+            Verdict::Drop => {
+                tracing::info!(topic = R::TOPIC.name(), "injected drop of a response");
+                self.stats.drop_for(DropReason::Injected);
+                self.stats.published += 1;
+                Ok(())
+            }
+            Verdict::Corrupt(how) => {
+                tracing::info!(topic = R::TOPIC.name(), "injected corruption of a response");
+                self.stats.drop_for(DropReason::Malformed);
+                let mut resp = resp;
+                self.stamp(&mut resp, t_ns);
+                resp.corrupt(how);
+                self.send_stamped(req, resp)
+            }
+        }
+    }
+
+    fn stamp(&self, resp: &mut R::Resp, t_ns: u64) {
+        *resp.meta_mut() = Meta::new(self.stats.published, t_ns, mono_ns(), self.producer);
+        resp.seal();
+    }
+
+    fn send_response(&mut self, req: Request<R>, mut resp: R::Resp, t_ns: u64) -> Result<()> {
+        self.stamp(&mut resp, t_ns);
+        self.send_stamped(req, resp)
+    }
+
+    fn send_stamped(&mut self, req: Request<R>, resp: R::Resp) -> Result<()> {
+        req.active
+            .send_copy(resp)
+            .map_err(|e| anyhow!("{} respond: {e:?}", R::TOPIC.name()))?;
+        self.stats.published += 1;
+        self.reply
+            .notify_with_custom_event_id(EVENT_DATA)
+            .map_err(|e| anyhow!("{} reply notify: {e:?}", R::TOPIC.name()))?;
+        Ok(())
+    }
+}
+
+/// A request taken and not yet answered ([`RpcServer::take_request`]); dropping it unanswered
+/// disconnects its client's pending call.
+pub struct Request<R: Rpc> {
+    active: iceoryx2::active_request::ActiveRequest<Ipc, R::Req, (), R::Resp, ()>,
+    /// The request, validated.
+    pub payload: R::Req,
 }
 
 pub struct RpcClient<R: Rpc> {
