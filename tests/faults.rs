@@ -387,3 +387,47 @@ fn in_band_faults_need_faults_enabled_in_the_scenario() {
     assert_eq!(r.report["accounting"]["invariant_held"], true);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Realtime mode: a detector slowed past the frame rate drops frames (its buffer overflows),
+/// counts them, and the run ends when the sensor is done — the detections it did not make are
+/// not waited for — with `received + dropped == published` for every consumer.
+#[test]
+fn in_realtime_a_slowed_consumer_drops_counted_frames_and_the_run_still_ends() {
+    let dir = temp_dir("fault-realtime");
+    let file = scenario_variant(
+        "debris-geo.toml",
+        &[("seed = 2016\n", "seed = 2016\nclock = \"realtime\"\n")],
+        &dir,
+    );
+    let r = run_ok(
+        Some(&file),
+        &dir.join("out"),
+        &["--fault", "detector:delay@5,delay_ms=60,duration_s=1"],
+    );
+    let frames = &r.report["topics"]["frame"];
+    assert_eq!(frames["published"], 50);
+    let det = &frames["consumers"]["detector"];
+    let (received, dropped) = (
+        det["received"].as_u64().unwrap(),
+        det["dropped"].as_u64().unwrap(),
+    );
+    assert_eq!(received + dropped, 50, "{det}");
+    assert!(
+        dropped > 0,
+        "a 60 ms delay at 25 frames/s overflows the buffer: {det}"
+    );
+    assert_eq!(det["dropped_by_reason"]["overflow"], dropped);
+    // One detections message per frame the detector took; the tracker took them all.
+    let detections = &r.report["topics"]["detections"];
+    assert_eq!(
+        detections["expected"].as_u64(),
+        Some(received),
+        "{detections}"
+    );
+    assert_eq!(
+        detections["consumers"]["tracker"]["received"].as_u64(),
+        Some(received)
+    );
+    assert_eq!(r.report["accounting"]["invariant_held"], true);
+    let _ = std::fs::remove_dir_all(&dir);
+}
