@@ -204,17 +204,18 @@ impl Supervisor {
         })
     }
 
+    /// Service `i` failed (`how`): given up on, or — `hung`: killed first — restarted.
     fn failed(
         &mut self,
         i: usize,
         now: Instant,
         how: &'static str,
-        clean: bool,
+        clean_exit: bool,
         actions: &mut Vec<Action>,
     ) -> Life {
         let id = self.services[i].id;
         actions.push(Action::Noticed { id, how });
-        match self.refusal(i, now, clean) {
+        match self.refusal(i, now, clean_exit) {
             Some(why) => {
                 actions.push(Action::GiveUp { id, how, why });
                 Life::Failed
@@ -223,6 +224,7 @@ impl Supervisor {
         }
     }
 
+    /// Service `i` is alive but silent (`how`): killed, then restarted once it has exited.
     fn hung(
         &mut self,
         i: usize,
@@ -230,15 +232,10 @@ impl Supervisor {
         how: &'static str,
         actions: &mut Vec<Action>,
     ) -> Life {
-        let id = self.services[i].id;
-        actions.push(Action::Noticed { id, how });
-        match self.refusal(i, now, false) {
-            Some(why) => {
-                actions.push(Action::GiveUp { id, how, why });
-                Life::Failed
-            }
-            None => {
-                actions.push(Action::Kill(id));
+        match self.failed(i, now, how, false, actions) {
+            Life::Failed => Life::Failed,
+            _ => {
+                actions.push(Action::Kill(self.services[i].id));
                 Life::Killing
             }
         }

@@ -16,6 +16,7 @@ pub mod debris;
 pub mod faults;
 pub mod fit;
 pub mod inversion;
+mod science;
 
 use crate::consume::Consumer;
 use crate::deploy::{Ending, ServiceProcess};
@@ -105,24 +106,6 @@ fn consumer_fact(c: TopicCounters) -> ConsumerFact {
     }
 }
 
-/// The run's results in one digest: every topic's digest, then every solve answer's content.
-fn science_digest(topics: &BTreeMap<TopicId, u64>, solve: &[shared_types::SolveResponse]) -> u64 {
-    let mut h = xxhash_rust::xxh3::Xxh3::new();
-    for (t, d) in topics {
-        h.update(&(*t as u32).to_le_bytes());
-        h.update(&d.to_le_bytes());
-    }
-    for r in solve {
-        // The answer, not its transport: which call (request id, seq) got it depends on how
-        // often a stage was asked before it was ready, or retried after a restart.
-        let mut r = *r;
-        r.meta = Default::default();
-        r.request_id = 0;
-        h.update(bytemuck::bytes_of(&r));
-    }
-    h.digest()
-}
-
 impl RunFacts {
     pub fn collect(
         consumer: &Consumer,
@@ -143,7 +126,7 @@ impl RunFacts {
             })
             .collect();
         let digests = consumer.digests();
-        let science = science_digest(&digests, &solve);
+        let science = science::digest(&digests, &solve);
         let mut topics = BTreeMap::new();
         for t in [
             TopicId::Frame,

@@ -117,12 +117,10 @@ impl<T: Message> Outbox<T> {
                 log.push(msg);
             }
         }
-        let verdict = if seq < self.stats.published {
-            Verdict::Send
-        } else {
-            self.tamper.verdict()
-        };
-        match verdict {
+        match self
+            .tamper
+            .verdict_unless_replay(seq < self.stats.published)
+        {
             Verdict::Send => {}
             Verdict::Drop => {
                 tracing::info!(topic = self.stats.topic.name(), seq, "injected drop");
@@ -333,12 +331,7 @@ impl FrameOutbox {
         render(&mut header, pixels);
         header.pixels_xxh3 = shared_types::pixels_xxh3(pixels);
         header.meta.send_mono_ns = mono_ns();
-        let verdict = if self.replaying() {
-            Verdict::Send
-        } else {
-            self.tamper.verdict()
-        };
-        match verdict {
+        match self.tamper.verdict_unless_replay(self.replaying()) {
             Verdict::Send => {}
             Verdict::Drop => {
                 tracing::info!(seq, "injected frame drop");

@@ -43,6 +43,16 @@ impl Tamper {
         }
     }
 
+    /// The verdict on the next output, or `Send` for a replay (what a restarted consumer is
+    /// sent again is never tampered with).
+    pub fn verdict_unless_replay(&mut self, replay: bool) -> Verdict {
+        if replay {
+            Verdict::Send
+        } else {
+            self.verdict()
+        }
+    }
+
     /// The verdict on the next output.
     pub fn verdict(&mut self) -> Verdict {
         if self.corrupt_left > 0 {
