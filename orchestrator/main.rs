@@ -424,11 +424,21 @@ fn main() -> ExitCode {
                     return ExitCode::from(2);
                 }
             };
+            let args = glint_runtime::ServiceArgs {
+                prefix: &prefix,
+                scenario: &sc,
+                restarted,
+            };
+            use glint_runtime::run_service;
             let result = match ServiceId::from_name(&name) {
-                Some(ServiceId::Sensor) => glint_sensor::node::run(&prefix, &sc, restarted),
-                Some(ServiceId::Detector) => glint_detector::node::run(&prefix, &sc, restarted),
-                Some(ServiceId::Tracker) => glint_tracker::node::run(&prefix, &sc, restarted),
-                Some(ServiceId::Inversion) => glint_inversion::node::run(&prefix, &sc, restarted),
+                Some(ServiceId::Sensor) => run_service::<glint_sensor::node::SensorNode>(args),
+                Some(ServiceId::Detector) => {
+                    run_service::<glint_detector::node::DetectorNode>(args)
+                }
+                Some(ServiceId::Tracker) => run_service::<glint_tracker::node::TrackerNode>(args),
+                Some(ServiceId::Inversion) => {
+                    run_service::<glint_inversion::node::InversionNode>(args)
+                }
                 _ => {
                     eprintln!(
                         "error: unknown service '{name}' (available: sensor, detector, tracker, inversion)"

@@ -118,7 +118,7 @@ pub fn run_value(
         &ref_dir.join("observations.csv"),
         snr,
         stable_noisy,
-        glint_inversion::node::stage3_config(sp),
+        glint_inversion::service_core::stage3_config(sp),
     )?;
     // λ*'s fit carries its rate (no covariance: its NEES is not scored); the answer is the
     // joint fit, with its covariance.

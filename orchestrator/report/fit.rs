@@ -28,7 +28,7 @@ pub fn plots(dir: &Path, sp: &SpectraScenario, responses: &[SolveResponse]) -> R
     };
     let path = dir.join("observations.csv");
     let file = crate::observations::read(&path)?;
-    let model = glint_inversion::node::model_config(sp);
+    let model = glint_inversion::service_core::model_config(sp);
     // Stage 1 again (a few NNLS fits, deterministic: the service's coefficients to the bit).
     let body_normal = Vector3::from(model.body_normal);
     let stage1 = run_stage1_full(

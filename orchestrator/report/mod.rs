@@ -178,7 +178,7 @@ impl RunFacts {
             );
         }
         let debris = scenario.camera.as_ref().map(|cam| {
-            let camera = glint_detector::node::camera(cam);
+            let camera = glint_detector::service_core::camera(cam);
             let a_m = cam.orbit_semi_major_axis_km * 1e3;
             let n_rad_s = (glint_physics::orbit::MU_EARTH_M3_S2 / (a_m * a_m * a_m)).sqrt();
             let frame_truths: Vec<shared_types::Truth> = consumer

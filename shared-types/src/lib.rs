@@ -3,12 +3,14 @@
 //!
 //! Only this crate and `glint-runtime` touch iceoryx2 directly.
 
+pub mod config_error;
 pub mod deployment;
 pub mod input;
 pub mod messages;
 pub mod scenario;
 pub mod topics;
 
+pub use config_error::ConfigError;
 pub use messages::*;
 pub use scenario::Scenario;
 pub use topics::{ServiceId, TopicId};

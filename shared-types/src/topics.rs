@@ -132,6 +132,22 @@ pub const SPECTRUM_HISTORY: usize = SPECTRUM_BUFFER;
 pub const DETECTIONS_BUFFER: usize = 16;
 pub const TRACKS_BUFFER: usize = 16;
 
+/// The sim-clock credit window of a produced data topic (its subscriber buffer).
+pub fn credit_window(topic: TopicId) -> usize {
+    match topic {
+        TopicId::Frame => FRAME_BUFFER,
+        TopicId::Spectrum => SPECTRUM_BUFFER,
+        TopicId::Truth => TRUTH_BUFFER,
+        TopicId::Detections => DETECTIONS_BUFFER,
+        TopicId::Tracks => TRACKS_BUFFER,
+        TopicId::Heartbeat => HEARTBEAT_BUFFER,
+        TopicId::Control => CONTROL_BUFFER,
+        TopicId::Ack => ACK_BUFFER,
+        // Request/response services: one request in flight per client.
+        TopicId::Range | TopicId::Solve => 1,
+    }
+}
+
 /// Subscribers per data topic: orchestrator, one consumer service, one restart replacement, one tool.
 const MAX_DATA_SUBSCRIBERS: usize = 4;
 /// Publishers/nodes per many-to-one topic: every service, plus restarts.

@@ -14,9 +14,11 @@ pub mod angles;
 pub mod background;
 pub mod matching;
 pub mod moments;
+#[cfg(feature = "node")]
 pub mod node;
 pub mod pgm;
 pub mod segment;
+pub mod service_core;
 
 pub use background::{BackgroundEstimator, BackgroundStats};
 pub use matching::{MatchResult, MatchedDetection, Matcher, MatcherConfig};
@@ -68,7 +70,7 @@ pub fn check_frame(frame: &[u16], width: usize, height: usize) -> Result<(), Fra
 }
 
 /// A configuration value outside its allowed range (one type for every service core).
-pub use glint_runtime::ConfigError;
+pub use shared_types::ConfigError;
 
 /// Foreground rule.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -1,6 +1,6 @@
 //! Test-only synthetic frames: seeded Gaussian noise and Gaussian-profile line segments.
 
-pub use glint_runtime::rng::SeededRng as Rng;
+pub use glint_physics::rng::SeededRng as Rng;
 
 /// A float image that is quantised to u16 at the end.
 pub struct Canvas {

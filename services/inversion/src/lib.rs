@@ -31,6 +31,7 @@ pub mod facet;
 pub mod lm;
 pub mod model;
 pub mod nnls;
+#[cfg(feature = "node")]
 pub mod node;
 pub mod nuisance;
 pub mod observability;
@@ -38,6 +39,7 @@ pub mod observation;
 pub mod rates;
 pub mod rotation;
 mod serde_coeffs;
+pub mod service_core;
 pub mod session;
 pub mod stage1;
 pub mod stage2;

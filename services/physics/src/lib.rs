@@ -1,6 +1,7 @@
 //! glint-physics: pure models shared by the simulator and the estimators.
 //!
-//! No I/O, no clock, no randomness; f64 SI units throughout (angles in radians unless a name says
+//! No I/O, no clock, no randomness in the models (`rng` is the seeded generator that tests and
+//! offline synthesis draw from); f64 SI units throughout (angles in radians unless a name says
 //! otherwise). Every module states its math and cites docs/math.md (seeds 000 and 002) or
 //! docs/materials.md.
 //!
@@ -22,6 +23,7 @@ pub mod frames;
 pub mod hover;
 pub mod materials;
 pub mod orbit;
+pub mod rng;
 pub mod satellite;
 pub mod sun;
 pub mod two_facet;

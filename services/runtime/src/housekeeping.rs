@@ -136,12 +136,29 @@ impl Housekeeping {
             return Ok(());
         }
         std::thread::sleep(d);
+        self.beat_if_due()
+    }
+
+    /// Repeats the last heartbeat's counters when a heartbeat is due: a service working
+    /// through a burst of inputs, or slowed, still beats on time (busy is not hung).
+    pub fn beat_if_due(&mut self) -> Result<()> {
         if let Some((at, topics)) = self.last_beat {
             if at.elapsed() >= self.heartbeat_period {
                 self.send_beat(0, topics)?;
             }
         }
         Ok(())
+    }
+
+    /// For a service blocked outside its loop (a call being retried): obeys control (`Start`
+    /// marks it running), sends a heartbeat with its last counters when one is due; `false`
+    /// once `Shutdown` arrived.
+    pub fn keepalive(&mut self) -> Result<bool> {
+        if self.poll_control()?.contains(&Command::Start) && self.state == Heartbeat::READY {
+            self.state = Heartbeat::RUNNING;
+        }
+        self.beat_if_due()?;
+        Ok(!self.shutdown_requested)
     }
 
     /// Drop and corrupt orders to arm on this service's output.
@@ -152,23 +169,6 @@ impl Housekeeping {
     /// The replays ordered since the last call (a consumer of this service's output restarted).
     pub fn take_replays(&mut self) -> Vec<Replay> {
         std::mem::take(&mut self.replays)
-    }
-
-    /// The control handling of a consuming service: `Start` marks it running; `Shutdown` sends a
-    /// last heartbeat with `stats` and returns `true` (leave the loop). Other commands are for
-    /// producers and are ignored here.
-    pub fn obey(&mut self, stats: &[&TopicStats]) -> Result<bool> {
-        for cmd in self.poll_control()? {
-            if cmd == Command::Start {
-                self.state = Heartbeat::RUNNING;
-            }
-        }
-        if self.shutdown_requested {
-            self.state = Heartbeat::STOPPING;
-            self.beat(0, stats)?;
-            return Ok(true);
-        }
-        Ok(false)
     }
 
     /// Publishes a heartbeat carrying `stats` (at most [`MAX_TOPICS`] topics).

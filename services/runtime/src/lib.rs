@@ -5,20 +5,18 @@
 //! A service is a pure core plus a thin node loop; this crate is the loop's vocabulary.
 
 pub mod clock;
-pub mod config_error;
 pub mod credit;
 pub mod housekeeping;
 pub mod lifeline;
 pub mod node;
 pub mod ports;
-pub mod rng;
 pub mod rpc;
+pub mod service;
 pub mod stats;
 pub mod tamper;
 pub mod waitloop;
 
 pub use clock::mono_ns;
-pub use config_error::ConfigError;
 pub use credit::{AckReader, Credit};
 pub use housekeeping::Housekeeping;
 pub use node::{
@@ -26,5 +24,6 @@ pub use node::{
     shm_entries,
 };
 pub use ports::{Inbox, Outbox};
+pub use service::{run_service, Frame, Io, NoInput, Output, Service, ServiceArgs, Setup};
 pub use stats::TopicStats;
 pub use waitloop::{run_loop, Exit, Step, Wake};

@@ -76,6 +76,11 @@ impl<T: Message> Outbox<T> {
         self.log.get_or_insert_with(Vec::new);
     }
 
+    /// Whether every message sent is kept ([`Outbox::keep_log`]).
+    pub fn has_log(&self) -> bool {
+        self.log.is_some()
+    }
+
     /// Whether messages below `stats.published` are still to be sent again.
     pub fn replaying(&self) -> bool {
         self.next_seq < self.stats.published

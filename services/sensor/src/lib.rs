@@ -6,6 +6,8 @@
 
 pub mod debris_scene;
 pub mod laser;
+#[cfg(feature = "node")]
 pub mod node;
 pub mod render;
+pub mod service_core;
 pub mod spectra_scene;

@@ -11,8 +11,10 @@
 
 pub mod angle_filter;
 pub mod ekf;
+#[cfg(feature = "node")]
 pub mod node;
 pub mod pointing;
+pub mod service_core;
 pub mod track;
 
 /// Two times closer than this are the same instant \[s\]: the wire's resolution (1 ns). Times
@@ -27,4 +29,4 @@ pub use pointing::{predict_pointing, PointingCommand};
 pub use track::{TrackManager, TrackManagerConfig, TrackObservation, TrackReport, TrackStatus};
 
 /// A configuration value outside its allowed range (one type for every service core).
-pub use glint_runtime::ConfigError;
+pub use shared_types::ConfigError;

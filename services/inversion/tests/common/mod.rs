@@ -183,9 +183,9 @@ pub fn scenario(stable_n: usize, motion_n: usize, p_true: [f64; 3]) -> Observati
     }
 }
 
-/// Deterministic Gaussian noise (`glint_runtime::rng`: seeded xoshiro256++, ziggurat normals).
+/// Deterministic Gaussian noise (`glint_physics::rng`: seeded xoshiro256++, ziggurat normals).
 #[allow(unused_imports)] // not every test binary draws noise
-pub use glint_runtime::rng::SeededRng as Gauss;
+pub use glint_physics::rng::SeededRng as Gauss;
 
 /// The 650-nm band of [`band_coeffs`] in x̃ units.
 pub fn band() -> RateBand {

@@ -2,7 +2,7 @@
 //! constant-rate target, initialisation and errors.
 
 use super::*;
-use glint_runtime::rng::SeededRng as Rng;
+use glint_physics::rng::SeededRng as Rng;
 use proptest::prelude::*;
 
 fn gamma(config: &AngleFilterConfig, t: f64) -> Matrix4x2<f64> {

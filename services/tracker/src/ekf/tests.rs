@@ -6,7 +6,7 @@ use super::*;
 use crate::{AngleFilter, AngleFilterConfig};
 use glint_physics::camera::angles_from_position;
 use glint_physics::cw::propagate_lvlhn;
-use glint_runtime::rng::SeededRng as Rng;
+use glint_physics::rng::SeededRng as Rng;
 use proptest::prelude::*;
 
 const DT: f64 = 0.04;

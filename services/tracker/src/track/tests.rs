@@ -4,7 +4,7 @@ use super::*;
 use crate::ekf::{measurement, GEO_MEAN_MOTION_RAD_S};
 use crate::pointing::{beam_hits, SEED_BEAM_WIDTH_RAD, SEED_LASER_DELAY_S};
 use glint_physics::cw::propagate_lvlhn;
-use glint_runtime::rng::SeededRng as Rng;
+use glint_physics::rng::SeededRng as Rng;
 use nalgebra::Vector6;
 
 const DT: f64 = 0.04;

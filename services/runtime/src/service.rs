@@ -1,0 +1,525 @@
+//! The one way a glint service runs. A service says what it consumes (one [`Input`]), what it
+//! produces (its [`Output`]s) and what it does with each input and on each wake-up; the
+//! skeleton, [`run_service`], owns everything else: the node, control, heartbeats, the
+//! acknowledgements of what it consumed, the sim-clock credit of what it produces, replays to
+//! a restarted consumer, in-band faults, and shutdown.
+//!
+//! Per wake-up, in this order:
+//! 1. control: `Start`/`Pause`/`Resume` go to [`Service::on_command`]; `Shutdown` sends a last
+//!    heartbeat and leaves the loop;
+//! 2. acknowledgements from the consumers of each output feed that output's credit;
+//! 3. in-band `drop`/`corrupt` orders are armed ([`Service::arm`]); replay orders (a consumer
+//!    restarted) reset its credit and rewind the output; a logged output is re-sent first, and
+//!    new inputs wait until the restarted consumer has caught up;
+//! 4. inputs are taken, at most as many as every output has credit for (one output message
+//!    per input), each handed to [`Service::on_input`] after an injected delay, if any;
+//!    what was taken is acknowledged;
+//! 5. [`Service::on_tick`] (a source produces here; a server answers);
+//! 6. on the heartbeat tick, a heartbeat with every counter (and between two inputs whenever
+//!    one is due, so that a long burst of work never looks like a hang).
+//!
+//! Recovery is by deterministic replay (docs/adr/0032): a restarted service is fed its inputs
+//! again from the first one and rebuilds its state exactly; consumers skip what they already
+//! have as duplicates.
+
+use std::time::Duration;
+
+use anyhow::Result;
+use iceoryx2::port::listener::Listener;
+use shared_types::scenario::Clock as ClockMode;
+use shared_types::topics::{credit_window, Ipc, IpcNode};
+use shared_types::{
+    deployment, Command, DropReason, FrameHeader, Heartbeat, InBandFault, Message, Scenario,
+    ServiceId, TopicId,
+};
+
+use crate::credit::{AckReader, Credit};
+use crate::housekeeping::Housekeeping;
+use crate::ports::{FrameInbox, FrameOutbox, Inbox, Outbox};
+use crate::stats::TopicStats;
+use crate::tamper::Tamper;
+use crate::waitloop::{run_loop, Exit, Step, Wake};
+
+/// Where a service reads the time it does not take from its messages (realtime pacing).
+pub trait Clock {
+    /// Nanoseconds on a monotonic scale.
+    fn now_ns(&self) -> u64;
+}
+
+/// `CLOCK_MONOTONIC`: the clock of a deployed service.
+pub struct Monotonic;
+
+impl Clock for Monotonic {
+    fn now_ns(&self) -> u64 {
+        crate::clock::mono_ns()
+    }
+}
+
+/// A produced topic, as the skeleton sees it.
+pub trait Output {
+    fn stats(&self) -> &TopicStats;
+    fn next_seq(&self) -> u64;
+    /// Sends again from `seq` (a consumer restarted).
+    fn rewind(&mut self, seq: u64);
+    /// Whether messages below `stats().published` are still to be sent again.
+    fn replaying(&self) -> bool;
+    /// Whether replays are re-sent from a log ([`Output::resend`]) rather than re-made by the
+    /// service.
+    fn logged(&self) -> bool;
+    /// Re-sends at most `limit` logged messages; how many were sent.
+    fn resend(&mut self, limit: u64) -> Result<u64>;
+    fn tamper(&mut self) -> &mut Tamper;
+}
+
+impl<T: Message> Output for Outbox<T> {
+    fn stats(&self) -> &TopicStats {
+        &self.stats
+    }
+    fn next_seq(&self) -> u64 {
+        Outbox::next_seq(self)
+    }
+    fn rewind(&mut self, seq: u64) {
+        Outbox::rewind(self, seq)
+    }
+    fn replaying(&self) -> bool {
+        Outbox::replaying(self)
+    }
+    fn logged(&self) -> bool {
+        self.has_log()
+    }
+    fn resend(&mut self, limit: u64) -> Result<u64> {
+        Outbox::resend(self, limit)
+    }
+    fn tamper(&mut self) -> &mut Tamper {
+        &mut self.tamper
+    }
+}
+
+impl Output for FrameOutbox {
+    fn stats(&self) -> &TopicStats {
+        &self.stats
+    }
+    fn next_seq(&self) -> u64 {
+        FrameOutbox::next_seq(self)
+    }
+    fn rewind(&mut self, seq: u64) {
+        FrameOutbox::rewind(self, seq)
+    }
+    fn replaying(&self) -> bool {
+        FrameOutbox::replaying(self)
+    }
+    fn logged(&self) -> bool {
+        false
+    }
+    fn resend(&mut self, _limit: u64) -> Result<u64> {
+        Ok(0)
+    }
+    fn tamper(&mut self) -> &mut Tamper {
+        &mut self.tamper
+    }
+}
+
+/// One frame handed to a consumer: header and pixels, read in place in shared memory.
+pub struct Frame<'a> {
+    pub header: &'a FrameHeader,
+    pub pixels: &'a [u16],
+}
+
+/// A consumed topic, as the skeleton sees it.
+pub trait Input {
+    /// What one message is handed to the service as.
+    type Item<'a>;
+    fn stats(&self) -> Option<&TopicStats>;
+    fn stats_mut(&mut self) -> Option<&mut TopicStats>;
+    /// The simulated time of an item [ns].
+    fn t_ns(item: &Self::Item<'_>) -> u64;
+    /// Takes at most `limit` messages: `handle` gets each valid, new one with its latency and
+    /// returns `Err(reason)` to drop it (counted).
+    fn take<F>(&mut self, limit: usize, handle: F) -> Result<()>
+    where
+        F: for<'a> FnMut(Self::Item<'a>, u64) -> Result<(), DropReason>;
+}
+
+impl<T: Message> Input for Inbox<T> {
+    type Item<'a> = &'a T;
+    fn stats(&self) -> Option<&TopicStats> {
+        Some(&self.stats)
+    }
+    fn stats_mut(&mut self) -> Option<&mut TopicStats> {
+        Some(&mut self.stats)
+    }
+    fn t_ns(item: &&T) -> u64 {
+        item.meta().t_ns
+    }
+    fn take<F>(&mut self, limit: usize, mut handle: F) -> Result<()>
+    where
+        F: for<'a> FnMut(&'a T, u64) -> Result<(), DropReason>,
+    {
+        self.drain_up_to(limit, |r| handle(r.msg, r.latency_ns))?;
+        Ok(())
+    }
+}
+
+impl Input for FrameInbox {
+    type Item<'a> = Frame<'a>;
+    fn stats(&self) -> Option<&TopicStats> {
+        Some(&self.stats)
+    }
+    fn stats_mut(&mut self) -> Option<&mut TopicStats> {
+        Some(&mut self.stats)
+    }
+    fn t_ns(item: &Frame<'_>) -> u64 {
+        item.header.meta.t_ns
+    }
+    fn take<F>(&mut self, limit: usize, mut handle: F) -> Result<()>
+    where
+        F: for<'a> FnMut(Frame<'a>, u64) -> Result<(), DropReason>,
+    {
+        self.drain_up_to(limit, |header, pixels, latency_ns| {
+            handle(Frame { header, pixels }, latency_ns)
+        })?;
+        Ok(())
+    }
+}
+
+/// The input of a source (the sensor): none.
+pub struct NoInput;
+
+impl Input for NoInput {
+    type Item<'a> = ();
+    fn stats(&self) -> Option<&TopicStats> {
+        None
+    }
+    fn stats_mut(&mut self) -> Option<&mut TopicStats> {
+        None
+    }
+    fn t_ns(_: &()) -> u64 {
+        0
+    }
+    fn take<F>(&mut self, _limit: usize, _handle: F) -> Result<()>
+    where
+        F: for<'a> FnMut((), u64) -> Result<(), DropReason>,
+    {
+        Ok(())
+    }
+}
+
+/// What a service opens its ports with.
+pub struct Setup<'a> {
+    pub node: &'a IpcNode,
+    pub scenario: &'a Scenario,
+    /// A new incarnation after a crash.
+    pub restarted: bool,
+    listeners: Vec<Listener<Ipc>>,
+}
+
+impl Setup<'_> {
+    /// Wakes the loop on this listener (an input's, or a server's requests).
+    pub fn listen(&mut self, listener: Listener<Ipc>) {
+        self.listeners.push(listener);
+    }
+
+    /// Whether the deployment runs on the simulated clock (lockstep, nothing dropped).
+    pub fn sim_clock(&self) -> bool {
+        self.scenario.clock == ClockMode::Sim
+    }
+}
+
+/// What a service reaches of the skeleton while it works.
+pub struct Io<'a> {
+    hk: &'a mut Housekeeping,
+    credits: &'a [(TopicId, Credit)],
+    clock: &'a dyn Clock,
+    pub node: &'a IpcNode,
+    /// Realtime deployment (paced by the wall clock, drops counted) rather than sim clock.
+    pub realtime: bool,
+}
+
+impl Io<'_> {
+    /// The credit of an output topic (everything allowed for a topic without consumers).
+    pub fn allows(&self, topic: TopicId, seq: u64) -> bool {
+        self.credit(topic).is_none_or(|c| c.allows(seq))
+    }
+
+    fn credit(&self, topic: TopicId) -> Option<&Credit> {
+        self.credits
+            .iter()
+            .find(|(t, _)| *t == topic)
+            .map(|(_, c)| c)
+    }
+
+    /// An injected delay before producing one message (the skeleton does it before each input).
+    pub fn pace(&mut self) -> Result<()> {
+        self.hk.pace()
+    }
+
+    /// Repeats the last heartbeat when one is due (a long piece of work between wake-ups).
+    pub fn beat_if_due(&mut self) -> Result<()> {
+        self.hk.beat_if_due()
+    }
+
+    /// For a service blocked in a retried call: obeys control, beats when one is due;
+    /// `false` once `Shutdown` arrived.
+    pub fn keepalive(&mut self) -> Result<bool> {
+        self.hk.keepalive()
+    }
+
+    pub fn now_ns(&self) -> u64 {
+        self.clock.now_ns()
+    }
+
+    /// Heartbeat state (`Heartbeat::READY` …).
+    pub fn state(&self) -> u32 {
+        self.hk.state
+    }
+
+    /// Marks the service done with its work (a source that produced everything).
+    pub fn finish(&mut self) {
+        if self.hk.state == Heartbeat::RUNNING {
+            self.hk.state = Heartbeat::FINISHED;
+        }
+    }
+}
+
+/// A glint service on the skeleton.
+pub trait Service: Sized {
+    const ID: ServiceId;
+    type Input: Input;
+
+    /// Opens the service's ports and builds its core. A restarted consumer is fed its input
+    /// again from the start: the skeleton has it wait for that replay.
+    fn open(setup: &mut Setup<'_>) -> Result<(Self, Self::Input)>;
+
+    /// The produced topics (credit, replays, faults).
+    fn outputs(&mut self) -> Vec<&mut dyn Output>;
+
+    /// Every counter the service keeps besides its input's (outputs, servers), for heartbeats.
+    fn stats(&self) -> Vec<&TopicStats>;
+
+    /// Arms an in-band `drop` or `corrupt` on the service's main output (its first).
+    fn arm(&mut self, fault: &InBandFault) {
+        if let Some(out) = self.outputs().into_iter().next() {
+            out.tamper().arm(fault);
+        }
+    }
+
+    /// `Start`, `Pause`, `Resume` (after the skeleton marked the service running on `Start`).
+    fn on_command(&mut self, _io: &mut Io<'_>, _cmd: Command) -> Result<()> {
+        Ok(())
+    }
+
+    /// One input message, in seq order. `Ok(Err(reason))` drops it with a counted reason; an
+    /// error ends the service.
+    fn on_input(
+        &mut self,
+        io: &mut Io<'_>,
+        item: <Self::Input as Input>::Item<'_>,
+    ) -> Result<Result<(), DropReason>>;
+
+    /// Every wake-up, after the inputs: what to wait for next.
+    fn on_tick(&mut self, _io: &mut Io<'_>, _wakes: &[Wake]) -> Result<Step> {
+        Ok(Step::Wait)
+    }
+}
+
+/// How a service process was started.
+pub struct ServiceArgs<'a> {
+    pub prefix: &'a str,
+    pub scenario: &'a Scenario,
+    pub restarted: bool,
+}
+
+/// Runs service `S` until `Shutdown` or a termination signal, on the monotonic clock.
+pub fn run_service<S: Service>(args: ServiceArgs<'_>) -> Result<()> {
+    run_service_with::<S>(args, &Monotonic)
+}
+
+/// [`run_service`] with the clock given.
+pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) -> Result<()> {
+    let ServiceArgs {
+        prefix,
+        scenario,
+        restarted,
+    } = args;
+    let name = S::ID.name();
+    if restarted {
+        tracing::info!("restarted");
+    }
+    let node = crate::open_node(prefix, name)?;
+    let (mut hk, control_l) = Housekeeping::open(&node, S::ID)?;
+    hk.faults_enabled = scenario.faults.enabled;
+    let tick = Duration::from_millis(scenario.run.heartbeat_period_ms);
+    hk.heartbeat_period = tick;
+    let (mut acks, ack_l) = AckReader::open(&node)?;
+    let mut setup = Setup {
+        node: &node,
+        scenario,
+        restarted,
+        listeners: vec![control_l, ack_l],
+    };
+    let (mut svc, mut input) = S::open(&mut setup)?;
+    let listeners = std::mem::take(&mut setup.listeners);
+    let realtime = scenario.clock == ClockMode::Realtime;
+    if restarted && !realtime {
+        if let Some(stats) = input.stats_mut() {
+            stats.await_replay();
+        }
+    }
+    let input_topic = input.stats().map(|s| s.topic);
+    let mut credits: Vec<(TopicId, Credit)> = svc
+        .outputs()
+        .iter()
+        .map(|o| {
+            let topic = o.stats().topic;
+            let consumers = deployment::consumers(scenario, topic);
+            (topic, Credit::new(credit_window(topic), consumers))
+        })
+        .collect();
+    hk.state = Heartbeat::READY;
+    // A first heartbeat at once: a service blocked before its first tick still has one to repeat.
+    hk.beat(0, &all_stats(&input, &svc))?;
+    tracing::info!("{name} ready");
+
+    let waits: Vec<(&Listener<Ipc>, Option<Duration>)> =
+        listeners.iter().map(|l| (l, None)).collect();
+    let exit = run_loop(&waits, tick, |wakes| {
+        // 1. Control.
+        for cmd in hk.poll_control()? {
+            if cmd == Command::Start && hk.state == Heartbeat::READY {
+                hk.state = Heartbeat::RUNNING;
+            }
+            if matches!(cmd, Command::Start | Command::Pause | Command::Resume) {
+                let mut io = Io {
+                    hk: &mut hk,
+                    credits: &credits,
+                    clock,
+                    node: &node,
+                    realtime,
+                };
+                svc.on_command(&mut io, cmd)?;
+            }
+        }
+        if hk.shutdown_requested {
+            hk.state = Heartbeat::STOPPING;
+            hk.beat(0, &all_stats(&input, &svc))?;
+            return Ok(Step::Stop);
+        }
+        // 2. Credit.
+        {
+            let mut feed: Vec<(TopicId, &mut Credit)> =
+                credits.iter_mut().map(|(t, c)| (*t, c)).collect();
+            acks.poll(&mut feed)?;
+        }
+        // 3. Faults and replays.
+        for f in hk.take_output_faults() {
+            svc.arm(&f);
+        }
+        for r in hk.take_replays() {
+            let mut outputs = svc.outputs();
+            let Some(out) = outputs.iter_mut().find(|o| o.stats().topic == r.topic) else {
+                continue;
+            };
+            tracing::info!(
+                consumer = r.consumer.name(),
+                topic = r.topic.name(),
+                from = r.from_seq,
+                "replay"
+            );
+            if let Some((_, c)) = credits.iter_mut().find(|(t, _)| *t == r.topic) {
+                c.reset(r.consumer, r.from_seq);
+            }
+            out.rewind(r.from_seq);
+        }
+        let mut hold_input = false;
+        for out in svc.outputs() {
+            if out.logged() && out.replaying() {
+                let topic = out.stats().topic;
+                let limit = credits
+                    .iter()
+                    .find(|(t, _)| *t == topic)
+                    .map_or(u64::MAX, |(_, c)| c.available(out.next_seq()));
+                out.resend(limit)?;
+                // New inputs wait until the restarted consumer has caught up.
+                hold_input |= out.replaying();
+            }
+        }
+        // 4. Inputs, within the outputs' credit.
+        let mut last_t_ns = 0;
+        if !hold_input {
+            let limit = svc
+                .outputs()
+                .iter()
+                .map(|o| {
+                    let topic = o.stats().topic;
+                    credits
+                        .iter()
+                        .find(|(t, _)| *t == topic)
+                        .map_or(usize::MAX, |(_, c)| {
+                            c.input_limit(o.stats().published, realtime)
+                        })
+                })
+                .min()
+                .unwrap_or(usize::MAX);
+            let mut fatal: Option<anyhow::Error> = None;
+            let mut io = Io {
+                hk: &mut hk,
+                credits: &credits,
+                clock,
+                node: &node,
+                realtime,
+            };
+            input.take(limit, |item, latency_ns| {
+                if fatal.is_some() {
+                    return Err(DropReason::Stale);
+                }
+                if let Err(e) = io.hk.pace().and_then(|_| io.hk.beat_if_due()) {
+                    fatal = Some(e);
+                    return Err(DropReason::Stale);
+                }
+                io.hk.last_latency_ns = latency_ns;
+                last_t_ns = <S::Input as Input>::t_ns(&item);
+                match svc.on_input(&mut io, item) {
+                    Ok(verdict) => verdict,
+                    Err(e) => {
+                        fatal = Some(e);
+                        Err(DropReason::Stale)
+                    }
+                }
+            })?;
+            if let Some(e) = fatal {
+                return Err(e);
+            }
+            if let (Some(topic), Some(stats)) = (input_topic, input.stats()) {
+                let next = stats.next_seq;
+                hk.ack(topic, next, last_t_ns)?;
+            }
+        }
+        // 5. The service's own work.
+        let step = {
+            let mut io = Io {
+                hk: &mut hk,
+                credits: &credits,
+                clock,
+                node: &node,
+                realtime,
+            };
+            svc.on_tick(&mut io, wakes)?
+        };
+        // 6. Heartbeat.
+        if wakes.contains(&Wake::Tick) {
+            hk.beat(last_t_ns, &all_stats(&input, &svc))?;
+        }
+        Ok(step)
+    })?;
+    if exit == Exit::Terminated {
+        tracing::info!("{name} terminated by signal");
+    }
+    Ok(())
+}
+
+/// The input's counters, then the service's.
+fn all_stats<'a, S: Service>(input: &'a S::Input, svc: &'a S) -> Vec<&'a TopicStats> {
+    let mut all: Vec<&TopicStats> = input.stats().into_iter().collect();
+    all.extend(svc.stats());
+    all
+}
