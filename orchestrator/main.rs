@@ -5,6 +5,7 @@
 //! Exit codes: 0 success, 1 the run failed (a service died, a message was lost, …),
 //! 2 bad input (scenario file, arguments).
 
+mod bench;
 mod clean;
 mod consume;
 mod deploy;
@@ -106,6 +107,21 @@ enum Cmd {
         #[command(subcommand)]
         lab: LabCmd,
     },
+    /// Throughput testing, every figure against a baseline measured in the same run.
+    Bench {
+        #[command(subcommand)]
+        bench: BenchCmd,
+    },
+    /// The receiving process of `glint bench ipc` (started by it).
+    #[command(hide = true)]
+    BenchPeer {
+        #[arg(long, value_enum)]
+        transport: bench::ipc::Transport,
+        #[arg(long)]
+        count: u64,
+        #[arg(long)]
+        address: String,
+    },
     /// Offline tools: algorithm stages on files, no IPC.
     Tool {
         #[command(subcommand)]
@@ -144,6 +160,27 @@ enum LabCmd {
         /// without deploying again (after a change to the scoring).
         #[arg(long, requires = "out")]
         rescore: bool,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCmd {
+    /// One-way latency and message rate between two processes over iceoryx2 (woken by an
+    /// event, and spinning), a Unix socket and TCP, for payloads of 8 B to 4 MiB.
+    Ipc {
+        /// Where bench.json, ipc.csv and the plots go (default: runs/bench-ipc-<UTC timestamp>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Only these transports (repeatable; default: all).
+        #[arg(long = "transport", value_enum)]
+        transports: Vec<bench::ipc::Transport>,
+        /// Only these payload sizes in bytes (repeatable; default: 8, 4 KiB, 64 KiB, 1, 2, 4 MiB).
+        #[arg(long = "size", value_parser = clap::value_parser!(u64).range(1..=(64 << 20)))]
+        sizes: Vec<u64>,
+        /// Round trips measured, as a multiple of the default (5000 up to 64 KiB, 1500 up to
+        /// 1 MiB, 800 above).
+        #[arg(long, default_value_t = 1.0)]
+        scale: f64,
     },
 }
 
@@ -380,6 +417,60 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
+        Cmd::Bench { bench } => match bench {
+            BenchCmd::Ipc {
+                out,
+                transports,
+                sizes,
+                scale,
+            } => {
+                if !(scale.is_finite() && (0.001..=100.0).contains(&scale)) {
+                    eprintln!("error: --scale {scale} is out of range: allowed 0.001 to 100");
+                    return ExitCode::from(2);
+                }
+                glint_runtime::lifeline::handle_hangup();
+                let opts = bench::IpcOptions {
+                    out: out.unwrap_or_else(|| {
+                        PathBuf::from("runs").join(format!("bench-ipc-{}", run::utc_stamp()))
+                    }),
+                    transports: match transports.is_empty() {
+                        true => bench::ipc::Transport::ALL.to_vec(),
+                        false => transports,
+                    },
+                    sizes: match sizes.is_empty() {
+                        true => bench::ipc::SIZES.to_vec(),
+                        false => sizes.into_iter().map(|s| s as usize).collect(),
+                    },
+                    scale,
+                };
+                match bench::run_ipc(&opts) {
+                    Ok(()) => ExitCode::SUCCESS,
+                    Err(e) => {
+                        eprintln!("error: {e:#}");
+                        ExitCode::from(1)
+                    }
+                }
+            }
+        },
+        Cmd::BenchPeer {
+            transport,
+            count,
+            address,
+        } => {
+            glint_runtime::lifeline::watch_parent();
+            let args = bench::ipc::PeerArgs {
+                transport,
+                count,
+                address,
+            };
+            match bench::ipc::peer(args) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: bench receiver: {e:#}");
+                    ExitCode::from(1)
+                }
+            }
+        }
         Cmd::Tool { tool } => {
             let result = match tool {
                 ToolCmd::Detect { frame, threshold } => {

@@ -443,7 +443,7 @@ fn injected_note(injector: &Injector, id: shared_types::ServiceId) -> String {
 /// A prefix unique to this deployment, short enough for iceoryx2's file names: 32 bits from
 /// the OS's random source (mixed with the time and pid), so another deployment's — or a
 /// guesser's — prefix does not collide with it.
-fn run_prefix() -> String {
+pub(crate) fn run_prefix() -> String {
     use std::io::Read;
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)

@@ -1,0 +1,85 @@
+//! `glint bench ipc`: real processes over real iceoryx2 shared memory, a Unix socket and TCP.
+//! Timings are figures, not asserted; what is asserted is that every round trip came back with
+//! the checksum of the bytes sent (the command fails otherwise), that every (transport, size)
+//! is in bench.json with ordered percentiles, and that the files a user reads are there.
+
+mod common;
+
+use common::{glint, read_json, temp_dir};
+
+#[test]
+fn bench_ipc_measures_every_transport_and_size() {
+    let dir = temp_dir("bench-ipc");
+    let out = glint()
+        .args([
+            "bench", "ipc", "--scale", "0.01", "--size", "8", "--size", "2097152",
+        ])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // One clear answer first: the zero-copy ratios, then the table.
+    assert!(stdout.starts_with("2 MiB hop: iceoryx2 "), "{stdout}");
+    let bench = read_json(&dir.join("bench.json"));
+    let rows = bench["ipc"]["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 4 * 2, "{rows:?}");
+    for t in ["iceoryx2", "iceoryx2-spin", "uds", "tcp"] {
+        for size in [8, 2 << 20] {
+            let r = rows
+                .iter()
+                .find(|r| r["transport"] == t && r["payload_bytes"] == size)
+                .unwrap_or_else(|| panic!("no row for {t} {size}"));
+            // 50 round trips at this scale (the minimum is 20).
+            let expected = if size == 8 { 50 } else { 20 };
+            assert_eq!(r["samples"], expected, "{r}");
+            let p = |k: &str| r[k].as_f64().unwrap();
+            assert!(p("p50_us") > 0.0, "{r}");
+            assert!(
+                p("p50_us") <= p("p90_us") && p("p90_us") <= p("p99_us"),
+                "{r}"
+            );
+            assert!(
+                p("p99_us") <= p("p999_us") && p("p999_us") <= p("max_us"),
+                "{r}"
+            );
+            assert!(p("msgs_per_s") > 0.0, "{r}");
+        }
+    }
+    assert!(
+        bench["ipc"]["ratios"]["uds_over_iceoryx2_2mib"]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    assert!(bench["host"]["cpus"].as_u64().unwrap() >= 1);
+    let csv = std::fs::read_to_string(dir.join("ipc.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 8, "{csv}");
+    for f in [
+        "ipc-latency.svg",
+        "ipc-hist-iceoryx2-2MiB.svg",
+        "ipc-hist-uds-2MiB.svg",
+    ] {
+        assert!(dir.join(f).exists(), "{f} missing");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bench_ipc_rejects_a_bad_scale() {
+    let out = glint()
+        .args(["bench", "ipc", "--scale", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--scale 0 is out of range: allowed 0.001 to 100"),
+        "{err}"
+    );
+}
