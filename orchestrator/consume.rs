@@ -40,6 +40,8 @@ pub struct Consumer {
     truth_digest: Xxh3,
     /// Send → receive latency of every frame [ns].
     pub frame_latency_ns: Vec<u64>,
+    /// Per frame received: (seq, the sensor's send time [ns, CLOCK_MONOTONIC]).
+    pub frame_send_ns: Vec<(u64, u64)>,
     /// Send → receive latency of every spectrum [ns].
     pub spectrum_latency_ns: Vec<u64>,
     pub truths: Vec<Truth>,
@@ -136,6 +138,7 @@ impl Consumer {
                 spectrum_digest: Xxh3::new(),
                 truth_digest: Xxh3::new(),
                 frame_latency_ns: vec![],
+                frame_send_ns: vec![],
                 spectrum_latency_ns: vec![],
                 truths: vec![],
                 detection_msgs: vec![],
@@ -216,11 +219,13 @@ impl Consumer {
         self.poll_heartbeats()?;
         if let Some(frames) = self.frames.as_mut() {
             let (digest, lat) = (&mut self.frame_digest, &mut self.frame_latency_ns);
+            let sent = &mut self.frame_send_ns;
             let (snap, want) = (&mut self.snapshot, self.snapshot_frame);
             frames.drain(|h, pixels, latency_ns| {
                 digest.update(&h.meta.seq.to_le_bytes());
                 digest.update(&h.pixels_xxh3.to_le_bytes());
                 lat.push(latency_ns);
+                sent.push((h.meta.seq, h.meta.send_mono_ns));
                 if h.frame_index == want {
                     *snap = Some((h.frame_index, h.width_px, h.height_px, pixels.to_vec()));
                 }

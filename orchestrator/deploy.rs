@@ -42,6 +42,8 @@ pub struct ServiceProcess {
     pub ending: Ending,
     /// Set once it exited: whether with status 0.
     pub exit_ok: Option<bool>,
+    /// CPU time the process used (user + system) [s], read when it exited.
+    pub cpu_s: Option<f64>,
     child: Option<Child>,
     pub log_path: PathBuf,
 }
@@ -104,6 +106,7 @@ impl ServiceProcess {
             restarts,
             ending: Ending::Running,
             exit_ok: None,
+            cpu_s: None,
             child: Some(child),
             log_path,
         })
@@ -114,6 +117,10 @@ impl ServiceProcess {
         let Some(child) = self.child.as_mut() else {
             return true;
         };
+        // An exited child stays a zombie until reaped: its CPU times are read first.
+        if self.cpu_s.is_none() && exited_unreaped(self.pid) {
+            self.cpu_s = cpu_seconds(self.pid);
+        }
         match child.try_wait() {
             Ok(Some(status)) => {
                 self.exit_ok = Some(status.success());
@@ -223,4 +230,27 @@ pub fn stop_ladder(
             }
         }
     }
+}
+
+/// Whether child `pid` has exited (checked without reaping it).
+fn exited_unreaped(pid: u32) -> bool {
+    use rustix::process::{waitid, Pid, WaitId, WaitIdOptions};
+    let Some(pid) = Pid::from_raw(pid as i32) else {
+        return false;
+    };
+    let opts = WaitIdOptions::EXITED | WaitIdOptions::NOHANG | WaitIdOptions::NOWAIT;
+    matches!(waitid(WaitId::Pid(pid), opts), Ok(Some(_)))
+}
+
+/// User + system CPU time of process `pid` (`self` for this one) from `/proc/<pid>/stat` [s].
+pub fn cpu_seconds(pid: impl std::fmt::Display) -> Option<f64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // Fields after the command name (which may hold spaces) in parentheses: utime is the 14th
+    // field of the line, stime the 15th, in clock ticks.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let mut fields = rest.split_ascii_whitespace().skip(11);
+    let utime: u64 = fields.next()?.parse().ok()?;
+    let stime: u64 = fields.next()?.parse().ok()?;
+    let hz = rustix::param::clock_ticks_per_second() as f64;
+    Some((utime + stime) as f64 / hz)
 }

@@ -182,6 +182,60 @@ enum BenchCmd {
         #[arg(long, default_value_t = 1.0)]
         scale: f64,
     },
+    /// The [002] chain (sensor → detector → tracker, laser loop) deployed as processes, against
+    /// the same work done in one process: frames/s, CPU per process, latency per stage.
+    Pipeline {
+        /// Where bench.json, pipeline.csv and the deployment's run directory go (default:
+        /// runs/bench-pipeline-<UTC timestamp>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Frames to produce.
+        #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
+        frames: u64,
+        /// Frame size, WIDTHxHEIGHT in pixels (each 16 to 4096).
+        #[arg(long, default_value = "1024x1024", value_parser = parse_size)]
+        size: (u32, u32),
+        /// Debris in the scene (1 to 16): [002]'s Table 4, repeated along-track beyond four.
+        #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..=16))]
+        targets: u64,
+        /// Sim: lockstep, nothing dropped; realtime: frames paced at the scenario's rate.
+        #[arg(long, value_enum, default_value = "sim")]
+        clock: BenchClock,
+        /// Fire the laser at confirmed tracks.
+        #[arg(long, value_enum, default_value = "on")]
+        laser: OnOff,
+    },
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum BenchClock {
+    Sim,
+    Realtime,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum OnOff {
+    On,
+    Off,
+}
+
+/// `WIDTHxHEIGHT`, each side 16–4096 px.
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{s}`: expected WIDTHxHEIGHT, e.g. 1024x1024"))?;
+    let side = |v: &str| -> Result<u32, String> {
+        let n: u32 = v
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{v}` is not a whole number"))?;
+        if (16..=4096).contains(&n) {
+            Ok(n)
+        } else {
+            Err(format!("{n} px is out of range: allowed 16 to 4096"))
+        }
+    };
+    Ok((side(w)?, side(h)?))
 }
 
 #[derive(Subcommand)]
@@ -417,41 +471,83 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
-        Cmd::Bench { bench } => match bench {
-            BenchCmd::Ipc {
-                out,
-                transports,
-                sizes,
-                scale,
-            } => {
-                if !(scale.is_finite() && (0.001..=100.0).contains(&scale)) {
-                    eprintln!("error: --scale {scale} is out of range: allowed 0.001 to 100");
+        Cmd::Bench {
+            bench:
+                BenchCmd::Pipeline {
+                    out,
+                    frames,
+                    size,
+                    targets,
+                    clock,
+                    laser,
+                },
+        } => {
+            glint_runtime::init_tracing("orchestrator");
+            let opts = bench::pipeline::PipelineOptions {
+                out: out.unwrap_or_else(|| {
+                    PathBuf::from("runs").join(format!("bench-pipeline-{}", run::utc_stamp()))
+                }),
+                frames,
+                width_px: size.0,
+                height_px: size.1,
+                targets: targets as usize,
+                clock: match clock {
+                    BenchClock::Sim => shared_types::scenario::Clock::Sim,
+                    BenchClock::Realtime => shared_types::scenario::Clock::Realtime,
+                },
+                laser: matches!(laser, OnOff::On),
+            };
+            let sc = match bench::pipeline::scenario(&opts) {
+                Ok(sc) => sc,
+                Err(e) => {
+                    eprintln!("error: the bench's scenario: {e}");
                     return ExitCode::from(2);
                 }
-                glint_runtime::lifeline::handle_hangup();
-                let opts = bench::IpcOptions {
-                    out: out.unwrap_or_else(|| {
-                        PathBuf::from("runs").join(format!("bench-ipc-{}", run::utc_stamp()))
-                    }),
-                    transports: match transports.is_empty() {
-                        true => bench::ipc::Transport::ALL.to_vec(),
-                        false => transports,
-                    },
-                    sizes: match sizes.is_empty() {
-                        true => bench::ipc::SIZES.to_vec(),
-                        false => sizes.into_iter().map(|s| s as usize).collect(),
-                    },
-                    scale,
-                };
-                match bench::run_ipc(&opts) {
-                    Ok(()) => ExitCode::SUCCESS,
-                    Err(e) => {
-                        eprintln!("error: {e:#}");
-                        ExitCode::from(1)
-                    }
+            };
+            match bench::run_pipeline(&opts, sc) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: {e:#}");
+                    ExitCode::from(1)
                 }
             }
-        },
+        }
+        Cmd::Bench {
+            bench:
+                BenchCmd::Ipc {
+                    out,
+                    transports,
+                    sizes,
+                    scale,
+                },
+        } => {
+            if !(scale.is_finite() && (0.001..=100.0).contains(&scale)) {
+                eprintln!("error: --scale {scale} is out of range: allowed 0.001 to 100");
+                return ExitCode::from(2);
+            }
+            glint_runtime::lifeline::handle_hangup();
+            let opts = bench::IpcOptions {
+                out: out.unwrap_or_else(|| {
+                    PathBuf::from("runs").join(format!("bench-ipc-{}", run::utc_stamp()))
+                }),
+                transports: match transports.is_empty() {
+                    true => bench::ipc::Transport::ALL.to_vec(),
+                    false => transports,
+                },
+                sizes: match sizes.is_empty() {
+                    true => bench::ipc::SIZES.to_vec(),
+                    false => sizes.into_iter().map(|s| s as usize).collect(),
+                },
+                scale,
+            };
+            match bench::run_ipc(&opts) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: {e:#}");
+                    ExitCode::from(1)
+                }
+            }
+        }
         Cmd::BenchPeer {
             transport,
             count,

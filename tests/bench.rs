@@ -83,3 +83,75 @@ fn bench_ipc_rejects_a_bad_scale() {
         "{err}"
     );
 }
+
+/// `glint bench pipeline` on a small scene: the real deployment (processes, shared memory, the
+/// laser loop) and the in-process run of the same frames. The CPU time /proc gives a
+/// single-threaded process cannot exceed the run's wall time; every frame has a latency for
+/// every stage; nothing is dropped in sim-clock mode; the speedup is the ratio of the two rates.
+#[test]
+fn bench_pipeline_deploys_and_compares_with_one_process() {
+    let dir = temp_dir("bench-pipeline");
+    let out = glint()
+        .args([
+            "bench",
+            "pipeline",
+            "--frames",
+            "30",
+            "--size",
+            "256x256",
+            "--targets",
+            "2",
+        ])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.starts_with("pipeline: "), "{stdout}");
+    let bench = read_json(&dir.join("bench.json"));
+    let p = &bench["pipeline"];
+    assert_eq!(p["frames"], 30, "{p}");
+    assert_eq!(p["dropped"], 0, "{p}");
+    assert_eq!(p["success"], true, "{p}");
+    assert_eq!(p["in_process"]["frames"], 30, "{p}");
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert!(f(&p["fps"]) > 0.0 && f(&p["in_process_fps"]) > 0.0, "{p}");
+    let ratio = f(&p["fps"]) / f(&p["in_process_fps"]);
+    assert!((f(&p["speedup"]) - ratio).abs() < 1e-9 * ratio, "{p}");
+    let report = read_json(&dir.join("run").join("report.json"));
+    let wall_s = f(&report["timing"]["wall_s"]);
+    for stage in ["sensor", "detector", "tracker", "orchestrator"] {
+        let s = &p["stages"][stage];
+        let cpu = f(&s["cpu_s"]);
+        assert!(
+            cpu > 0.0 && cpu <= wall_s + 0.05,
+            "{stage}: {s}, wall {wall_s} s"
+        );
+        assert!(f(&s["p50_us"]) <= f(&s["p99_us"]), "{stage}: {s}");
+    }
+    for stage in ["detect", "track", "end_to_end"] {
+        let l = &report["timing"]["stage_latency_us"][stage];
+        assert_eq!(l["count"], 30, "{stage}: {l}");
+    }
+    assert!(dir.join("pipeline.csv").is_file());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bench_pipeline_rejects_a_bad_size_or_target_count() {
+    for args in [["--size", "10x10"], ["--size", "1024"], ["--targets", "17"]] {
+        let out = glint()
+            .args(["bench", "pipeline"])
+            .args(args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(args[1]), "{args:?}: {stderr}");
+    }
+}

@@ -1,7 +1,9 @@
 //! `glint bench`: throughput testing, every figure measured against a baseline in the same run.
-//! `glint bench ipc` compares transports between two processes ([`ipc`]).
+//! `glint bench ipc` compares transports between two processes ([`ipc`]); `glint bench
+//! pipeline` the deployed chain with the same work done in one process ([`pipeline`]).
 
 pub mod ipc;
+pub mod pipeline;
 
 use std::path::{Path, PathBuf};
 
@@ -143,9 +145,7 @@ fn write_outputs(dir: &Path, rows: &[Row], r: &Ratios) -> Result<()> {
             "ratios": r,
         }
     });
-    let path = dir.join("bench.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&doc)? + "\n")
-        .with_context(|| format!("writing {}", path.display()))?;
+    merge_bench_json(dir, doc)?;
     let mut csv = csv::Writer::from_path(dir.join("ipc.csv"))?;
     for row in rows {
         csv.serialize(row)?;
@@ -190,4 +190,85 @@ fn plot_latency(dir: &Path, rows: &[Row]) -> Result<()> {
         "log10 p50 latency [µs]",
         &series,
     )
+}
+
+/// Writes `doc`'s sections into `DIR/bench.json`, keeping the sections of an earlier bench in
+/// the same directory (`glint bench ipc` and `glint bench pipeline` may share one).
+fn merge_bench_json(dir: &Path, doc: serde_json::Value) -> Result<()> {
+    let path = dir.join("bench.json");
+    let mut merged = std::fs::read_to_string(&path)
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .filter(|v| v.is_object())
+        .unwrap_or_else(|| json!({}));
+    if let (Some(m), Some(new)) = (merged.as_object_mut(), doc.as_object()) {
+        for (k, v) in new {
+            m.insert(k.clone(), v.clone());
+        }
+    }
+    std::fs::write(&path, serde_json::to_string_pretty(&merged)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// Deploys the pipeline, runs the in-process baseline, writes `bench.json` and
+/// `pipeline.csv`, prints the table.
+pub fn run_pipeline(o: &pipeline::PipelineOptions, sc: shared_types::Scenario) -> Result<()> {
+    std::fs::create_dir_all(&o.out).with_context(|| format!("creating {}", o.out.display()))?;
+    let run_dir = o.out.join("run");
+    let opts = crate::run::RunOptions {
+        scenario: sc.clone(),
+        scenario_file: "glint bench pipeline (debris-geo)".into(),
+        out_dir: Some(run_dir.clone()),
+        replace: true,
+        progress: std::io::IsTerminal::is_terminal(&std::io::stderr()),
+    };
+    let (dir, ok) = crate::run::run(opts)?;
+    let report_path = dir.join("report.json");
+    let report: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(&report_path)
+            .with_context(|| format!("reading {}", report_path.display()))?,
+    )?;
+    if !ok {
+        anyhow::bail!(
+            "the deployment failed: {} (see {})",
+            report["failure"].as_str().unwrap_or("unknown"),
+            dir.join("summary.md").display()
+        );
+    }
+    let deployed = pipeline::read_report(&report);
+    let bar = crate::progress::bar(o.frames);
+    bar.set_message("in one process");
+    let ip = pipeline::in_process(&sc, &bar)?;
+    bar.finish_and_clear();
+    pipeline::print(o, &deployed, &ip);
+    let section = pipeline::json(o, &deployed, &ip);
+    merge_bench_json(
+        &o.out,
+        json!({ "glint_version": env!("CARGO_PKG_VERSION"), "host": host(), "pipeline": section }),
+    )?;
+    let mut csv = csv::Writer::from_path(o.out.join("pipeline.csv"))?;
+    csv.write_record(["where", "stage", "p50_us", "p99_us", "cpu_s"])?;
+    for (name, p50, p99) in &deployed.stages {
+        csv.write_record(["deployment", name, &format!("{p50}"), &format!("{p99}"), ""])?;
+    }
+    for (name, c) in &deployed.cpu_s {
+        csv.write_record([
+            "deployment",
+            &format!("process:{name}"),
+            "",
+            "",
+            &format!("{c}"),
+        ])?;
+    }
+    for (name, ns) in &ip.stages {
+        let (p50, p99) = pipeline::p50_p99_us(ns);
+        csv.write_record(["in_process", name, &format!("{p50}"), &format!("{p99}"), ""])?;
+    }
+    csv.flush()?;
+    println!(
+        "\n{} (the deployment: {})",
+        o.out.join("bench.json").display(),
+        dir.display()
+    );
+    Ok(())
 }

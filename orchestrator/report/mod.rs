@@ -31,6 +31,8 @@ pub struct ServiceFact {
     pub pid: u32,
     pub restarts: u32,
     pub ending: Ending,
+    /// CPU time of its last incarnation [s] (none if it did not exit).
+    pub cpu_s: Option<f64>,
 }
 
 pub struct ConsumerFact {
@@ -71,6 +73,10 @@ pub struct RunFacts {
     pub outcome: Outcome,
     pub frame_latency_ns: Vec<u64>,
     pub spectrum_latency_ns: Vec<u64>,
+    /// Per pipeline stage, its latency per frame from the messages' send times ([`stages`]).
+    pub stage_latency_ns: Vec<(&'static str, Vec<u64>)>,
+    /// The orchestrator's own CPU time at the end of the run [s].
+    pub orchestrator_cpu_s: Option<f64>,
     pub light_curve: Vec<(u64, [f64; 3], [f64; 3])>,
     /// Range requests the sensor served (its current incarnation; retries included).
     pub range_requests: u64,
@@ -123,6 +129,7 @@ impl RunFacts {
                 pid: c.pid,
                 restarts: c.restarts,
                 ending: c.ending.clone(),
+                cpu_s: c.cpu_s,
             })
             .collect();
         let digests = consumer.digests();
@@ -210,6 +217,8 @@ impl RunFacts {
             failure,
             outcome,
             frame_latency_ns: consumer.frame_latency_ns.clone(),
+            stage_latency_ns: stages(consumer),
+            orchestrator_cpu_s: crate::deploy::cpu_seconds("self"),
             spectrum_latency_ns: consumer.spectrum_latency_ns.clone(),
             light_curve: consumer.light_curve.clone(),
             range_requests: consumer
@@ -358,6 +367,12 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
             "spectra_per_s": rate(spectra),
             "frame_latency_us": percentiles_us(&f.frame_latency_ns),
             "spectrum_latency_us": percentiles_us(&f.spectrum_latency_ns),
+            "stage_latency_us": f.stage_latency_ns.iter()
+                .map(|(name, ns)| (name.to_string(), percentiles_us(ns)))
+                .collect::<serde_json::Map<_, _>>(),
+            "cpu_s": f.services.iter().map(|s| (s.name.clone(), json!(s.cpu_s)))
+                .chain([("orchestrator".to_string(), json!(f.orchestrator_cpu_s))])
+                .collect::<serde_json::Map<_, _>>(),
         },
     })
 }
@@ -430,16 +445,17 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     }
     let _ = writeln!(
         s,
-        "\n## Services\n\n| service | pid | restarts | ended by |\n|---|---|---|---|"
+        "\n## Services\n\n| service | pid | restarts | ended by | CPU [s] |\n|---|---|---|---|---|"
     );
     for sv in &f.services {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} |",
             sv.name,
             sv.pid,
             sv.restarts,
-            sv.ending.label()
+            sv.ending.label(),
+            sv.cpu_s.map_or("—".into(), |c| format!("{c:.2}"))
         );
     }
     s.push_str(&faults::markdown(f));
@@ -592,4 +608,31 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
         )?;
     }
     Ok(facts.success())
+}
+
+/// Per-frame latencies of the debris pipeline's stages from the send times the messages carry
+/// (one CLOCK_MONOTONIC on this host): `detect` = frame sent → its detections sent (the hop,
+/// the checksum and the detection), `track` = detections sent → tracks sent (the hop, the
+/// filters and the laser round trip), `end_to_end` = frame sent → tracks sent.
+fn stages(c: &Consumer) -> Vec<(&'static str, Vec<u64>)> {
+    let frames: BTreeMap<u64, u64> = c.frame_send_ns.iter().copied().collect();
+    let dets: BTreeMap<u64, u64> = (c.detection_msgs.iter())
+        .map(|d| (d.meta.seq, d.meta.send_mono_ns))
+        .collect();
+    let gap = |a: &BTreeMap<u64, u64>, b: &BTreeMap<u64, u64>| -> Vec<u64> {
+        b.iter()
+            .filter_map(|(seq, t1)| a.get(seq).map(|t0| t1.saturating_sub(*t0)))
+            .collect()
+    };
+    if frames.is_empty() || dets.is_empty() {
+        return vec![];
+    }
+    let tracks: BTreeMap<u64, u64> = (c.track_msgs.iter())
+        .map(|t| (t.meta.seq, t.meta.send_mono_ns))
+        .collect();
+    vec![
+        ("detect", gap(&frames, &dets)),
+        ("track", gap(&dets, &tracks)),
+        ("end_to_end", gap(&frames, &tracks)),
+    ]
 }

@@ -1,0 +1,308 @@
+//! `glint bench pipeline`: the [002] chain (sensor → detector → tracker, laser loop) deployed as
+//! processes over iceoryx2, against the same work done sequentially in this process by the
+//! same cores, in the same run.
+//!
+//! The deployment is an ordinary `glint run` (its run directory lands in `DIR/run`); its
+//! report gives frames/s, drops, each process's CPU time and the per-stage latencies from the
+//! messages' send times. The in-process baseline times each core call per frame: render,
+//! checksum, detect, track (with the laser answered directly by the sensor's core).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use glint_detector::service_core::DetectorCore;
+use glint_sensor::service_core::{Emission, SensorCore};
+use glint_tracker::service_core::{Laser, TrackerCore};
+use serde_json::{json, Value};
+use shared_types::scenario::{Clock, Debris};
+use shared_types::{FrameHeader, Meta, RangeRequest, RangeResponse, Scenario, ServiceId};
+
+/// The scene the pipeline bench varies: [002]'s GEO debris (Table 4).
+const BASE: &str = include_str!("../../scenarios/debris-geo.toml");
+
+/// Options of `glint bench pipeline`.
+pub struct PipelineOptions {
+    pub out: PathBuf,
+    pub frames: u64,
+    pub width_px: u32,
+    pub height_px: u32,
+    pub targets: usize,
+    pub clock: Clock,
+    pub laser: bool,
+}
+
+/// The benchmark's scenario: debris-geo with the options applied. Debris beyond the paper's
+/// four are copies of them shifted along-track, so every target stays in the field of view.
+pub fn scenario(o: &PipelineOptions) -> Result<Scenario, String> {
+    let mut sc = Scenario::from_toml_str(BASE, "debris-geo.toml").map_err(|e| e.to_string())?;
+    sc.name = "bench-pipeline".into();
+    sc.clock = o.clock;
+    let cam = sc.camera.as_mut().ok_or("debris-geo has no camera")?;
+    cam.frames = o.frames;
+    cam.width_px = o.width_px;
+    cam.height_px = o.height_px;
+    cam.tracker.laser = o.laser;
+    let table4 = cam.debris.clone();
+    cam.debris = (0..o.targets)
+        .map(|k| {
+            let d = &table4[k % table4.len()];
+            let shift_m = 250.0 * (k / table4.len()) as f64;
+            Debris {
+                x_m: d.x_m + shift_m,
+                ..d.clone()
+            }
+        })
+        .collect();
+    // Long runs: the run's timeout grows with the work.
+    sc.run.timeout_s = (60.0 + o.frames as f64 * 0.02).min(86_400.0);
+    sc.validate().map_err(|errs| {
+        errs.iter()
+            .map(|e| e.to_string())
+            .collect::<Vec<_>>()
+            .join("; ")
+    })?;
+    Ok(sc)
+}
+
+/// The sensor's laser answered in-process, as the tracker's client would ask it.
+struct DirectLaser<'a> {
+    sensor: &'a SensorCore,
+    next_id: u64,
+    busy_ns: u64,
+}
+
+impl Laser for DirectLaser<'_> {
+    fn fire(&mut self, mut req: RangeRequest, t_ns: u64) -> Result<Option<RangeResponse>> {
+        let t0 = Instant::now();
+        req.request_id = self.next_id;
+        req.meta = Meta::new(self.next_id, t_ns, 0, ServiceId::Tracker);
+        self.next_id += 1;
+        let (mut resp, echo_ns) = self.sensor.answer_range(&req);
+        resp.meta = Meta::new(0, echo_ns, 0, ServiceId::Sensor);
+        self.busy_ns += t0.elapsed().as_nanos() as u64;
+        Ok(Some(resp))
+    }
+}
+
+/// Per-frame times of the in-process run [ns], one vector per stage.
+pub struct InProcess {
+    pub frames: u64,
+    pub wall_s: f64,
+    pub stages: Vec<(&'static str, Vec<u64>)>,
+}
+
+/// The chain's cores called one after the other on every frame of `sc`.
+pub fn in_process(sc: &Scenario, bar: &indicatif::ProgressBar) -> Result<InProcess> {
+    let cam = sc.camera.as_ref().context("a [camera] scenario")?;
+    let sensor = SensorCore::new(sc)?;
+    let mut detector = DetectorCore::new(cam).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut tracker = TrackerCore::new(cam).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut laser = DirectLaser {
+        sensor: &sensor,
+        next_id: 0,
+        busy_ns: 0,
+    };
+    let mut pixels = vec![0u16; cam.pixels()];
+    let (mut render, mut checksum, mut detect, mut track, mut ranging) =
+        (vec![], vec![], vec![], vec![], vec![]);
+    let wall = Instant::now();
+    let mut k = 0;
+    while let Some(Emission::Frame { k: frame, t_ns }) = sensor.frame(k) {
+        let mut header = FrameHeader {
+            meta: Meta::new(frame, t_ns, 0, ServiceId::Sensor),
+            ..Default::default()
+        };
+        let t0 = Instant::now();
+        sensor.render_frame(frame, &mut header, &mut pixels);
+        let t1 = Instant::now();
+        header.pixels_xxh3 = shared_types::pixels_xxh3(&pixels);
+        let t2 = Instant::now();
+        let d = match detector.process(&header, &pixels) {
+            Ok(d) => d,
+            Err(reason) => bail!("frame {frame} rejected by the detector: {reason:?}"),
+        };
+        let t3 = Instant::now();
+        let before = laser.busy_ns;
+        std::hint::black_box(tracker.process(&d, &mut laser)?);
+        let t4 = Instant::now();
+        let laser_ns = laser.busy_ns - before;
+        render.push((t1 - t0).as_nanos() as u64);
+        checksum.push((t2 - t1).as_nanos() as u64);
+        detect.push((t3 - t2).as_nanos() as u64);
+        track.push(((t4 - t3).as_nanos() as u64).saturating_sub(laser_ns));
+        ranging.push(laser_ns);
+        k += 1;
+        bar.inc(1);
+    }
+    Ok(InProcess {
+        frames: k,
+        wall_s: wall.elapsed().as_secs_f64(),
+        stages: vec![
+            ("render", render),
+            ("checksum", checksum),
+            ("detect", detect),
+            ("track", track),
+            ("laser", ranging),
+        ],
+    })
+}
+
+/// (p50, p99) [µs] of latencies in ns.
+pub fn p50_p99_us(ns: &[u64]) -> (f64, f64) {
+    if ns.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let mut v = ns.to_vec();
+    v.sort_unstable();
+    let p = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize] as f64 / 1e3;
+    (p(0.5), p(0.99))
+}
+
+/// What the deployment's report says, as the bench needs it.
+pub struct Deployed {
+    pub frames: u64,
+    pub fps: f64,
+    pub dropped: u64,
+    /// Per process: (name, CPU [s]).
+    pub cpu_s: Vec<(String, f64)>,
+    /// Per stage: (name, p50 [µs], p99 [µs]) from the messages' send times.
+    pub stages: Vec<(String, f64, f64)>,
+    pub science_digest: String,
+    pub success: bool,
+}
+
+pub fn read_report(report: &Value) -> Deployed {
+    let timing = &report["timing"];
+    let cpu_s: Vec<(String, f64)> = (timing["cpu_s"].as_object().into_iter().flatten())
+        .filter_map(|(name, c)| Some((name.clone(), c.as_f64()?)))
+        .collect();
+    let mut stages = vec![];
+    let lat = |v: &Value| (v["p50"].as_f64(), v["p99"].as_f64());
+    if let (Some(a), Some(b)) = lat(&timing["frame_latency_us"]) {
+        stages.push(("frame_hop".to_string(), a, b));
+    }
+    if let Some(m) = timing["stage_latency_us"].as_object() {
+        for name in ["detect", "track", "end_to_end"] {
+            if let Some((Some(a), Some(b))) = m.get(name).map(lat) {
+                stages.push((name.to_string(), a, b));
+            }
+        }
+    }
+    let dropped = (report["topics"].as_object().into_iter().flatten())
+        .flat_map(|(_, t)| t["consumers"].as_object().into_iter().flatten())
+        .map(|(_, c)| c["dropped"].as_u64().unwrap_or(0))
+        .sum();
+    Deployed {
+        frames: report["topics"]["frame"]["published"].as_u64().unwrap_or(0),
+        fps: timing["frames_per_s"].as_f64().unwrap_or(0.0),
+        dropped,
+        cpu_s,
+        stages,
+        science_digest: report["science"]["digest_xxh3"]
+            .as_str()
+            .unwrap_or("")
+            .into(),
+        success: report["success"].as_bool().unwrap_or(false),
+    }
+}
+
+/// The `pipeline` section of bench.json.
+pub fn json(o: &PipelineOptions, d: &Deployed, ip: &InProcess) -> Value {
+    let in_fps = ip.frames as f64 / ip.wall_s.max(1e-9);
+    let cpu = |name: &str| d.cpu_s.iter().find(|(n, _)| n == name).map(|(_, c)| *c);
+    let lat = |name: &str| d.stages.iter().find(|(n, ..)| n == name);
+    let stage = |name: &str, process: &str| {
+        let l = lat(name);
+        json!({
+            "p50_us": l.map(|s| s.1), "p99_us": l.map(|s| s.2),
+            "cpu_s": cpu(process), "process": process,
+        })
+    };
+    let (r50, r99) = p50_p99_us(&ip.stages[0].1);
+    let breakdown: serde_json::Map<String, Value> = (ip.stages.iter())
+        .map(|(name, ns)| {
+            let (p50, p99) = p50_p99_us(ns);
+            let mean = ns.iter().sum::<u64>() as f64 / ns.len().max(1) as f64 / 1e3;
+            (
+                name.to_string(),
+                json!({ "mean_us": mean, "p50_us": p50, "p99_us": p99 }),
+            )
+        })
+        .collect();
+    json!({
+        "method": "frames/s = frames / the deployment's production time (Start to the last result \
+                   accounted for); stage latencies from the messages' CLOCK_MONOTONIC send times \
+                   (sensor: its render in the in-process run; detector: frame sent → detections \
+                   sent; tracker: detections sent → tracks sent; orchestrator: frame sent → \
+                   received); cpu_s = user + system time of each process (/proc); in_process = \
+                   the same cores called sequentially in one process on the same frames",
+        "scenario": {
+            "frames": o.frames, "width_px": o.width_px, "height_px": o.height_px,
+            "targets": o.targets, "clock": format!("{:?}", o.clock).to_lowercase(),
+            "laser": o.laser,
+        },
+        "frames": d.frames,
+        "fps": d.fps,
+        "in_process_fps": in_fps,
+        "speedup": d.fps / in_fps.max(1e-9),
+        "dropped": d.dropped,
+        "success": d.success,
+        "science_digest": d.science_digest,
+        "stages": {
+            "sensor": { "p50_us": r50, "p99_us": r99, "cpu_s": cpu("sensor"), "process": "sensor" },
+            "detector": stage("detect", "detector"),
+            "tracker": stage("track", "tracker"),
+            "orchestrator": stage("frame_hop", "orchestrator"),
+            "end_to_end": stage("end_to_end", "all"),
+        },
+        "in_process": { "frames": ip.frames, "wall_s": ip.wall_s, "stages": breakdown },
+    })
+}
+
+/// The terminal table: the answer first, then where the time goes.
+pub fn print(o: &PipelineOptions, d: &Deployed, ip: &InProcess) {
+    let in_fps = ip.frames as f64 / ip.wall_s.max(1e-9);
+    println!(
+        "pipeline: {:.0} frames/s as processes, {:.0} frames/s in one process ({:.2}× faster); \
+         {} dropped; {} frames of {}×{}, {} debris, laser {}, {} clock",
+        d.fps,
+        in_fps,
+        d.fps / in_fps.max(1e-9),
+        d.dropped,
+        d.frames,
+        o.width_px,
+        o.height_px,
+        o.targets,
+        if o.laser { "on" } else { "off" },
+        format!("{:?}", o.clock).to_lowercase()
+    );
+    println!("\nper process (the deployment)\n");
+    println!(
+        "{:<13} {:>9} {:>15}",
+        "process", "CPU [s]", "CPU/frame [ms]"
+    );
+    for (name, c) in &d.cpu_s {
+        println!(
+            "{:<13} {:>9.2} {:>15.3}",
+            name,
+            c,
+            c * 1e3 / d.frames.max(1) as f64
+        );
+    }
+    println!("\nlatency per stage (the deployment, from the messages' send times)\n");
+    println!("{:<13} {:>10} {:>10}", "stage", "p50 [µs]", "p99 [µs]");
+    for (name, p50, p99) in &d.stages {
+        println!("{name:<13} {p50:>10.1} {p99:>10.1}");
+    }
+    println!("\nwhere the time goes (in one process, per frame)\n");
+    println!(
+        "{:<13} {:>10} {:>10} {:>10}",
+        "core", "mean [µs]", "p50 [µs]", "p99 [µs]"
+    );
+    for (name, ns) in &ip.stages {
+        let (p50, p99) = p50_p99_us(ns);
+        let mean = ns.iter().sum::<u64>() as f64 / ns.len().max(1) as f64 / 1e3;
+        println!("{name:<13} {mean:>10.1} {p50:>10.1} {p99:>10.1}");
+    }
+}
