@@ -261,7 +261,7 @@ pub fn run_pipeline(o: &pipeline::PipelineOptions, sc: shared_types::Scenario) -
         ])?;
     }
     for (name, ns) in &ip.stages {
-        let (p50, p99) = pipeline::p50_p99_us(ns);
+        let (_, p50, p99) = pipeline::stats_us(ns);
         csv.write_record(["in_process", name, &format!("{p50}"), &format!("{p99}"), ""])?;
     }
     csv.flush()?;

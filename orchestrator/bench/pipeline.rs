@@ -148,15 +148,16 @@ pub fn in_process(sc: &Scenario, bar: &indicatif::ProgressBar) -> Result<InProce
     })
 }
 
-/// (p50, p99) [µs] of latencies in ns.
-pub fn p50_p99_us(ns: &[u64]) -> (f64, f64) {
+/// (mean, p50, p99) [µs] of per-frame times in ns.
+pub fn stats_us(ns: &[u64]) -> (f64, f64, f64) {
     if ns.is_empty() {
-        return (f64::NAN, f64::NAN);
+        return (f64::NAN, f64::NAN, f64::NAN);
     }
     let mut v = ns.to_vec();
     v.sort_unstable();
     let p = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize] as f64 / 1e3;
-    (p(0.5), p(0.99))
+    let mean = v.iter().sum::<u64>() as f64 / v.len() as f64 / 1e3;
+    (mean, p(0.5), p(0.99))
 }
 
 /// What the deployment's report says, as the bench needs it.
@@ -219,11 +220,10 @@ pub fn json(o: &PipelineOptions, d: &Deployed, ip: &InProcess) -> Value {
             "cpu_s": cpu(process), "process": process,
         })
     };
-    let (r50, r99) = p50_p99_us(&ip.stages[0].1);
+    let (_, r50, r99) = stats_us(&ip.stages[0].1);
     let breakdown: serde_json::Map<String, Value> = (ip.stages.iter())
         .map(|(name, ns)| {
-            let (p50, p99) = p50_p99_us(ns);
-            let mean = ns.iter().sum::<u64>() as f64 / ns.len().max(1) as f64 / 1e3;
+            let (mean, p50, p99) = stats_us(ns);
             (
                 name.to_string(),
                 json!({ "mean_us": mean, "p50_us": p50, "p99_us": p99 }),
@@ -301,8 +301,7 @@ pub fn print(o: &PipelineOptions, d: &Deployed, ip: &InProcess) {
         "core", "mean [µs]", "p50 [µs]", "p99 [µs]"
     );
     for (name, ns) in &ip.stages {
-        let (p50, p99) = p50_p99_us(ns);
-        let mean = ns.iter().sum::<u64>() as f64 / ns.len().max(1) as f64 / 1e3;
+        let (mean, p50, p99) = stats_us(ns);
         println!("{name:<13} {mean:>10.1} {p50:>10.1} {p99:>10.1}");
     }
 }
