@@ -21,6 +21,9 @@ use crate::clock::mono_ns;
 use crate::stats::TopicStats;
 use crate::tamper::{Tamper, Verdict};
 
+/// How long a caller waits in silence before it checks whether its server died.
+const DEAD_SERVER_CHECK: Duration = Duration::from_millis(50);
+
 /// The iceoryx2 service of a request/response pair.
 pub type RpcService<Req, Resp> = PortFactory<Ipc, Req, (), Resp, ()>;
 
@@ -294,10 +297,15 @@ impl<R: Rpc> RpcClient<R> {
             if left.is_zero() {
                 return Ok(CallOutcome::TimedOut);
             }
+            let mut woken = false;
             self.reply
-                .timed_wait(|_| {}, left.min(Duration::from_millis(50)))
+                .timed_wait(|_| woken = true, left.min(DEAD_SERVER_CHECK))
                 .map_err(|e| anyhow!("{} reply wait: {e:?}", R::TOPIC.name()))?;
-            node.try_cleanup_dead_nodes();
+            // A silent slice may mean a dead server: only then scan for dead nodes (a scan
+            // opens every node's files — far too costly to run on every answered request).
+            if !woken {
+                node.try_cleanup_dead_nodes();
+            }
         }
     }
 
