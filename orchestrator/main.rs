@@ -205,6 +205,26 @@ enum BenchCmd {
         #[arg(long, value_enum, default_value = "on")]
         laser: OnOff,
     },
+    /// The pipeline bench swept over frame size (at 4 debris) and number of debris (at
+    /// 1024²): frames/s and each core's time per frame, and the exponent of their growth.
+    Scaling {
+        /// Where bench.json, scaling.csv, the plots and the deployments go (default:
+        /// runs/bench-scaling-<UTC timestamp>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Frames of a 1024² point; other sizes get frames ∝ 1/pixels (20 to 4× this).
+        #[arg(long, default_value_t = 500, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+        frames: u64,
+        /// Frame sizes of the size sweep, WIDTHxHEIGHT (repeatable; default: 256² to 4096²).
+        #[arg(long = "size", value_parser = parse_size)]
+        sizes: Vec<(u32, u32)>,
+        /// Debris counts of the targets sweep (repeatable, 1 to 16; default: 1, 2, 4, 8, 16).
+        #[arg(long = "targets", value_parser = clap::value_parser!(u64).range(1..=16))]
+        targets: Vec<u64>,
+        /// Fire the laser at confirmed tracks.
+        #[arg(long, value_enum, default_value = "on")]
+        laser: OnOff,
+    },
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -505,6 +525,43 @@ fn main() -> ExitCode {
                 }
             };
             match bench::run_pipeline(&opts, sc) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: {e:#}");
+                    ExitCode::from(1)
+                }
+            }
+        }
+        Cmd::Bench {
+            bench:
+                BenchCmd::Scaling {
+                    out,
+                    frames,
+                    sizes,
+                    targets,
+                    laser,
+                },
+        } => {
+            glint_runtime::init_tracing("orchestrator");
+            let sides = [256, 512, 1024, 2048, 4096];
+            let opts = bench::scaling::ScalingOptions {
+                out: out.unwrap_or_else(|| {
+                    PathBuf::from("runs").join(format!("bench-scaling-{}", run::utc_stamp()))
+                }),
+                frames,
+                sizes: if sizes.is_empty() {
+                    sides.iter().map(|&s| (s, s)).collect()
+                } else {
+                    sizes
+                },
+                targets: if targets.is_empty() {
+                    vec![1, 2, 4, 8, 16]
+                } else {
+                    targets.into_iter().map(|k| k as usize).collect()
+                },
+                laser: matches!(laser, OnOff::On),
+            };
+            match bench::scaling::run(&opts) {
                 Ok(()) => ExitCode::SUCCESS,
                 Err(e) => {
                     eprintln!("error: {e:#}");

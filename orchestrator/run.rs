@@ -63,6 +63,7 @@ pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let exe = std::env::current_exe().context("locating the glint executable")?;
 
     let wall0 = Instant::now();
+    let cpu0_s = crate::deploy::cpu_seconds("self");
     let result = deploy_and_run(scenario, &prefix, &exe, &resolved, &out_dir, opts.progress);
     // Everything iceoryx2 is dropped inside deploy_and_run; now nothing of the prefix may remain.
     let (removed, held_by) = remove_shm(&prefix);
@@ -83,6 +84,9 @@ pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     }
     facts.shm_held_by = held_by;
     facts.wall_s = wall0.elapsed().as_secs_f64();
+    // This process may have worked before the run (a bench's earlier points): count the run's.
+    facts.orchestrator_cpu_s =
+        (facts.orchestrator_cpu_s.zip(cpu0_s)).map(|(c, c0)| (c - c0).max(0.0));
     facts.prefix = prefix;
     facts.scenario_file = opts.scenario_file.clone();
     let ok = report::write(&out_dir, scenario, &facts)?;

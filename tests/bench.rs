@@ -155,3 +155,92 @@ fn bench_pipeline_rejects_a_bad_size_or_target_count() {
         assert!(stderr.contains(args[1]), "{args:?}: {stderr}");
     }
 }
+
+/// `glint bench scaling` on two sizes and two debris counts: four real deployments, each with
+/// its in-process baseline. The frames per point follow 1/pixels within their bounds, nothing
+/// is dropped, and the printed exponents are the least-squares slopes of the CSV's columns,
+/// recomputed here.
+#[test]
+fn bench_scaling_sweeps_size_and_targets() {
+    let dir = temp_dir("bench-scaling");
+    let out = glint()
+        .args(["bench", "scaling", "--frames", "2", "--laser", "off"])
+        .args(["--size", "128x128", "--size", "256x256"])
+        .args(["--targets", "1", "--targets", "3"])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.starts_with("scaling: detector cost ∝ pixels^"),
+        "{stdout}"
+    );
+    let bench = read_json(&dir.join("bench.json"));
+    let points = bench["scaling"]["points"].as_array().unwrap();
+    let shape: Vec<(String, u64, u64, u64)> = (points.iter())
+        .map(|p| {
+            let u = |k: &str| p[k].as_u64().unwrap();
+            (
+                p["sweep"].as_str().unwrap().into(),
+                u("width_px"),
+                u("targets"),
+                u("frames"),
+            )
+        })
+        .collect();
+    // 2 frames at 1024² ⇒ 2·64 = 128 at 128² and 2·16 = 32 at 256², capped at 4 × 2 = 8.
+    let expected = [
+        ("size", 128, 4, 8),
+        ("size", 256, 4, 8),
+        ("targets", 1024, 1, 2),
+        ("targets", 1024, 3, 2),
+    ];
+    assert_eq!(shape.len(), expected.len(), "{shape:?}");
+    for (got, want) in shape.iter().zip(expected) {
+        assert_eq!((got.0.as_str(), got.1, got.2, got.3), want, "{shape:?}");
+    }
+    for p in points {
+        assert_eq!(p["dropped"], 0, "{p}");
+        assert!(p["fps"].as_f64().unwrap() > 0.0, "{p}");
+    }
+    let csv = std::fs::read_to_string(dir.join("scaling.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 4, "{csv}");
+    let slope = |sweep: &str, x: &dyn Fn(&[&str]) -> f64, col: usize| {
+        let pts: Vec<(f64, f64)> = (rows.iter().filter(|r| r[0] == sweep))
+            .map(|r| (x(r).ln(), r[col].parse::<f64>().unwrap().ln()))
+            .collect();
+        let (a, b) = (pts[0], pts[1]);
+        (b.1 - a.1) / (b.0 - a.0)
+    };
+    let px = |r: &[&str]| r[1].parse::<f64>().unwrap() * r[2].parse::<f64>().unwrap();
+    let k = |r: &[&str]| r[3].parse::<f64>().unwrap();
+    let e = &bench["scaling"]["exponents"];
+    // The CSV rounds to 1 ns: compare to that precision.
+    let close = |a: f64, b: &serde_json::Value| (a - b.as_f64().unwrap()).abs() < 0.05;
+    assert!(close(slope("size", &px, 10), &e["detect_vs_pixels"]), "{e}");
+    assert!(close(slope("size", &px, 8), &e["render_vs_pixels"]), "{e}");
+    assert!(
+        close(slope("targets", &k, 11), &e["track_vs_targets"]),
+        "{e}"
+    );
+    for f in [
+        "scaling-fps-vs-size.svg",
+        "scaling-cost-vs-size.svg",
+        "scaling-fps-vs-targets.svg",
+        "scaling-cost-vs-targets.svg",
+    ] {
+        assert!(dir.join(f).exists(), "{f} missing");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,9 +1,11 @@
 //! `glint bench`: throughput testing, every figure measured against a baseline in the same run.
 //! `glint bench ipc` compares transports between two processes ([`ipc`]); `glint bench
-//! pipeline` the deployed chain with the same work done in one process ([`pipeline`]).
+//! pipeline` the deployed chain with the same work done in one process ([`pipeline`]); `glint
+//! bench scaling` that comparison against frame size and number of debris ([`scaling`]).
 
 pub mod ipc;
 pub mod pipeline;
+pub mod scaling;
 
 use std::path::{Path, PathBuf};
 
@@ -152,15 +154,18 @@ fn write_outputs(dir: &Path, rows: &[Row], r: &Ratios) -> Result<()> {
     }
     csv.flush()?;
     plot_latency(dir, rows)?;
-    for t in Transport::ALL {
-        if let Some(row) = find(rows, t, 2 << 20) {
-            plots::log_histogram(
-                &dir.join(format!("ipc-hist-{}-2MiB.svg", t.name())),
-                &format!("{} one-way latency, 2 MiB payloads", t.name()),
-                "log10 latency [µs]",
-                &row.latencies_us,
-            )?;
-        }
+    for row in rows {
+        let size = size_label(row.payload_bytes);
+        plots::log_histogram(
+            &dir.join(format!(
+                "ipc-hist-{}-{}.svg",
+                row.transport,
+                size.replace(' ', "")
+            )),
+            &format!("{} one-way latency, {size} payloads", row.transport),
+            "log10 latency [µs]",
+            &row.latencies_us,
+        )?;
     }
     Ok(())
 }
@@ -210,17 +215,23 @@ fn merge_bench_json(dir: &Path, doc: serde_json::Value) -> Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
-/// Deploys the pipeline, runs the in-process baseline, writes `bench.json` and
-/// `pipeline.csv`, prints the table.
-pub fn run_pipeline(o: &pipeline::PipelineOptions, sc: shared_types::Scenario) -> Result<()> {
-    std::fs::create_dir_all(&o.out).with_context(|| format!("creating {}", o.out.display()))?;
-    let run_dir = o.out.join("run");
+/// One measured point: the deployment (its run directory in `run_dir`) and the in-process
+/// baseline of the same scenario.
+pub struct Point {
+    pub deployed: pipeline::Deployed,
+    pub in_process: pipeline::InProcess,
+    pub run_dir: PathBuf,
+}
+
+/// Deploys `sc` as processes into `run_dir`, then does the same work in this process.
+pub fn measure(sc: shared_types::Scenario, run_dir: PathBuf, progress: bool) -> Result<Point> {
+    let frames = sc.camera.as_ref().map_or(0, |c| c.frames);
     let opts = crate::run::RunOptions {
         scenario: sc.clone(),
-        scenario_file: "glint bench pipeline (debris-geo)".into(),
-        out_dir: Some(run_dir.clone()),
+        scenario_file: "glint bench (debris-geo)".into(),
+        out_dir: Some(run_dir),
         replace: true,
-        progress: std::io::IsTerminal::is_terminal(&std::io::stderr()),
+        progress,
     };
     let (dir, ok) = crate::run::run(opts)?;
     let report_path = dir.join("report.json");
@@ -236,10 +247,31 @@ pub fn run_pipeline(o: &pipeline::PipelineOptions, sc: shared_types::Scenario) -
         );
     }
     let deployed = pipeline::read_report(&report);
-    let bar = crate::progress::bar(o.frames);
+    let bar = if progress {
+        crate::progress::bar(frames)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     bar.set_message("in one process");
-    let ip = pipeline::in_process(&sc, &bar)?;
+    let in_process = pipeline::in_process(&sc, &bar)?;
     bar.finish_and_clear();
+    Ok(Point {
+        deployed,
+        in_process,
+        run_dir: dir,
+    })
+}
+
+/// Deploys the pipeline, runs the in-process baseline, writes `bench.json` and
+/// `pipeline.csv`, prints the table.
+pub fn run_pipeline(o: &pipeline::PipelineOptions, sc: shared_types::Scenario) -> Result<()> {
+    std::fs::create_dir_all(&o.out).with_context(|| format!("creating {}", o.out.display()))?;
+    let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let Point {
+        deployed,
+        in_process: ip,
+        run_dir: dir,
+    } = measure(sc, o.out.join("run"), progress)?;
     pipeline::print(o, &deployed, &ip);
     let section = pipeline::json(o, &deployed, &ip);
     merge_bench_json(
