@@ -78,7 +78,7 @@ impl Consumer {
         let me = ServiceId::Orchestrator;
         let consumes = |t| deployment::consumers(scenario, t).contains(&me);
         let (frames, frame_l) = if consumes(TopicId::Frame) {
-            let (mut i, l) = FrameInbox::open(node, &frame_service(node)?)?;
+            let (mut i, l) = FrameInbox::open(node, &frame_service(node, scenario.frame_px())?)?;
             // When the detector reads the pixels, the orchestrator reads headers only (accounting
             // and the digest); the detector verifies the pixel checksum.
             i.verify_checksum =

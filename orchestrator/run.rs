@@ -103,7 +103,7 @@ fn deploy_and_run(
     progress: bool,
 ) -> Result<RunFacts> {
     let node = open_node(prefix, "orchestrator")?;
-    let _services = shared_types::topics::create_all(&node)?;
+    let _services = shared_types::topics::create_all(&node, scenario.frame_px())?;
     let (mut consumer, listeners) = Consumer::open(&node, scenario)?;
     let mut sequencer = crate::sequence::Sequencer::open(&node, scenario)?;
 

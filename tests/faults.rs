@@ -402,7 +402,7 @@ fn in_realtime_a_slowed_consumer_drops_counted_frames_and_the_run_still_ends() {
     let r = run_ok(
         Some(&file),
         &dir.join("out"),
-        &["--fault", "detector:delay@5,delay_ms=60,duration_s=1"],
+        &["--fault", "detector:delay@5,delay_ms=200,duration_s=1.5"],
     );
     let frames = &r.report["topics"]["frame"];
     assert_eq!(frames["published"], 50);
@@ -414,7 +414,7 @@ fn in_realtime_a_slowed_consumer_drops_counted_frames_and_the_run_still_ends() {
     assert_eq!(received + dropped, 50, "{det}");
     assert!(
         dropped > 0,
-        "a 60 ms delay at 25 frames/s overflows the buffer: {det}"
+        "a 200 ms delay for 1.5 s at 25 frames/s overflows the 16-frame buffer: {det}"
     );
     assert_eq!(det["dropped_by_reason"]["overflow"], dropped);
     // One detections message per frame the detector took; the tracker took them all.

@@ -34,7 +34,8 @@ fn sigstop_sigcont_does_not_end_a_service_and_shutdown_does() {
     let prefix = format!("glt{}s_", std::process::id() % 100_000);
     {
         let node = open_node(&prefix, "test-orchestrator").unwrap();
-        let _services = create_all(&node).unwrap();
+        let sc = shared_types::Scenario::from_file(&scenario("debris-geo.toml")).unwrap();
+        let _services = create_all(&node, sc.frame_px()).unwrap();
         let (mut hb, _l) = Inbox::<Heartbeat>::open(
             &node,
             TopicId::Heartbeat,

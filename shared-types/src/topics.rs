@@ -120,22 +120,37 @@ impl TopicId {
 
 /// Per-subscriber buffer of the data topics; also the sim-clock credit window: a producer never
 /// has more than this many unacknowledged messages in flight per consumer, so nothing overflows.
-pub const FRAME_BUFFER: usize = 4;
+/// The frame topic's is [`frame_window`].
 pub const SPECTRUM_BUFFER: usize = 32;
 pub const TRUTH_BUFFER: usize = 32;
 const HEARTBEAT_BUFFER: usize = 64;
 const CONTROL_BUFFER: usize = 16;
 const ACK_BUFFER: usize = 256;
+/// Frames queued per subscriber at most, and at least: 16 frames ride out a consumer's
+/// millisecond wake-up tails at 1000 frames/s (with 4, the sensor of a 1024² chain waited for
+/// credit a third of the time).
+const FRAME_WINDOW_MAX: usize = 16;
+const FRAME_WINDOW_MIN: usize = 4;
+/// Pixels one subscriber's frame queue may hold, 32 MiB: large frames get fewer slots, so a
+/// 4096² deployment does not take gigabytes of shared memory.
+const FRAME_QUEUE_BYTES: usize = 32 << 20;
+
+/// The frame topic's subscriber buffer, history (a restarted consumer catches up from it) and
+/// sim-clock credit window, for frames of `frame_px` u16 pixels.
+pub fn frame_window(frame_px: usize) -> usize {
+    (FRAME_QUEUE_BYTES / (2 * frame_px).max(1)).clamp(FRAME_WINDOW_MIN, FRAME_WINDOW_MAX)
+}
+
 /// History kept for late joiners (a restarted consumer catches up from it).
-pub const FRAME_HISTORY: usize = FRAME_BUFFER;
 pub const SPECTRUM_HISTORY: usize = SPECTRUM_BUFFER;
 pub const DETECTIONS_BUFFER: usize = 16;
 pub const TRACKS_BUFFER: usize = 16;
 
-/// The sim-clock credit window of a produced data topic (its subscriber buffer).
-pub fn credit_window(topic: TopicId) -> usize {
+/// The sim-clock credit window of a produced data topic (its subscriber buffer); frames of
+/// `frame_px` pixels.
+pub fn credit_window(topic: TopicId, frame_px: usize) -> usize {
     match topic {
-        TopicId::Frame => FRAME_BUFFER,
+        TopicId::Frame => frame_window(frame_px),
         TopicId::Spectrum => SPECTRUM_BUFFER,
         TopicId::Truth => TRUTH_BUFFER,
         TopicId::Detections => DETECTIONS_BUFFER,
@@ -193,18 +208,20 @@ pub type EventService = event::PortFactory<Ipc>;
 pub type RangeService = request_response::PortFactory<Ipc, RangeRequest, (), RangeResponse, ()>;
 pub type SolveService = request_response::PortFactory<Ipc, SolveRequest, (), SolveResponse, ()>;
 
-/// Opens (or creates) the frame topic: `[u16]` pixels with a [`FrameHeader`].
-pub fn frame_service(node: &IpcNode) -> Result<FrameService, OpenError> {
+/// Opens (or creates) the frame topic: `[u16]` pixels with a [`FrameHeader`], frames of
+/// `frame_px` pixels (every process of a deployment derives it from the same scenario).
+pub fn frame_service(node: &IpcNode, frame_px: usize) -> Result<FrameService, OpenError> {
     let t = TopicId::Frame;
+    let window = frame_window(frame_px);
     node.service_builder(&name(t)?)
         .publish_subscribe::<[u16]>()
         .user_header::<FrameHeader>()
         .max_publishers(2)
         .max_subscribers(MAX_DATA_SUBSCRIBERS)
         .max_nodes(MAX_NODES)
-        .subscriber_max_buffer_size(FRAME_BUFFER)
+        .subscriber_max_buffer_size(window)
         .subscriber_max_borrowed_samples(2)
-        .history_size(FRAME_HISTORY)
+        .history_size(window)
         .enable_safe_overflow(true)
         .open_or_create_with_attributes(&contract_verifier(t)?)
         .map_err(|e| err(t, e))
@@ -338,10 +355,14 @@ pub fn event_service(node: &IpcNode, t: TopicId, reply: bool) -> Result<EventSer
         .map_err(|e| err(t, e))
 }
 
-/// Creates every service of the contract (the orchestrator does this before spawning children).
-pub fn create_all(node: &IpcNode) -> Result<Vec<Box<dyn std::any::Any>>, OpenError> {
+/// Creates every service of the contract (the orchestrator does this before spawning children),
+/// for frames of `frame_px` pixels.
+pub fn create_all(
+    node: &IpcNode,
+    frame_px: usize,
+) -> Result<Vec<Box<dyn std::any::Any>>, OpenError> {
     let mut keep: Vec<Box<dyn std::any::Any>> = vec![
-        Box::new(frame_service(node)?),
+        Box::new(frame_service(node, frame_px)?),
         Box::new(spectrum_service(node)?),
         Box::new(truth_service(node)?),
         Box::new(heartbeat_service(node)?),

@@ -21,7 +21,8 @@ impl Service for DetectorNode {
     fn open(setup: &mut Setup<'_>) -> Result<(Self, FrameInbox)> {
         let cam =
             (setup.scenario.camera.as_ref()).context("the detector needs a [camera] section")?;
-        let (mut frames, listener) = FrameInbox::open(setup.node, &frame_service(setup.node)?)?;
+        let (mut frames, listener) =
+            FrameInbox::open(setup.node, &frame_service(setup.node, cam.pixels())?)?;
         // Integrity of the pixels is checked on receipt (one xxh3 pass, ~0.1 ms per 1024² frame).
         frames.verify_checksum = true;
         setup.listen(listener);

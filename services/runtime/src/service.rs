@@ -372,7 +372,10 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
         .map(|o| {
             let topic = o.stats().topic;
             let consumers = deployment::consumers(scenario, topic);
-            (topic, Credit::new(credit_window(topic), consumers))
+            (
+                topic,
+                Credit::new(credit_window(topic, scenario.frame_px()), consumers),
+            )
         })
         .collect();
     hk.state = Heartbeat::READY;

@@ -43,7 +43,7 @@ impl Service for SensorNode {
         let frames = match &sc.camera {
             Some(cam) => Some(FrameOutbox::open(
                 node,
-                &frame_service(node)?,
+                &frame_service(node, cam.pixels())?,
                 cam.pixels(),
             )?),
             None => None,

@@ -179,6 +179,11 @@ impl Checker {
 }
 
 impl Scenario {
+    /// Pixels of one camera frame; 0 without a camera (the frame topic then carries nothing).
+    pub fn frame_px(&self) -> usize {
+        self.camera.as_ref().map_or(0, |c| c.pixels())
+    }
+
     /// Parses and validates a scenario held in memory; `file` names it in errors.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Scenario, ScenarioError> {
         let scenario: Scenario = toml::from_str(text).map_err(|e| parse_error(text, file, &e))?;
