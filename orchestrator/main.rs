@@ -267,6 +267,9 @@ enum ToolCmd {
         #[arg(long)]
         threshold: Option<u16>,
     },
+    /// The t location-scale maximum-likelihood fit of a sample file (one number per line, `#`
+    /// comments); prints JSON {n, mu, sigma, nu, nll, iterations}.
+    Tfit { samples: PathBuf },
     /// Render one camera frame of a scenario into a 16-bit PGM.
     Render {
         scenario: PathBuf,
@@ -629,6 +632,7 @@ fn main() -> ExitCode {
                 ToolCmd::Detect { frame, threshold } => {
                     tools::detect(&frame, threshold).map(|json| println!("{json}"))
                 }
+                ToolCmd::Tfit { samples } => tools::tfit(&samples).map(|json| println!("{json}")),
                 ToolCmd::Render {
                     scenario,
                     frame,

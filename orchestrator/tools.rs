@@ -3,6 +3,7 @@
 //! - `glint tool detect FRAME.pgm [--threshold DN]`: detections of one 16-bit PGM as JSON.
 //! - `glint tool render SCENARIO --frame K --out FRAME.pgm`: one frame of a scenario's camera,
 //!   rendered by the sensor's renderer (the same pixels a run publishes for that seed).
+//! - `glint tool tfit SAMPLES`: the t location-scale MLE of a sample file as JSON.
 
 use std::path::Path;
 
@@ -79,4 +80,30 @@ pub fn render(scenario: &Scenario, k: u64, out: &Path) -> Result<()> {
         pixels,
     };
     write_pgm(out, &img).map_err(|e| anyhow!("{}: {e}", out.display()))
+}
+
+/// Largest sample file `glint tool tfit` reads.
+const MAX_SAMPLES_FILE_BYTES: u64 = 256 << 20;
+
+/// The t location-scale MLE (docs/math.md §4.5) of the samples in `path` as JSON.
+pub fn tfit(path: &Path) -> Result<String> {
+    let len = std::fs::metadata(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?
+        .len();
+    if len > MAX_SAMPLES_FILE_BYTES {
+        return Err(anyhow!(
+            "{}: {len} bytes; at most {MAX_SAMPLES_FILE_BYTES} are read",
+            path.display()
+        ));
+    }
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read as UTF-8 text", path.display()))?;
+    let file = path.display().to_string();
+    let x = glint_earth::samples::parse(&text, &file).map_err(|e| anyhow!("{e}"))?;
+    let f = glint_earth::tfit::fit(&x).map_err(|e| anyhow!("{file}: {e}"))?;
+    let out = json!({
+        "n": f.n, "mu": f.mu, "sigma": f.sigma, "nu": f.nu, "nll": f.nll,
+        "iterations": f.iterations,
+    });
+    Ok(serde_json::to_string_pretty(&out)?)
 }

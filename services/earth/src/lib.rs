@@ -1,0 +1,10 @@
+//! The [003] static panoramic infrared Earth sensor (docs/math.md §4): the attitude angle β
+//! between the optical axis and nadir from the Earth-limb ring of a fisheye image.
+//!
+//! - [`tfit`]: the t location-scale maximum-likelihood fit of the β_k samples (§4.5).
+//! - [`special`]: digamma and trigamma, which the fit needs.
+//! - [`samples`]: the sample files `glint tool tfit` reads.
+
+pub mod samples;
+pub mod special;
+pub mod tfit;
