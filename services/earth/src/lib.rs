@@ -1,10 +1,15 @@
 //! The [003] static panoramic infrared Earth sensor (docs/math.md §4): the attitude angle β
 //! between the optical axis and nadir from the Earth-limb ring of a fisheye image.
 //!
+//! - [`edges`]: Sobel, the strong-edge threshold, masks and erosion (§4.2).
+//! - [`ring`]: the fisheye camera, undistortion to the unit sphere and the interval cross
+//!   product (§4.3–4.4).
 //! - [`tfit`]: the t location-scale maximum-likelihood fit of the β_k samples (§4.5).
 //! - [`special`]: digamma and trigamma, which the fit needs.
 //! - [`samples`]: the sample files `glint tool tfit` reads.
 
+pub mod edges;
+pub mod ring;
 pub mod samples;
 pub mod special;
 pub mod tfit;
