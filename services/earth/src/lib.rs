@@ -2,6 +2,8 @@
 //! between the optical axis and nadir from the Earth-limb ring of a fisheye image.
 //!
 //! - [`edges`]: Sobel, the strong-edge threshold, masks and erosion (§4.2).
+//! - [`estimate`]: one angle from the samples: the t fit with the interval mean, and the
+//!   lookup (engineering) version (§4.6).
 //! - [`ring`]: the fisheye camera, undistortion to the unit sphere and the interval cross
 //!   product (§4.3–4.4).
 //! - [`tfit`]: the t location-scale maximum-likelihood fit of the β_k samples (§4.5).
@@ -9,6 +11,7 @@
 //! - [`samples`]: the sample files `glint tool tfit` reads.
 
 pub mod edges;
+pub mod estimate;
 pub mod ring;
 pub mod samples;
 pub mod special;

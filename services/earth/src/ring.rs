@@ -51,6 +51,8 @@ pub struct RingSamples {
     pub beta_deg: Vec<f64>,
     /// tilt_k = atan2(n̂_x, n̂_z) [deg]: the nadir's angle from Z_S about Y_S, signed.
     pub tilt_deg: Vec<f64>,
+    /// azimuth_k = atan2(n̂_y, n̂_x) [deg]: the direction of the nadir's tilt about Z_S.
+    pub azimuth_deg: Vec<f64>,
     /// The mean of the oriented unit normals n̂_k (nadir side), normalised.
     pub mean_normal: [f64; 3],
 }
@@ -103,6 +105,7 @@ pub fn cross_product_samples(points: &[[f64; 3]]) -> RingSamples {
         out.beta_deg
             .push(nh[2].clamp(-1.0, 1.0).acos() * 180.0 / PI);
         out.tilt_deg.push(nh[0].atan2(nh[2]) * 180.0 / PI);
+        out.azimuth_deg.push(nh[1].atan2(nh[0]) * 180.0 / PI);
         for i in 0..3 {
             sum_normal[i] += nh[i];
         }
