@@ -1,0 +1,106 @@
+use super::*;
+use crate::edges::{EdgeConfig, EdgeExtractor};
+use crate::ring::earth_angular_radius_rad;
+use std::f64::consts::PI;
+
+const CAM: Fisheye = Fisheye {
+    f_px: 130.0,
+    x0_px: 255.5,
+    y0_px: 255.5,
+};
+
+/// Limb directions of an Earth tilted by β about Y_S, `n` uniform in the ring's angle.
+fn limb(beta_deg: f64, n: usize) -> Vec<[f64; 3]> {
+    let (t, rho) = (beta_deg.to_radians(), earth_angular_radius_rad(950.0));
+    let e = [t.sin(), 0.0, t.cos()];
+    let a = [t.cos(), 0.0, -t.sin()];
+    (0..n)
+        .map(|i| {
+            let (s, c) = (2.0 * PI * i as f64 / n as f64).sin_cos();
+            std::array::from_fn(|k| {
+                rho.cos() * e[k] + rho.sin() * (c * a[k] + s * [0.0, 1.0, 0.0][k])
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn kasa_fits_an_exact_circle_exactly() {
+    let pts: Vec<(f64, f64)> = (0..50)
+        .map(|i| {
+            let a = 0.3 + 1.7 * i as f64 / 50.0; // a 100° arc
+            (812.25 + 143.5 * a.cos(), -77.0 + 143.5 * a.sin())
+        })
+        .collect();
+    let c = kasa_fit(&pts).unwrap();
+    assert!(
+        (c.x_px - 812.25).abs() < 1e-9
+            && (c.y_px + 77.0).abs() < 1e-9
+            && (c.r_px - 143.5).abs() < 1e-9,
+        "{c:?}"
+    );
+    assert_eq!(kasa_fit(&[(0.0, 0.0), (1.0, 1.0), (2.0, 2.0)]), None);
+    assert_eq!(kasa_fit(&pts[..2]), None);
+}
+
+/// math.md §4.7: the circle model's bias under r = f θ, the limb's exact image with θ < 30°
+/// masked — 5° → 5.00043, 10° → 10.00345, 20° → 20.0283, 30° → 30.0997, 40° → 39.137
+/// (partial arc), 50° → 48.355.
+#[test]
+fn the_baseline_carries_the_model_bias_of_math_md_4_7() {
+    let blind = 30f64.to_radians().cos();
+    for (beta, expected, tol) in [
+        (5.0, 5.00043, 2e-5),
+        (10.0, 10.00345, 2e-5),
+        (20.0, 20.0283, 2e-4),
+        (30.0, 30.0997, 2e-4),
+        (40.0, 39.137, 2e-3),
+        // A partial arc's fit depends on how the arc is sampled (here uniformly in the ring's
+        // angle): 48.360 here.
+        (50.0, 48.355, 1e-2),
+    ] {
+        let pts: Vec<(f64, f64)> = (limb(beta, 20_000).into_iter())
+            .filter(|u| u[2] < blind)
+            .map(|u| CAM.pixel(u))
+            .collect();
+        let est = estimate_of(kasa_fit(&pts).unwrap(), &CAM, pts.len());
+        assert!(
+            (est.beta_deg - expected).abs() < tol,
+            "β {beta}: {} against {expected}",
+            est.beta_deg
+        );
+    }
+}
+
+/// The whole baseline on a rendered, blurred Earth: Hough centre, radius, Kåsa on the
+/// inliers; β within 0.1° of its model value.
+#[test]
+fn the_hough_baseline_finds_the_limb_of_a_rendered_frame() {
+    let (w, h) = (512usize, 512usize);
+    let rho = earth_angular_radius_rad(950.0);
+    let (mut ex, mut hough) = (EdgeExtractor::default(), Hough::default());
+    for (tilt, model) in [(5.0f64, 5.00043), (-20.0, -20.0283)] {
+        let e = [tilt.to_radians().sin(), 0.0, tilt.to_radians().cos()];
+        let px: Vec<u16> = (0..w * h)
+            .map(|i| {
+                let u = CAM.direction((i % w) as f64, (i / w) as f64);
+                let angle = (u[0] * e[0] + u[1] * e[1] + u[2] * e[2])
+                    .clamp(-1.0, 1.0)
+                    .acos();
+                let d_px = (angle - rho) * CAM.f_px;
+                (3000.0 * 0.5 * libm::erfc(d_px / (1.2 * std::f64::consts::SQRT_2))) as u16
+            })
+            .collect();
+        let edges = ex.extract(&px, w, h, &CAM, &EdgeConfig::default()).unwrap();
+        let r = CAM.f_px * rho;
+        let est = hough
+            .estimate(&px, w, h, &edges.points_px, &CAM, r - 30.0, r + 30.0)
+            .unwrap();
+        assert!((est.tilt_deg - model).abs() < 0.1, "{tilt}: {est:?}");
+        assert!(
+            (est.beta_deg - f64::abs(model)).abs() < 0.1,
+            "{tilt}: {est:?}"
+        );
+        assert!(est.inliers > edges.points_px.len() / 2, "{est:?}");
+    }
+}
