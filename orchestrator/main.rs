@@ -258,6 +258,51 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((side(w)?, side(h)?))
 }
 
+/// A focal length in px/rad, 1 to 100000.
+fn parse_positive(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number"))?;
+    if v.is_finite() && (1.0..=1e5).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is out of range: allowed 1 to 100000"))
+    }
+}
+
+/// An altitude in km, 100 to 100000.
+fn parse_altitude(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number"))?;
+    if v.is_finite() && (100.0..=1e5).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} km is out of range: allowed 100 to 100000"))
+    }
+}
+
+/// `X,Y` in pixels, each finite and within ±1e6.
+fn parse_point(s: &str) -> Result<(f64, f64), String> {
+    let (x, y) = s
+        .split_once(',')
+        .ok_or_else(|| format!("`{s}`: expected X,Y, e.g. 255.5,255.5"))?;
+    let one = |v: &str| -> Result<f64, String> {
+        let n: f64 = v
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{v}` is not a number"))?;
+        if n.is_finite() && n.abs() <= 1e6 {
+            Ok(n)
+        } else {
+            Err(format!("{n} is out of range: allowed −1000000 to 1000000"))
+        }
+    };
+    Ok((one(x)?, one(y)?))
+}
+
 #[derive(Subcommand)]
 enum ToolCmd {
     /// Detect objects in a 16-bit binary PGM (P5); prints JSON.
@@ -270,6 +315,20 @@ enum ToolCmd {
     /// The t location-scale maximum-likelihood fit of a sample file (one number per line, `#`
     /// comments); prints JSON {n, mu, sigma, nu, nll, iterations}.
     Tfit { samples: PathBuf },
+    /// The [003] attitude angle β of one fisheye Earth image (16- or 8-bit PGM) by the
+    /// cross-product method, its lookup version and the Hough baseline; prints JSON.
+    Earth {
+        frame: PathBuf,
+        /// Fisheye focal length [px/rad] (r = f θ), 1 to 100000.
+        #[arg(long = "f-px", value_parser = parse_positive)]
+        f_px: f64,
+        /// Principal point X,Y [px], 0-based, the first pixel's centre at (0, 0).
+        #[arg(long, value_parser = parse_point)]
+        center: (f64, f64),
+        /// Orbit altitude [km], 100 to 100000 (the limb's angular radius).
+        #[arg(long = "altitude-km", default_value_t = 950.0, value_parser = parse_altitude)]
+        altitude_km: f64,
+    },
     /// Render one camera frame of a scenario into a 16-bit PGM.
     Render {
         scenario: PathBuf,
@@ -632,6 +691,12 @@ fn main() -> ExitCode {
                 ToolCmd::Detect { frame, threshold } => {
                     tools::detect(&frame, threshold).map(|json| println!("{json}"))
                 }
+                ToolCmd::Earth {
+                    frame,
+                    f_px,
+                    center,
+                    altitude_km,
+                } => tools::earth(&frame, f_px, center, altitude_km).map(|json| println!("{json}")),
                 ToolCmd::Tfit { samples } => tools::tfit(&samples).map(|json| println!("{json}")),
                 ToolCmd::Render {
                     scenario,

@@ -59,3 +59,85 @@ fn tool_tfit_rejects_a_bad_file_with_line_and_column() {
     assert_eq!(missing.status.code(), Some(2));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A 16-bit binary PGM (P5, big-endian samples).
+fn write_pgm16(path: &std::path::Path, w: usize, h: usize, px: &[u16]) {
+    let mut bytes = format!("P5\n{w} {h}\n65535\n").into_bytes();
+    for v in px {
+        bytes.extend_from_slice(&v.to_be_bytes());
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// An Earth of angular radius ρ seen through r = f θ with its nadir `tilt_deg` from the axis
+/// about Y, the limb blurred by a Gaussian of 1.2 px: written here from the geometry alone.
+fn earth_frame(w: usize, h: usize, f_px: f64, c: (f64, f64), tilt_deg: f64) -> Vec<u16> {
+    let rho = (6371.0f64 / (6371.0 + 950.0)).asin();
+    let t = tilt_deg.to_radians();
+    let e = [t.sin(), 0.0, t.cos()];
+    (0..w * h)
+        .map(|i| {
+            let (dx, dy) = ((i % w) as f64 - c.0, (i / w) as f64 - c.1);
+            let r = dx.hypot(dy);
+            let theta = r / f_px;
+            let u = if r == 0.0 {
+                [0.0, 0.0, 1.0]
+            } else {
+                [theta.sin() * dx / r, theta.sin() * dy / r, theta.cos()]
+            };
+            let angle = (u[0] * e[0] + u[1] * e[1] + u[2] * e[2])
+                .clamp(-1.0, 1.0)
+                .acos();
+            let d_px = (angle - rho) * f_px;
+            (20.0 + 3000.0 * 0.5 * libm::erfc(d_px / (1.2 * std::f64::consts::SQRT_2))) as u16
+        })
+        .collect()
+}
+
+/// `glint tool earth` on a frame written from the geometry: every method within 0.1° of the
+/// truth (the Hough baseline of its model value, math.md §4.7: 12° → 12.006), the tilt's sign
+/// right, and a time per method.
+#[test]
+fn tool_earth_reads_beta_from_a_fisheye_frame() {
+    let dir = temp_dir("tool-earth");
+    let file = dir.join("earth.pgm");
+    let (w, h, f, c) = (512, 512, 130.0, (255.5, 255.5));
+    write_pgm16(&file, w, h, &earth_frame(w, h, f, c, -12.0));
+    let out = glint()
+        .args(["tool", "earth"])
+        .arg(&file)
+        .args([
+            "--f-px",
+            "130",
+            "--center",
+            "255.5,255.5",
+            "--altitude-km",
+            "950",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let b = |m: &str| v["beta_deg"][m].as_f64().unwrap();
+    assert!((b("cross_product") - 12.0).abs() < 0.02, "{v}");
+    assert!((b("lookup") - 12.0).abs() < 0.05, "{v}");
+    assert!((b("hough") - 12.0).abs() < 0.1, "{v}");
+    assert!((v["tilt_deg"].as_f64().unwrap() + 12.0).abs() < 0.02, "{v}");
+    assert!(v["edge_points"].as_u64().unwrap() > 300, "{v}");
+    for m in ["edges", "cross_product", "lookup", "hough"] {
+        assert!(v["time_us"][m].as_f64().unwrap() > 0.0, "{v}");
+    }
+    let bad = glint()
+        .args(["tool", "earth"])
+        .arg(&file)
+        .args(["--f-px", "0", "--center", "255.5,255.5"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("allowed 1 to 100000"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -5,6 +5,7 @@
 //! - [`estimate`]: one angle from the samples: the t fit with the interval mean, and the
 //!   lookup (engineering) version (§4.6).
 //! - [`hough`]: the baseline, a Hough circle and the Kåsa fit (§4.7).
+//! - [`pipeline`]: one frame through every method, timed.
 //! - [`ring`]: the fisheye camera, undistortion to the unit sphere and the interval cross
 //!   product (§4.3–4.4).
 //! - [`tfit`]: the t location-scale maximum-likelihood fit of the β_k samples (§4.5).
@@ -14,6 +15,7 @@
 pub mod edges;
 pub mod estimate;
 pub mod hough;
+pub mod pipeline;
 pub mod ring;
 pub mod samples;
 pub mod special;
