@@ -53,22 +53,35 @@ pub enum EdgeError {
     TooSmall { width: usize, height: usize },
 }
 
-/// Reusable buffers of the extraction (one per service: no allocation per frame).
+/// Reusable buffers of the extraction (one per service: no allocation per frame). The masks
+/// depend on the frame size, the camera and the settings only: the pixels they leave are
+/// listed once and reused while those stay the same.
 #[derive(Default)]
 pub struct EdgeExtractor {
+    /// (width, height, camera, config) the `valid` list was built for.
+    key: Option<(usize, usize, [u64; 3], [u64; 3])>,
+    /// Indices of the unmasked interior pixels, row-major.
+    valid: Vec<u32>,
     magnitude: Vec<f32>,
-    valid: Vec<bool>,
-    strong: Vec<bool>,
-    eroded: Vec<bool>,
+    /// Per pixel: 1 where strong (reset after every frame, only where set).
+    strong_map: Vec<u8>,
+    strong: Vec<u32>,
 }
 
 /// The Sobel magnitude (eq 3) of pixel (x, y), 0 < x < w − 1, 0 < y < h − 1.
-#[inline]
+#[cfg(test)]
 fn sobel(px: &[u16], w: usize, x: usize, y: usize) -> f32 {
-    let z = |dx: usize, dy: usize| f32::from(px[(y + dy - 1) * w + x + dx - 1]);
-    let gy = (z(0, 2) + 2.0 * z(1, 2) + z(2, 2)) - (z(0, 0) + 2.0 * z(1, 0) + z(2, 0));
-    let gx = (z(2, 0) + 2.0 * z(2, 1) + z(2, 2)) - (z(0, 0) + 2.0 * z(0, 1) + z(0, 2));
-    (gx * gx + gy * gy).sqrt()
+    sobel_at(px, w, y * w + x)
+}
+
+/// The Sobel magnitude (eq 3) of the interior pixel at index `i`.
+#[inline]
+fn sobel_at(px: &[u16], w: usize, i: usize) -> f32 {
+    let z = |o: usize| i32::from(px[o]);
+    let (up, down) = (i - w, i + w);
+    let gy = (z(down - 1) + 2 * z(down) + z(down + 1)) - (z(up - 1) + 2 * z(up) + z(up + 1));
+    let gx = (z(up + 1) + 2 * z(i + 1) + z(down + 1)) - (z(up - 1) + 2 * z(i - 1) + z(down - 1));
+    ((gx as f32) * (gx as f32) + (gy as f32) * (gy as f32)).sqrt()
 }
 
 /// Otsu's threshold over `values` (256 bins from 0 to the maximum): the bin edge that
@@ -110,6 +123,37 @@ pub fn otsu(values: impl Iterator<Item = f32> + Clone) -> f32 {
 }
 
 impl EdgeExtractor {
+    fn build_masks(&mut self, w: usize, h: usize, cam: &Fisheye, cfg: &EdgeConfig) {
+        let key = (
+            w,
+            h,
+            [cam.f_px.to_bits(), cam.x0_px.to_bits(), cam.y0_px.to_bits()],
+            [
+                cfg.blind_zone_half_deg.to_bits(),
+                cfg.image_circle_px.unwrap_or(f64::INFINITY).to_bits(),
+                0,
+            ],
+        );
+        if self.key == Some(key) {
+            return;
+        }
+        let r_blind = cam.f_px * cfg.blind_zone_half_deg.to_radians();
+        let r_circle = cfg.image_circle_px.unwrap_or(f64::INFINITY);
+        self.valid.clear();
+        for y in 1..h - 1 {
+            let dy = y as f64 - cam.y0_px;
+            for x in 1..w - 1 {
+                let r = (x as f64 - cam.x0_px).hypot(dy);
+                if r >= r_blind && r <= r_circle {
+                    self.valid.push((y * w + x) as u32);
+                }
+            }
+        }
+        self.strong_map.clear();
+        self.strong_map.resize(w * h, 0);
+        self.key = Some(key);
+    }
+
     /// The edge points of a `width`×`height` u16 frame seen through `cam`.
     pub fn extract(
         &mut self,
@@ -131,60 +175,44 @@ impl EdgeExtractor {
         if width < 3 || height < 3 {
             return Err(EdgeError::TooSmall { width, height });
         }
-        let (w, h) = (width, height);
-        for buf in [&mut self.valid, &mut self.strong, &mut self.eroded] {
-            buf.clear();
-            buf.resize(n, false);
-        }
+        let w = width;
+        self.build_masks(width, height, cam, cfg);
         self.magnitude.clear();
-        self.magnitude.resize(n, 0.0);
-        let r_blind = cam.f_px * cfg.blind_zone_half_deg.to_radians();
-        let r_circle = cfg.image_circle_px.unwrap_or(f64::INFINITY);
-        for y in 1..h - 1 {
-            let dy = y as f64 - cam.y0_px;
-            for x in 1..w - 1 {
-                let r = (x as f64 - cam.x0_px).hypot(dy);
-                if r < r_blind || r > r_circle {
-                    continue;
-                }
-                let i = y * w + x;
-                self.valid[i] = true;
-                self.magnitude[i] = sobel(px, w, x, y);
+        self.magnitude
+            .extend(self.valid.iter().map(|&i| sobel_at(px, w, i as usize)));
+        let threshold_dn = cfg
+            .threshold_dn
+            .unwrap_or_else(|| otsu(self.magnitude.iter().copied()));
+        self.strong.clear();
+        for (&i, &g) in self.valid.iter().zip(&self.magnitude) {
+            if g >= threshold_dn && g > 0.0 {
+                self.strong.push(i);
+                self.strong_map[i as usize] = 1;
             }
         }
-        let threshold_dn = cfg.threshold_dn.unwrap_or_else(|| {
-            let (m, v) = (&self.magnitude, &self.valid);
-            otsu(m.iter().zip(v).filter(|(_, ok)| **ok).map(|(g, _)| *g))
-        });
-        let mut any_strong = false;
-        for i in 0..n {
-            let s = self.valid[i] && self.magnitude[i] >= threshold_dn && self.magnitude[i] > 0.0;
-            self.strong[i] = s;
-            any_strong |= s;
-        }
-        // Eq 5 with B the 3×3 square: kept where the whole neighbourhood is strong.
-        let mut any_eroded = false;
-        if any_strong {
-            for y in 1..h - 1 {
-                for x in 1..w - 1 {
-                    let all = (0..3).all(|dy| {
-                        let row = (y + dy - 1) * w + x - 1;
-                        self.strong[row..row + 3].iter().all(|s| *s)
-                    });
-                    self.eroded[y * w + x] = all;
-                    any_eroded |= all;
-                }
-            }
-        }
-        let map = if any_eroded {
-            &self.eroded
-        } else {
-            &self.strong
+        // Eq 5 with B the 3×3 square: kept where the whole neighbourhood is strong (a strong
+        // pixel is never on the frame's border, so its neighbours exist).
+        let map = &self.strong_map;
+        let kept = |i: usize| {
+            [i - w, i, i + w]
+                .iter()
+                .all(|&c| map[c - 1] & map[c] & map[c + 1] == 1)
         };
-        let points_px = (0..n)
-            .filter(|&i| map[i])
-            .map(|i| ((i % w) as f64, (i / w) as f64))
+        let eroded: Vec<(f64, f64)> = (self.strong.iter())
+            .filter(|&&i| kept(i as usize))
+            .map(|&i| ((i as usize % w) as f64, (i as usize / w) as f64))
             .collect();
+        let any_eroded = !eroded.is_empty();
+        let points_px = if any_eroded {
+            eroded
+        } else {
+            (self.strong.iter())
+                .map(|&i| ((i as usize % w) as f64, (i as usize / w) as f64))
+                .collect()
+        };
+        for &i in &self.strong {
+            self.strong_map[i as usize] = 0;
+        }
         Ok(Edges {
             points_px,
             threshold_dn,
