@@ -1,48 +1,11 @@
 //! From limb pixels to the angle samples: undistortion onto the unit sphere (docs/math.md §4.3,
 //! eqs 6–9) and the interval cross product (§4.4, eqs 10–11).
 //!
-//! Pixel convention: (x, y) = (column, row), the first pixel's centre at (0, 0), as the debris
-//! detector's. The sensor frame S has X_S along +x, Y_S along +y and Z_S the optical axis.
+//! The camera ([`Fisheye`]) is glint-physics', shared with the sensor that renders the frames.
 
 use std::f64::consts::PI;
 
-/// The equidistant fisheye `r = f θ` (eq 1): focal length and principal point [px].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Fisheye {
-    pub f_px: f64,
-    pub x0_px: f64,
-    pub y0_px: f64,
-}
-
-impl Fisheye {
-    /// The unit-sphere direction of pixel (x, y) (eqs 6–9, R = 1).
-    pub fn direction(&self, x_px: f64, y_px: f64) -> [f64; 3] {
-        let (dx, dy) = (x_px - self.x0_px, y_px - self.y0_px);
-        let r = dx.hypot(dy);
-        if r == 0.0 {
-            return [0.0, 0.0, 1.0];
-        }
-        let theta = r / self.f_px;
-        let (s, c) = theta.sin_cos();
-        [s * dx / r, s * dy / r, c]
-    }
-
-    /// The pixel a direction images to (the inverse of [`Fisheye::direction`]).
-    pub fn pixel(&self, u: [f64; 3]) -> (f64, f64) {
-        let rho = u[0].hypot(u[1]);
-        let theta = rho.atan2(u[2]);
-        if rho == 0.0 {
-            return (self.x0_px, self.y0_px);
-        }
-        let r = self.f_px * theta;
-        (self.x0_px + r * u[0] / rho, self.y0_px + r * u[1] / rho)
-    }
-
-    /// The angle from the optical axis of pixel (x, y) [rad].
-    pub fn theta_rad(&self, x_px: f64, y_px: f64) -> f64 {
-        (x_px - self.x0_px).hypot(y_px - self.y0_px) / self.f_px
-    }
-}
+pub use glint_physics::fisheye::{earth_angular_radius_rad, Fisheye};
 
 /// The β_k and tilt_k samples of one ring.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -115,13 +78,6 @@ pub fn cross_product_samples(points: &[[f64; 3]]) -> RingSamples {
         out.mean_normal = sum_normal.map(|v| v / len);
     }
     out
-}
-
-/// ρ_E = arcsin(R_E / (R_E + h)), the Earth's angular radius from altitude h [rad].
-pub fn earth_angular_radius_rad(altitude_km: f64) -> f64 {
-    // The mean radius, as math.md §4.1 (60.486° at 950 km).
-    const EARTH_RADIUS_KM: f64 = 6371.0;
-    (EARTH_RADIUS_KM / (EARTH_RADIUS_KM + altitude_km)).asin()
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@
 //! - [`sun`]: low-precision Sun direction (§6.2)
 //! - [`cw`]: Clohessy–Wiltshire dynamics and STMs (§3.8, §7.1)
 //! - [`camera`]: seed-002 pinhole camera, CAM_X convention (§3.1–3.5)
+//! - [`fisheye`]: seed-003 equidistant fisheye and the Earth's angular radius (§4.1)
 //! - [`brdf`]: multi-lobe Beckmann BRDF (§1.3)
 //! - [`two_facet`]: seed-000 two-facet model, design rows, attitude matrices (§1.2–1.6)
 //! - [`materials`]: spectral BRDF parameters and solar irradiance (materials.md §3)
@@ -19,6 +20,7 @@
 pub mod brdf;
 pub mod camera;
 pub mod cw;
+pub mod fisheye;
 pub mod frames;
 pub mod hover;
 pub mod materials;
