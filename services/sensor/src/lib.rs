@@ -1,10 +1,12 @@
 //! The synthetic sensor: renders camera frames of debris ([002]) into loaned shared memory,
 //! produces time series of the satellite's spectrum ([000]), answers laser-range requests, and
-//! publishes truth for scoring.
+//! publishes truth for scoring; renders fisheye infrared Earth frames ([003], `earth_render`).
 //!
-//! Pure cores (`render`, `laser`, `debris_scene`, `spectra_scene`) beside one node loop (`node`).
+//! Pure cores (`render`, `laser`, `debris_scene`, `spectra_scene`, `earth_render`) beside one
+//! node loop (`node`).
 
 pub mod debris_scene;
+pub mod earth_render;
 pub mod laser;
 #[cfg(feature = "node")]
 pub mod node;
