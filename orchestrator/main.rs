@@ -328,6 +328,26 @@ enum ToolCmd {
         /// Orbit altitude [km], 100 to 100000 (the limb's angular radius).
         #[arg(long = "altitude-km", default_value_t = 950.0, value_parser = parse_altitude)]
         altitude_km: f64,
+        /// The lookup version's σ(μ) table (`glint tool earth-calibrate`); without it, the
+        /// frame's own fitted σ.
+        #[arg(long = "sigma-table")]
+        sigma_table: Option<PathBuf>,
+    },
+    /// The [003] lookup version's σ(μ) table from calibration frames (fisheye Earth images at
+    /// known angles, 16- or 8-bit PGM): one t fit per frame; writes CSV `mu_deg,sigma_deg`.
+    EarthCalibrate {
+        /// Calibration frames.
+        #[arg(required = true)]
+        frames: Vec<PathBuf>,
+        #[arg(long = "f-px", value_parser = parse_positive)]
+        f_px: f64,
+        #[arg(long, value_parser = parse_point)]
+        center: (f64, f64),
+        #[arg(long = "altitude-km", default_value_t = 950.0, value_parser = parse_altitude)]
+        altitude_km: f64,
+        /// The table file to write.
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Render one camera frame of a scenario into a 16-bit PGM.
     Render {
@@ -696,7 +716,29 @@ fn main() -> ExitCode {
                     f_px,
                     center,
                     altitude_km,
-                } => tools::earth(&frame, f_px, center, altitude_km).map(|json| println!("{json}")),
+                    sigma_table,
+                } => {
+                    let tool = tools::EarthTool {
+                        f_px,
+                        center_px: center,
+                        altitude_km,
+                    };
+                    tools::earth(&frame, &tool, sigma_table.as_deref()).map(|j| println!("{j}"))
+                }
+                ToolCmd::EarthCalibrate {
+                    frames,
+                    f_px,
+                    center,
+                    altitude_km,
+                    out,
+                } => {
+                    let tool = tools::EarthTool {
+                        f_px,
+                        center_px: center,
+                        altitude_km,
+                    };
+                    tools::earth_calibrate(&frames, &tool, &out).map(|j| println!("{j}"))
+                }
                 ToolCmd::Tfit { samples } => tools::tfit(&samples).map(|json| println!("{json}")),
                 ToolCmd::Render {
                     scenario,

@@ -110,19 +110,50 @@ pub fn tfit(path: &Path) -> Result<String> {
     Ok(serde_json::to_string_pretty(&out)?)
 }
 
-/// β and tilt of one fisheye Earth frame by every [003] method, as JSON.
-pub fn earth(path: &Path, f_px: f64, center_px: (f64, f64), altitude_km: f64) -> Result<String> {
-    use glint_earth::pipeline::{EarthConfig, EarthCore};
-    let img = read_pgm(path).map_err(|e| match e {
+/// The fisheye camera and processing of `glint tool earth` and `earth-calibrate`.
+pub struct EarthTool {
+    pub f_px: f64,
+    pub center_px: (f64, f64),
+    pub altitude_km: f64,
+}
+
+impl EarthTool {
+    fn core(
+        &self,
+        table: Option<glint_earth::estimate::SigmaTable>,
+    ) -> glint_earth::pipeline::EarthCore {
+        let camera = glint_earth::ring::Fisheye {
+            f_px: self.f_px,
+            x0_px: self.center_px.0,
+            y0_px: self.center_px.1,
+        };
+        let mut config = glint_earth::pipeline::EarthConfig::new(camera, self.altitude_km);
+        config.sigma_table = table;
+        glint_earth::pipeline::EarthCore::new(config)
+    }
+}
+
+fn read_frame(path: &Path) -> Result<PgmImage> {
+    read_pgm(path).map_err(|e| match e {
         glint_detector::pgm::PgmError::Io { .. } => anyhow!("{e}"),
         _ => anyhow!("{}: {e}", path.display()),
-    })?;
-    let camera = glint_earth::ring::Fisheye {
-        f_px,
-        x0_px: center_px.0,
-        y0_px: center_px.1,
-    };
-    let mut core = EarthCore::new(EarthConfig::new(camera, altitude_km));
+    })
+}
+
+/// A σ table file of `glint tool earth-calibrate`.
+pub fn read_sigma_table(path: &Path) -> Result<glint_earth::estimate::SigmaTable> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    glint_earth::estimate::SigmaTable::parse(&text, &path.display().to_string())
+        .map_err(|e| anyhow!("{e}"))
+}
+
+/// β and tilt of one fisheye Earth frame by every [003] method, as JSON.
+pub fn earth(path: &Path, tool: &EarthTool, table: Option<&Path>) -> Result<String> {
+    let img = read_frame(path)?;
+    let table = table.map(read_sigma_table).transpose()?;
+    let calibrated = table.is_some();
+    let mut core = tool.core(table);
     let r = core
         .process(&img.pixels, img.width, img.height)
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
@@ -139,7 +170,7 @@ pub fn earth(path: &Path, f_px: f64, center_px: (f64, f64), altitude_km: f64) ->
         "edge_points": r.edge_points,
         "samples": r.samples,
         "fit": r.fit.map(|f| json!({"mu_deg": f.mu, "sigma_deg": f.sigma, "nu": f.nu})),
-        "lookup_sigma": "the frame's fitted σ (no calibrated table given)",
+        "lookup_sigma": if calibrated { "the calibrated table" } else { "the frame's fitted σ (no --sigma-table)" },
         "time_us": {
             "edges": r.edges_us,
             "cross_product": time(&r.cross_product),
@@ -148,4 +179,39 @@ pub fn earth(path: &Path, f_px: f64, center_px: (f64, f64), altitude_km: f64) ->
         },
     });
     Ok(serde_json::to_string_pretty(&out)?)
+}
+
+/// The lookup version's σ(μ) table from calibration frames: the t fit of each frame's signed
+/// β_k, written to `out` as CSV; returns a JSON summary.
+pub fn earth_calibrate(
+    frames: &[std::path::PathBuf],
+    tool: &EarthTool,
+    out: &Path,
+) -> Result<String> {
+    let mut core = tool.core(None);
+    let mut fits = vec![];
+    let mut rows = vec![];
+    for path in frames {
+        let img = read_frame(path)?;
+        let r = core
+            .process(&img.pixels, img.width, img.height)
+            .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        let f = r.fit.ok_or_else(|| {
+            anyhow!(
+                "{}: {} edge points gave {} angle samples: no limb found to calibrate on",
+                path.display(),
+                r.edge_points,
+                r.samples
+            )
+        })?;
+        fits.push((f.mu, f.sigma));
+        rows.push(json!({"file": path.display().to_string(), "mu_deg": f.mu, "sigma_deg": f.sigma, "nu": f.nu}));
+    }
+    let table = glint_earth::estimate::SigmaTable::from_fits(&fits);
+    std::fs::write(out, table.to_csv()).with_context(|| format!("writing {}", out.display()))?;
+    Ok(serde_json::to_string_pretty(&json!({
+        "table": out.display().to_string(),
+        "angles": table.points.len(),
+        "frames": rows,
+    }))?)
 }

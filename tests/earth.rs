@@ -141,3 +141,76 @@ fn tool_earth_reads_beta_from_a_fisheye_frame() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("allowed 1 to 100000"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `glint tool earth-calibrate` fits σ per calibration frame and writes the table that
+/// `glint tool earth --sigma-table` then uses for the lookup version.
+#[test]
+fn tool_earth_calibrate_writes_the_table_the_lookup_version_reads() {
+    let dir = temp_dir("earth-calibrate");
+    let (w, h, f, c) = (512, 512, 130.0, (255.5, 255.5));
+    let frames: Vec<std::path::PathBuf> = [5.0, 12.0, -20.0]
+        .iter()
+        .map(|&t| {
+            let p = dir.join(format!("cal{t}.pgm"));
+            write_pgm16(&p, w, h, &earth_frame(w, h, f, c, t));
+            p
+        })
+        .collect();
+    let table = dir.join("sigma.csv");
+    let out = glint()
+        .args(["tool", "earth-calibrate"])
+        .args(&frames)
+        .args(["--f-px", "130", "--center", "255.5,255.5", "--out"])
+        .arg(&table)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(&table).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows[0], "mu_deg,sigma_deg");
+    assert_eq!(rows.len(), 4, "{csv}");
+    let mus: Vec<f64> = rows[1..]
+        .iter()
+        .map(|r| r.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    for (mu, want) in mus.iter().zip([5.0, 12.0, 20.0]) {
+        assert!((mu - want).abs() < 0.05, "{csv}");
+    }
+    let frame = dir.join("x.pgm");
+    write_pgm16(&frame, w, h, &earth_frame(w, h, f, c, 9.0));
+    let out = glint()
+        .args(["tool", "earth"])
+        .arg(&frame)
+        .args(["--f-px", "130", "--center", "255.5,255.5", "--sigma-table"])
+        .arg(&table)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["lookup_sigma"], "the calibrated table");
+    assert!(
+        (v["beta_deg"]["lookup"].as_f64().unwrap() - 9.0).abs() < 0.05,
+        "{v}"
+    );
+    std::fs::write(&table, "mu_deg,sigma_deg\n5,0.1\n7\n").unwrap();
+    let bad = glint()
+        .args(["tool", "earth"])
+        .arg(&frame)
+        .args(["--f-px", "130", "--center", "255.5,255.5", "--sigma-table"])
+        .arg(&table)
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("sigma.csv:3: expected `mu_deg,sigma_deg`")
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -116,7 +116,96 @@ pub struct SigmaTable {
     pub points: Vec<(f64, f64)>,
 }
 
+/// What is wrong with a σ table file, with its line (1-based).
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum TableError {
+    #[error("{file}:{line}: expected `mu_deg,sigma_deg` (two numbers), got `{text}`")]
+    Row {
+        file: String,
+        line: usize,
+        text: String,
+    },
+    #[error("{file}:{line}: σ = {sigma} must be finite and > 0, μ = {mu} finite in 0..=90")]
+    Range {
+        file: String,
+        line: usize,
+        mu: f64,
+        sigma: f64,
+    },
+    #[error("{file}: no rows (a header `mu_deg,sigma_deg`, then one row per calibrated angle)")]
+    Empty { file: String },
+}
+
 impl SigmaTable {
+    /// The table as CSV: a `mu_deg,sigma_deg` header, one row per calibrated angle.
+    pub fn to_csv(&self) -> String {
+        let mut out = String::from("mu_deg,sigma_deg\n");
+        for (mu, sigma) in &self.points {
+            out.push_str(&format!("{mu},{sigma}\n"));
+        }
+        out
+    }
+
+    /// Reads [`SigmaTable::to_csv`]'s format (`#` comments and blank lines skipped; rows may
+    /// come in any order); `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Self, TableError> {
+        let mut points = vec![];
+        for (i, raw) in text.lines().enumerate() {
+            let line = raw.split('#').next().unwrap_or("").trim();
+            if line.is_empty() || (points.is_empty() && line.starts_with("mu_deg")) {
+                continue;
+            }
+            let row = || TableError::Row {
+                file: file.into(),
+                line: i + 1,
+                text: line.chars().take(60).collect(),
+            };
+            let (a, b) = line.split_once(',').ok_or_else(row)?;
+            let (mu, sigma): (f64, f64) = (
+                a.trim().parse().map_err(|_| row())?,
+                b.trim().parse().map_err(|_| row())?,
+            );
+            if !(mu.is_finite() && (0.0..=90.0).contains(&mu) && sigma.is_finite() && sigma > 0.0) {
+                return Err(TableError::Range {
+                    file: file.into(),
+                    line: i + 1,
+                    mu,
+                    sigma,
+                });
+            }
+            points.push((mu, sigma));
+        }
+        if points.is_empty() {
+            return Err(TableError::Empty { file: file.into() });
+        }
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Ok(Self { points })
+    }
+
+    /// σ(μ) from calibration fits: one (|μ|, σ) per fit, the σ of fits at the same angle
+    /// (to 1e-6°) averaged.
+    pub fn from_fits(fits: &[(f64, f64)]) -> Self {
+        let mut v: Vec<(f64, f64)> = fits.iter().map(|&(m, s)| (m.abs(), s)).collect();
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut points: Vec<(f64, f64, usize)> = vec![];
+        for (m, s) in v {
+            match points.last_mut() {
+                Some(last) if (m - last.0 / last.2 as f64).abs() < 1e-6 => {
+                    last.0 += m;
+                    last.1 += s;
+                    last.2 += 1;
+                }
+                _ => points.push((m, s, 1)),
+            }
+        }
+        Self {
+            points: points
+                .into_iter()
+                .map(|(m, s, k)| (m / k as f64, s / k as f64))
+                .collect(),
+        }
+    }
+
     pub fn sigma_at(&self, mu_deg: f64) -> Option<f64> {
         let p = &self.points;
         let first = p.first()?;
@@ -255,6 +344,24 @@ mod tests {
         assert!((t.sigma_at(25.0).unwrap() - 0.35).abs() < 1e-15);
         assert_eq!(t.sigma_at(60.0), Some(0.5));
         assert_eq!(SigmaTable { points: vec![] }.sigma_at(1.0), None);
+    }
+
+    #[test]
+    fn the_sigma_table_round_trips_through_its_file_and_names_bad_rows() {
+        let t = SigmaTable::from_fits(&[(-5.0, 0.12), (5.0, 0.14), (0.5, 0.1), (30.0, 0.2)]);
+        assert_eq!(t.points, vec![(0.5, 0.1), (5.0, 0.13), (30.0, 0.2)]);
+        assert_eq!(SigmaTable::parse(&t.to_csv(), "t.csv").unwrap(), t);
+        let e = SigmaTable::parse("mu_deg,sigma_deg\n1,0.1\n2;0.2\n", "t.csv").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "t.csv:3: expected `mu_deg,sigma_deg` (two numbers), got `2;0.2`"
+        );
+        let e = SigmaTable::parse("1,-0.1\n", "t.csv").unwrap_err();
+        assert!(matches!(e, TableError::Range { line: 1, .. }), "{e}");
+        assert!(matches!(
+            SigmaTable::parse("# nothing\n", "t.csv"),
+            Err(TableError::Empty { .. })
+        ));
     }
 
     #[test]
