@@ -58,30 +58,41 @@ pub enum EdgeError {
 /// listed once and reused while those stay the same.
 #[derive(Default)]
 pub struct EdgeExtractor {
-    /// (width, height, camera, config) the `valid` list was built for.
+    /// (width, height, camera, config) the `spans` were built for.
     key: Option<(usize, usize, [u64; 3], [u64; 3])>,
-    /// Indices of the unmasked interior pixels, row-major.
-    valid: Vec<u32>,
+    /// The unmasked interior pixels as runs of one row: (first index, length), row-major.
+    spans: Vec<(u32, u32)>,
     magnitude: Vec<f32>,
     /// Per pixel: 1 where strong (reset after every frame, only where set).
     strong_map: Vec<u8>,
     strong: Vec<u32>,
 }
 
-/// The Sobel magnitude (eq 3) of pixel (x, y), 0 < x < w − 1, 0 < y < h − 1.
+/// The Sobel magnitude (eq 3) of pixel (x, y), 0 < x < w − 1, 0 < y < h − 1: the same run
+/// kernel, on one pixel.
 #[cfg(test)]
 fn sobel(px: &[u16], w: usize, x: usize, y: usize) -> f32 {
-    sobel_at(px, w, y * w + x)
+    let mut out = vec![];
+    sobel_run(px, w, y * w + x, 1, &mut out);
+    out[0]
 }
 
-/// The Sobel magnitude (eq 3) of the interior pixel at index `i`.
-#[inline]
-fn sobel_at(px: &[u16], w: usize, i: usize) -> f32 {
-    let z = |o: usize| i32::from(px[o]);
-    let (up, down) = (i - w, i + w);
-    let gy = (z(down - 1) + 2 * z(down) + z(down + 1)) - (z(up - 1) + 2 * z(up) + z(up + 1));
-    let gx = (z(up + 1) + 2 * z(i + 1) + z(down + 1)) - (z(up - 1) + 2 * z(i - 1) + z(down - 1));
-    ((gx as f32) * (gx as f32) + (gy as f32) * (gy as f32)).sqrt()
+/// The Sobel magnitudes of the `len` interior pixels from index `start` of one row, appended
+/// to `out`: three rows read in step, so the loop vectorises.
+fn sobel_run(px: &[u16], w: usize, start: usize, len: usize, out: &mut Vec<f32>) {
+    let (up, mid, down) = (
+        &px[start - w - 1..start - w + len + 1],
+        &px[start - 1..start + len + 1],
+        &px[start + w - 1..start + w + len + 1],
+    );
+    out.extend((0..len).map(|j| {
+        let z = |row: &[u16], o: usize| i32::from(row[j + o]);
+        let gy = (z(down, 0) + 2 * z(down, 1) + z(down, 2)) - (z(up, 0) + 2 * z(up, 1) + z(up, 2));
+        let gx = (z(up, 2) + 2 * z(mid, 2) + z(down, 2)) - (z(up, 0) + 2 * z(mid, 0) + z(down, 0));
+        // In f32: a 16-bit edge's gradient squared overflows i32.
+        let (gx, gy) = (gx as f32, gy as f32);
+        (gx * gx + gy * gy).sqrt()
+    }));
 }
 
 /// Otsu's threshold over `values` (256 bins from 0 to the maximum): the bin edge that
@@ -93,10 +104,13 @@ pub fn otsu(values: impl Iterator<Item = f32> + Clone) -> f32 {
     }
     const BINS: usize = 256;
     let scale = (BINS as f32 - 1e-3) / max;
-    let mut hist = [0u64; BINS];
-    for v in values {
-        hist[((v * scale) as usize).min(BINS - 1)] += 1;
+    // Four interleaved histograms: runs of equal bins (the flat sky and Earth) would otherwise
+    // chain every increment through one memory cell.
+    let mut parts = [[0u32; BINS]; 4];
+    for (k, v) in values.enumerate() {
+        parts[k & 3][((v * scale) as usize).min(BINS - 1)] += 1;
     }
+    let hist: [u64; BINS] = std::array::from_fn(|b| parts.iter().map(|p| u64::from(p[b])).sum());
     let total: u64 = hist.iter().sum();
     let sum_all: f64 = hist
         .iter()
@@ -139,14 +153,21 @@ impl EdgeExtractor {
         }
         let r_blind = cam.f_px * cfg.blind_zone_half_deg.to_radians();
         let r_circle = cfg.image_circle_px.unwrap_or(f64::INFINITY);
-        self.valid.clear();
+        self.spans.clear();
         for y in 1..h - 1 {
             let dy = y as f64 - cam.y0_px;
+            let mut run: Option<(usize, usize)> = None;
             for x in 1..w - 1 {
                 let r = (x as f64 - cam.x0_px).hypot(dy);
+                let i = y * w + x;
                 if r >= r_blind && r <= r_circle {
-                    self.valid.push((y * w + x) as u32);
+                    run = Some(run.map_or((i, 1), |(s, n)| (s, n + 1)));
+                } else if let Some((s, n)) = run.take() {
+                    self.spans.push((s as u32, n as u32));
                 }
+            }
+            if let Some((s, n)) = run {
+                self.spans.push((s as u32, n as u32));
             }
         }
         self.strong_map.clear();
@@ -178,17 +199,24 @@ impl EdgeExtractor {
         let w = width;
         self.build_masks(width, height, cam, cfg);
         self.magnitude.clear();
-        self.magnitude
-            .extend(self.valid.iter().map(|&i| sobel_at(px, w, i as usize)));
+        for &(start, len) in &self.spans {
+            let (start, len) = (start as usize, len as usize);
+            sobel_run(px, w, start, len, &mut self.magnitude);
+        }
         let threshold_dn = cfg
             .threshold_dn
             .unwrap_or_else(|| otsu(self.magnitude.iter().copied()));
         self.strong.clear();
-        for (&i, &g) in self.valid.iter().zip(&self.magnitude) {
-            if g >= threshold_dn && g > 0.0 {
-                self.strong.push(i);
-                self.strong_map[i as usize] = 1;
+        let mut k = 0;
+        for &(start, len) in &self.spans {
+            for (j, &g) in self.magnitude[k..k + len as usize].iter().enumerate() {
+                if g >= threshold_dn && g > 0.0 {
+                    let i = start + j as u32;
+                    self.strong.push(i);
+                    self.strong_map[i as usize] = 1;
+                }
             }
+            k += len as usize;
         }
         // Eq 5 with B the 3×3 square: kept where the whole neighbourhood is strong (a strong
         // pixel is never on the frame's border, so its neighbours exist).

@@ -29,6 +29,30 @@ fn sobel_of_a_ramp_is_eight_times_its_slope() {
     }
 }
 
+/// The kernel of eq 3 written out, on a 16-bit step whose squared gradient exceeds i32.
+#[test]
+fn sobel_matches_eq_3_on_a_full_range_step() {
+    let (w, h) = (5usize, 5usize);
+    let px: Vec<u16> = (0..w * h)
+        .map(|i| if i % w >= 3 { 65535 } else { 0 })
+        .collect();
+    let z = |x: usize, y: usize| f64::from(px[y * w + x]);
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let gy = (z(x - 1, y + 1) + 2.0 * z(x, y + 1) + z(x + 1, y + 1))
+                - (z(x - 1, y - 1) + 2.0 * z(x, y - 1) + z(x + 1, y - 1));
+            let gx = (z(x + 1, y - 1) + 2.0 * z(x + 1, y) + z(x + 1, y + 1))
+                - (z(x - 1, y - 1) + 2.0 * z(x - 1, y) + z(x - 1, y + 1));
+            let g = (gx * gx + gy * gy).sqrt();
+            assert!(
+                (f64::from(sobel(&px, w, x, y)) - g).abs() <= 1e-6 * g.max(1.0),
+                "({x}, {y})"
+            );
+        }
+    }
+    assert_eq!(sobel(&px, w, 3, 2), 4.0 * 65535.0);
+}
+
 #[test]
 fn otsu_splits_two_levels_between_them() {
     let values = [2.0f32; 300].into_iter().chain([90.0f32; 100]);
