@@ -10,8 +10,9 @@
 //!    (a fixed-tolerance optimiser on raw radians is what makes `scipy.stats.t.fit` stop at
 //!    ν ≈ 2 where the MLE is ν ≈ 15).
 //! 2. **EM first.** The paper's EM iteration (17)–(19) with the exact ν root (not the
-//!    approximation (20)) from μ₀ = median, σ₀ = 1.4826·MAD, ν₀ = 5: every step raises the
-//!    likelihood, which brings the start into Newton's basin.
+//!    approximation (20)) from μ₀ = median, σ₀ = 1.4826·MAD and ν₀ from the excess kurtosis
+//!    (math.md's ν₀ = 5 when it is not positive): every step raises the likelihood, which
+//!    brings the start into Newton's basin.
 //! 3. **Newton to the optimum.** Newton's method on (μ, ln σ, ln ν) with the analytic gradient
 //!    and Hessian, each step checked to raise the likelihood (halved until it does; an EM step
 //!    if the Hessian is not negative definite), until the step is below 1e-9 in standardised
@@ -329,13 +330,31 @@ fn clamp_nu(p: Params) -> Params {
     }
 }
 
+/// ν₀ from the sample's excess kurtosis κ (t_ν has κ = 6/(ν − 4)): 4 + 6/κ, within [2, 200];
+/// 5 (math.md's start) when κ is not positive. Starting near the answer saves Newton the long
+/// walk along ℓ's flat ν direction.
+fn initial_nu(z: &[f64]) -> f64 {
+    let n = z.len() as f64;
+    let mean = z.iter().sum::<f64>() / n;
+    let (m2, m4) = z.iter().fold((0.0, 0.0), |(a, b), v| {
+        let d2 = (v - mean).powi(2);
+        (a + d2, b + d2 * d2)
+    });
+    let kurtosis = (m4 / n) / (m2 / n).powi(2) - 3.0;
+    if kurtosis > 0.0 {
+        (4.0 + 6.0 / kurtosis).clamp(2.0, 200.0)
+    } else {
+        5.0
+    }
+}
+
 /// The fit on standardised samples (median 0, robust scale 1); returns the optimum and the
 /// iterations taken.
 fn fit_standardised(z: &[f64]) -> (Params, usize) {
     let mut p = Params {
         mu: 0.0,
         ln_sigma: 0.0,
-        ln_nu: 5.0_f64.ln(),
+        ln_nu: initial_nu(z).ln(),
     };
     let mut iterations = 0;
     for _ in 0..EM_STEPS {
