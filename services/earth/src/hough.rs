@@ -94,7 +94,9 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
 /// Reusable accumulator of the Hough stage.
 #[derive(Default)]
 pub struct Hough {
+    /// Zero between frames: only the cells a frame voted for are reset.
     votes: Vec<u32>,
+    touched: Vec<u32>,
     radii: Vec<u32>,
 }
 
@@ -125,8 +127,11 @@ impl Hough {
         {
             return None;
         }
-        self.votes.clear();
-        self.votes.resize(w * h, 0);
+        if self.votes.len() != w * h {
+            self.votes.clear();
+            self.votes.resize(w * h, 0);
+        }
+        self.touched.clear();
         let (r0, r1) = (r_min_px.max(1.0).round() as i64, r_max_px.round() as i64);
         for &(x, y) in edges_px {
             let (xi, yi) = (x as usize, y as usize);
@@ -146,29 +151,40 @@ impl Hough {
                     let cx = (x + sign * r as f64 * ux).round();
                     let cy = (y + sign * r as f64 * uy).round();
                     if cx >= 0.0 && cy >= 0.0 && (cx as usize) < w && (cy as usize) < h {
-                        self.votes[cy as usize * w + cx as usize] += 1;
+                        let i = cy as usize * w + cx as usize;
+                        if self.votes[i] == 0 {
+                            self.touched.push(i as u32);
+                        }
+                        self.votes[i] += 1;
                     }
                 }
             }
         }
-        // The best centre, its votes summed over its 3×3 neighbourhood (rounding spreads them).
+        // The best centre, its votes summed over its 3×3 neighbourhood (rounding spreads them),
+        // looked for among the cells with at least a third of the busiest cell's votes.
+        let peak = (self.touched.iter())
+            .map(|&i| self.votes[i as usize])
+            .max()
+            .unwrap_or(0);
         let mut best = (0u32, 0usize);
-        for y in 1..h - 1 {
-            for x in 1..w - 1 {
-                let i = y * w + x;
-                if self.votes[i] == 0 {
-                    continue;
-                }
-                let s: u32 = (0..3)
-                    .map(|dy| {
-                        let row = (y + dy - 1) * w + x - 1;
-                        self.votes[row..row + 3].iter().sum::<u32>()
-                    })
-                    .sum();
-                if s > best.0 {
-                    best = (s, i);
-                }
+        for &i in &self.touched {
+            let i = i as usize;
+            let (x, y) = (i % w, i / w);
+            if 3 * self.votes[i] < peak || x == 0 || y == 0 || x == w - 1 || y == h - 1 {
+                continue;
             }
+            let s: u32 = (0..3)
+                .map(|dy| {
+                    let row = (y + dy - 1) * w + x - 1;
+                    self.votes[row..row + 3].iter().sum::<u32>()
+                })
+                .sum();
+            if s > best.0 || (s == best.0 && i < best.1) {
+                best = (s, i);
+            }
+        }
+        for &i in &self.touched {
+            self.votes[i as usize] = 0;
         }
         if best.0 == 0 {
             return None;

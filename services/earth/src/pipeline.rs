@@ -20,7 +20,8 @@ pub struct EarthConfig {
     pub lookup_bins: usize,
     /// σ(μ) of the lookup version; None: the frame's own fitted σ (an uncalibrated sensor).
     pub sigma_table: Option<SigmaTable>,
-    /// The Hough radius range: f ρ_E ± this fraction of f.
+    /// The Hough radius range: f ρ_E ± this fraction of f (0.15: ±8.6° of limb radius, wider
+    /// than the limb circle's change up to β = 50°).
     pub hough_radius_band: f64,
 }
 
@@ -32,7 +33,7 @@ impl EarthConfig {
             edges: EdgeConfig::default(),
             lookup_bins: 180,
             sigma_table: None,
-            hough_radius_band: 0.25,
+            hough_radius_band: 0.15,
         }
     }
 }
