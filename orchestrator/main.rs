@@ -258,30 +258,27 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((side(w)?, side(h)?))
 }
 
-/// A focal length in px/rad, 1 to 100000.
-fn parse_positive(s: &str) -> Result<f64, String> {
+/// A number within [lo, hi], `unit` after it in the error ("" for none).
+fn parse_within(s: &str, lo: f64, hi: f64, unit: &str) -> Result<f64, String> {
     let v: f64 = s
         .trim()
         .parse()
         .map_err(|_| format!("`{s}` is not a number"))?;
-    if v.is_finite() && (1.0..=1e5).contains(&v) {
+    if v.is_finite() && (lo..=hi).contains(&v) {
         Ok(v)
     } else {
-        Err(format!("{v} is out of range: allowed 1 to 100000"))
+        Err(format!("{v}{unit} is out of range: allowed {lo} to {hi}"))
     }
+}
+
+/// A focal length in px/rad, 1 to 100000.
+fn parse_positive(s: &str) -> Result<f64, String> {
+    parse_within(s, 1.0, 1e5, "")
 }
 
 /// An altitude in km, 100 to 100000.
 fn parse_altitude(s: &str) -> Result<f64, String> {
-    let v: f64 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{s}` is not a number"))?;
-    if v.is_finite() && (100.0..=1e5).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("{v} km is out of range: allowed 100 to 100000"))
-    }
+    parse_within(s, 100.0, 1e5, " km")
 }
 
 /// `X,Y` in pixels, each finite and within ±1e6.

@@ -4,6 +4,17 @@ mod common;
 
 use common::{glint, temp_dir};
 
+/// Runs a glint command, asserts success, parses its JSON output.
+fn glint_json(cmd: &mut std::process::Command) -> serde_json::Value {
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 /// `glint tool tfit` on the 20 samples of docs/math.md §7.4 prints the high-precision MLE.
 #[test]
 fn tool_tfit_prints_the_mle_of_a_sample_file() {
@@ -19,13 +30,7 @@ fn tool_tfit_prints_the_mle_of_a_sample_file() {
         )
         .collect();
     std::fs::write(&file, text).unwrap();
-    let out = glint().args(["tool", "tfit"]).arg(&file).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = glint_json(glint().args(["tool", "tfit"]).arg(&file));
     let f = |k: &str| v[k].as_f64().unwrap();
     assert_eq!(v["n"], 20);
     assert!((f("mu") - 10.0087229834).abs() < 1e-8, "{v}");
@@ -103,25 +108,14 @@ fn tool_earth_reads_beta_from_a_fisheye_frame() {
     let file = dir.join("earth.pgm");
     let (w, h, f, c) = (512, 512, 130.0, (255.5, 255.5));
     write_pgm16(&file, w, h, &earth_frame(w, h, f, c, -12.0));
-    let out = glint()
-        .args(["tool", "earth"])
-        .arg(&file)
-        .args([
-            "--f-px",
-            "130",
-            "--center",
-            "255.5,255.5",
-            "--altitude-km",
-            "950",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = glint_json(glint().args(["tool", "earth"]).arg(&file).args([
+        "--f-px",
+        "130",
+        "--center",
+        "255.5,255.5",
+        "--altitude-km",
+        "950",
+    ]));
     let b = |m: &str| v["beta_deg"][m].as_f64().unwrap();
     assert!((b("cross_product") - 12.0).abs() < 0.02, "{v}");
     assert!((b("lookup") - 12.0).abs() < 0.05, "{v}");
@@ -157,17 +151,12 @@ fn tool_earth_calibrate_writes_the_table_the_lookup_version_reads() {
         })
         .collect();
     let table = dir.join("sigma.csv");
-    let out = glint()
-        .args(["tool", "earth-calibrate"])
-        .args(&frames)
-        .args(["--f-px", "130", "--center", "255.5,255.5", "--out"])
-        .arg(&table)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    glint_json(
+        glint()
+            .args(["tool", "earth-calibrate"])
+            .args(&frames)
+            .args(["--f-px", "130", "--center", "255.5,255.5", "--out"])
+            .arg(&table),
     );
     let csv = std::fs::read_to_string(&table).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
@@ -182,19 +171,13 @@ fn tool_earth_calibrate_writes_the_table_the_lookup_version_reads() {
     }
     let frame = dir.join("x.pgm");
     write_pgm16(&frame, w, h, &earth_frame(w, h, f, c, 9.0));
-    let out = glint()
-        .args(["tool", "earth"])
-        .arg(&frame)
-        .args(["--f-px", "130", "--center", "255.5,255.5", "--sigma-table"])
-        .arg(&table)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let v = glint_json(
+        glint()
+            .args(["tool", "earth"])
+            .arg(&frame)
+            .args(["--f-px", "130", "--center", "255.5,255.5", "--sigma-table"])
+            .arg(&table),
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["lookup_sigma"], "the calibrated table");
     assert!(
         (v["beta_deg"]["lookup"].as_f64().unwrap() - 9.0).abs() < 0.05,

@@ -6,7 +6,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use glint_earth::edges::{EdgeConfig, EdgeExtractor};
 use glint_earth::pipeline::{EarthConfig, EarthCore};
-use glint_earth::ring::{earth_angular_radius_rad, Fisheye};
+use glint_earth::ring::Fisheye;
 use std::hint::black_box;
 
 const CAM: Fisheye = Fisheye {
@@ -15,25 +15,9 @@ const CAM: Fisheye = Fisheye {
     y0_px: 255.5,
 };
 
-fn frame(w: usize, h: usize, tilt_deg: f64) -> Vec<u16> {
-    let rho = earth_angular_radius_rad(950.0);
-    let t = tilt_deg.to_radians();
-    let e = [t.sin(), 0.0, t.cos()];
-    (0..w * h)
-        .map(|i| {
-            let u = CAM.direction((i % w) as f64, (i / w) as f64);
-            let angle = (u[0] * e[0] + u[1] * e[1] + u[2] * e[2])
-                .clamp(-1.0, 1.0)
-                .acos();
-            let d_px = (angle - rho) * CAM.f_px;
-            (20.0 + 3000.0 * 0.5 * libm::erfc(d_px / (1.2 * std::f64::consts::SQRT_2))) as u16
-        })
-        .collect()
-}
-
 fn bench_frame(c: &mut Criterion) {
     let (w, h) = (512, 512);
-    let px = frame(w, h, 12.0);
+    let px = glint_earth::synthetic::blurred_earth(w, h, &CAM, 12.0);
     let mut ex = EdgeExtractor::default();
     let cfg = EdgeConfig::default();
     c.bench_function("edges/512", |b| {

@@ -1,5 +1,5 @@
 use super::*;
-use crate::ring::{cross_product_samples, earth_angular_radius_rad};
+use crate::ring::cross_product_samples;
 
 const CAM: Fisheye = Fisheye {
     f_px: 100.0,
@@ -145,22 +145,9 @@ fn bad_frames_are_errors() {
 #[test]
 fn a_rendered_disk_gives_beta_through_the_whole_chain() {
     let (w, h) = (256usize, 256usize);
-    let rho = earth_angular_radius_rad(950.0);
     let mut ex = EdgeExtractor::default();
     for tilt in [-8.0f64, 3.0, 20.0] {
-        let e = [tilt.to_radians().sin(), 0.0, tilt.to_radians().cos()];
-        // The limb blurred by a Gaussian PSF of 1.2 px: brightness ½ erfc(d / (σ√2)) at d px
-        // outside the limb.
-        let px: Vec<u16> = (0..w * h)
-            .map(|i| {
-                let u = CAM.direction((i % w) as f64, (i / w) as f64);
-                let angle = (u[0] * e[0] + u[1] * e[1] + u[2] * e[2])
-                    .clamp(-1.0, 1.0)
-                    .acos();
-                let d_px = (angle - rho) * CAM.f_px;
-                (3000.0 * 0.5 * libm::erfc(d_px / (1.2 * std::f64::consts::SQRT_2))) as u16
-            })
-            .collect();
+        let px = crate::synthetic::blurred_earth(w, h, &CAM, tilt);
         let edges = ex.extract(&px, w, h, &CAM, &EdgeConfig::default()).unwrap();
         assert!(edges.points_px.len() > 200, "{}", edges.points_px.len());
         let pts: Vec<[f64; 3]> = edges

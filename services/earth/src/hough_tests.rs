@@ -80,17 +80,7 @@ fn the_hough_baseline_finds_the_limb_of_a_rendered_frame() {
     let rho = earth_angular_radius_rad(950.0);
     let (mut ex, mut hough) = (EdgeExtractor::default(), Hough::default());
     for (tilt, model) in [(5.0f64, 5.00043), (-20.0, -20.0283)] {
-        let e = [tilt.to_radians().sin(), 0.0, tilt.to_radians().cos()];
-        let px: Vec<u16> = (0..w * h)
-            .map(|i| {
-                let u = CAM.direction((i % w) as f64, (i / w) as f64);
-                let angle = (u[0] * e[0] + u[1] * e[1] + u[2] * e[2])
-                    .clamp(-1.0, 1.0)
-                    .acos();
-                let d_px = (angle - rho) * CAM.f_px;
-                (3000.0 * 0.5 * libm::erfc(d_px / (1.2 * std::f64::consts::SQRT_2))) as u16
-            })
-            .collect();
+        let px = crate::synthetic::blurred_earth(w, h, &CAM, tilt);
         let edges = ex.extract(&px, w, h, &CAM, &EdgeConfig::default()).unwrap();
         let r = CAM.f_px * rho;
         let est = hough

@@ -10,6 +10,7 @@
 //!   product (§4.3–4.4).
 //! - [`tfit`]: the t location-scale maximum-likelihood fit of the β_k samples (§4.5).
 //! - [`special`]: digamma and trigamma, which the fit needs.
+//! - [`synthetic`]: reference frames in closed form, for tests and benchmarks.
 //! - [`samples`]: the sample files `glint tool tfit` reads.
 
 pub mod edges;
@@ -19,4 +20,5 @@ pub mod pipeline;
 pub mod ring;
 pub mod samples;
 pub mod special;
+pub mod synthetic;
 pub mod tfit;
