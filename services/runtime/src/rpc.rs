@@ -92,6 +92,10 @@ pub struct RpcServer<R: Rpc> {
     pub stats: TopicStats,
     /// Injected drops and corruptions of responses still to apply.
     pub tamper: Tamper,
+    /// Per client (producer id): the highest request id answered. A request at or below it
+    /// is a retry (its answer was slow, or lost with a restart): answered again, counted as a
+    /// duplicate, so `received` counts distinct requests whatever the timing.
+    answered: Vec<(u32, u64)>,
 }
 
 impl<R: Rpc> RpcServer<R> {
@@ -117,6 +121,7 @@ impl<R: Rpc> RpcServer<R> {
                 producer,
                 stats: TopicStats::new(R::TOPIC),
                 tamper: Tamper::default(),
+                answered: Vec::new(),
             },
             listener,
         ))
@@ -150,7 +155,18 @@ impl<R: Rpc> RpcServer<R> {
             let req = Request { active, payload };
             match payload.check() {
                 Ok(()) => {
-                    self.stats.accept();
+                    let (client, id) = (payload.meta().producer, payload.meta().seq);
+                    match self.answered.iter_mut().find(|(c, _)| *c == client) {
+                        Some((_, last)) if id <= *last => self.stats.duplicates += 1,
+                        Some((_, last)) => {
+                            *last = id;
+                            self.stats.accept();
+                        }
+                        None => {
+                            self.answered.push((client, id));
+                            self.stats.accept();
+                        }
+                    }
                     return Ok(Some(req));
                 }
                 Err(_) => {
