@@ -173,9 +173,10 @@ fn a_stop_past_the_heartbeat_deadline_is_detected_by_it_and_restarted() {
     let f = fault(&r.report);
     assert_recovered(f, "heartbeat deadline");
     let latency = secs(f, "detected_s") - secs(f, "injected_s");
-    // The deadline (less the heartbeat period before the stop), plus the target's 0.1 s and a
-    // supervision tick's margin.
-    assert!((0.25..0.5).contains(&latency), "detected {latency} s after");
+    // The deadline runs from the last heartbeat heard, up to one period before the stop and
+    // another period earlier when a loaded machine delays that heartbeat (so ≥ 300 − 2·50 ms);
+    // at most the deadline plus the target's 0.1 s and a supervision tick's margin.
+    assert!((0.2..0.5).contains(&latency), "detected {latency} s after");
     // The stop ended when supervision killed it, long before its 30 s.
     assert_eq!(secs(f, "ended_s"), secs(f, "detected_s"), "{f}");
     assert_eq!(science(&r.report), science(&clean.report));
