@@ -11,12 +11,13 @@ use glint_runtime::TopicStats;
 use iceoryx2::port::listener::Listener;
 use shared_types::scenario::FaultKind;
 use shared_types::topics::{
-    ack_service, control_service, detections_service, frame_service, heartbeat_service,
-    spectrum_service, tracks_service, truth_service, Ipc, IpcNode,
+    ack_service, control_service, detections_service, earth_attitude_service, earth_frame_service,
+    frame_service, heartbeat_service, spectrum_service, tracks_service, truth_service, Ipc,
+    IpcNode,
 };
 use shared_types::{
-    deployment, Ack, Command, Control, Detections, DropReason, Heartbeat, InBandFault, Replay,
-    Scenario, ServiceId, Spectrum, TopicCounters, TopicId, Tracks, Truth,
+    deployment, Ack, Command, Control, Detections, DropReason, EarthAttitude, Heartbeat,
+    InBandFault, Replay, Scenario, ServiceId, Spectrum, TopicCounters, TopicId, Tracks, Truth,
 };
 use xxhash_rust::xxh3::Xxh3;
 
@@ -32,6 +33,8 @@ pub struct Consumer {
     pub truth: Inbox<Truth>,
     pub detections: Option<Inbox<Detections>>,
     pub tracks: Option<Inbox<Tracks>>,
+    pub earth_frames: Option<FrameInbox>,
+    pub earth: Option<Inbox<EarthAttitude>>,
     heartbeats: Inbox<Heartbeat>,
     control: Outbox<Control>,
     acks: Outbox<Ack>,
@@ -52,6 +55,12 @@ pub struct Consumer {
     snapshot_frame: u64,
     detections_digest: Xxh3,
     tracks_digest: Xxh3,
+    earth_frame_digest: Xxh3,
+    earth_digest: Xxh3,
+    pub earth_msgs: Vec<EarthAttitude>,
+    /// Pixels of one Earth frame for the annotated picture (frame index, width, height, pixels).
+    pub earth_snapshot: Option<(u64, u32, u32, Vec<u16>)>,
+    earth_snapshot_frame: u64,
     /// Received spectra, reduced for the light-curve plot: (stream index, band centres, flux).
     pub light_curve: Vec<(u64, [f64; 3], [f64; 3])>,
     /// Every received spectrum (exported as `observations.csv`).
@@ -71,6 +80,8 @@ pub struct Listeners {
     pub spectrum: Option<Listener<Ipc>>,
     pub detections: Option<Listener<Ipc>>,
     pub tracks: Option<Listener<Ipc>>,
+    pub earth_frame: Option<Listener<Ipc>>,
+    pub earth: Option<Listener<Ipc>>,
 }
 
 impl Consumer {
@@ -106,6 +117,22 @@ impl Consumer {
         } else {
             (None, None)
         };
+        let (earth_frames, earth_frame_l) = if consumes(TopicId::EarthFrame) {
+            let service = earth_frame_service(node, scenario.earth_px())?;
+            let (mut i, l) = FrameInbox::open_on(node, TopicId::EarthFrame, &service)?;
+            // The earth service verifies the pixel checksum; the orchestrator reads headers.
+            i.verify_checksum = false;
+            (Some(i), Some(l))
+        } else {
+            (None, None)
+        };
+        let (earth, earth_l) = if consumes(TopicId::EarthAttitude) {
+            let service = earth_attitude_service(node)?;
+            let (i, l) = Inbox::open(node, TopicId::EarthAttitude, &service)?;
+            (Some(i), Some(l))
+        } else {
+            (None, None)
+        };
         let (mut heartbeats, hb_l) =
             Inbox::open(node, TopicId::Heartbeat, &heartbeat_service(node)?)?;
         // A restarted service's heartbeats start again at seq 0.
@@ -119,6 +146,8 @@ impl Consumer {
             TopicId::Truth,
             TopicId::Detections,
             TopicId::Tracks,
+            TopicId::EarthFrame,
+            TopicId::EarthAttitude,
         ] {
             if consumes(t) {
                 expected.insert(t, deployment::expected_messages(scenario, t));
@@ -131,6 +160,8 @@ impl Consumer {
                 truth,
                 detections,
                 tracks,
+                earth_frames,
+                earth,
                 heartbeats,
                 control,
                 acks,
@@ -147,6 +178,11 @@ impl Consumer {
                 snapshot_frame: 1,
                 detections_digest: Xxh3::new(),
                 tracks_digest: Xxh3::new(),
+                earth_frame_digest: Xxh3::new(),
+                earth_digest: Xxh3::new(),
+                earth_msgs: vec![],
+                earth_snapshot: None,
+                earth_snapshot_frame: earth_snapshot_frame(scenario),
                 light_curve: vec![],
                 spectra_msgs: vec![],
                 seen: BTreeMap::new(),
@@ -160,6 +196,8 @@ impl Consumer {
                 spectrum: spectrum_l,
                 detections: detections_l,
                 tracks: tracks_l,
+                earth_frame: earth_frame_l,
+                earth: earth_l,
             },
         ))
     }
@@ -262,6 +300,35 @@ impl Consumer {
             let next = drain_keep(inbox, &mut self.tracks_digest, &mut self.track_msgs)?;
             self.ack(TopicId::Tracks, next)?;
         }
+        if let Some(frames) = self.earth_frames.as_mut() {
+            let digest = &mut self.earth_frame_digest;
+            let (snap, want) = (&mut self.earth_snapshot, self.earth_snapshot_frame);
+            frames.drain(|h, pixels, _| {
+                digest.update(&h.meta.seq.to_le_bytes());
+                digest.update(&h.pixels_xxh3.to_le_bytes());
+                if h.frame_index == want {
+                    *snap = Some((h.frame_index, h.width_px, h.height_px, pixels.to_vec()));
+                }
+                Ok(())
+            })?;
+            let next = frames.stats.next_seq;
+            self.ack(TopicId::EarthFrame, next)?;
+        }
+        if let Some(inbox) = self.earth.as_mut() {
+            let (digest, keep) = (&mut self.earth_digest, &mut self.earth_msgs);
+            inbox.drain(|r| {
+                // The answers, not what they took: compute times differ between runs.
+                let mut m = *r.msg;
+                for method in &mut m.methods {
+                    method.time_us = 0.0;
+                }
+                hash_pod(digest, &m);
+                keep.push(*r.msg);
+                Ok(())
+            })?;
+            let next = inbox.stats.next_seq;
+            self.ack(TopicId::EarthAttitude, next)?;
+        }
         let (digest, truths) = (&mut self.truth_digest, &mut self.truths);
         self.truth.drain(|r| {
             let t = r.msg;
@@ -272,10 +339,9 @@ impl Consumer {
                     digest.update(&v.to_le_bytes());
                 }
             }
-            for v in t
-                .attitude_body_rest
-                .iter()
+            for v in (t.attitude_body_rest.iter())
                 .chain(t.rate_deg_per_frame.iter())
+                .chain([t.earth_beta_deg, t.earth_tilt_deg].iter())
             {
                 digest.update(&v.to_le_bytes());
             }
@@ -343,6 +409,12 @@ impl Consumer {
         if let Some(t) = &self.tracks {
             v.push(&t.stats);
         }
+        if let Some(f) = &self.earth_frames {
+            v.push(&f.stats);
+        }
+        if let Some(e) = &self.earth {
+            v.push(&e.stats);
+        }
         v
     }
 
@@ -361,6 +433,7 @@ impl Consumer {
         let (service, input) = match topic {
             TopicId::Detections => (ServiceId::Detector, TopicId::Frame),
             TopicId::Tracks => (ServiceId::Tracker, TopicId::Detections),
+            TopicId::EarthAttitude => (ServiceId::Earth, TopicId::EarthFrame),
             _ => return want,
         };
         let upstream = self.expected_now(input).min(want);
@@ -401,6 +474,12 @@ impl Consumer {
         if self.tracks.is_some() {
             m.insert(TopicId::Tracks, self.tracks_digest.digest());
         }
+        if self.earth_frames.is_some() {
+            m.insert(TopicId::EarthFrame, self.earth_frame_digest.digest());
+        }
+        if self.earth.is_some() {
+            m.insert(TopicId::EarthAttitude, self.earth_digest.digest());
+        }
         m
     }
 
@@ -414,6 +493,23 @@ impl Consumer {
                 .copied()
         })
     }
+}
+
+/// The Earth frame kept for the annotated picture: the first at the angle nearest 20° (a ring
+/// clear of the blind zone and of the image circle's edge).
+fn earth_snapshot_frame(scenario: &Scenario) -> u64 {
+    let Some(e) = &scenario.earth else {
+        return u64::MAX;
+    };
+    let angles = e.angles_deg();
+    let best = (0..angles.len())
+        .min_by(|&a, &b| {
+            (angles[a].abs() - 20.0)
+                .abs()
+                .total_cmp(&(angles[b].abs() - 20.0).abs())
+        })
+        .unwrap_or(0);
+    best as u64 * e.images_per_angle as u64
 }
 
 /// Receives everything queued on `inbox`, folding each message into `digest` and keeping it;

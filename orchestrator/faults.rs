@@ -55,27 +55,39 @@ pub struct Action {
 /// the sensor, what it produces).
 pub fn trigger_topic(scenario: &Scenario, service: ServiceId) -> TopicId {
     match service {
-        ServiceId::Sensor if scenario.camera.is_none() => TopicId::Spectrum,
-        ServiceId::Sensor | ServiceId::Detector => TopicId::Frame,
+        ServiceId::Sensor => sensor_main_output(scenario),
+        ServiceId::Detector => TopicId::Frame,
         ServiceId::Tracker => TopicId::Detections,
+        ServiceId::Earth => TopicId::EarthFrame,
         _ => TopicId::Spectrum,
     }
 }
 
-/// The output an in-band `drop` or `corrupt` fault hits: the sensor's frames (or spectra
-/// without a camera), the detector's detections, the tracker's tracks; the inversion's are its
-/// solve answers ([`TopicId::Solve`]).
-pub fn output_topic(scenario: &Scenario, service: ServiceId) -> TopicId {
-    output_topic_of(scenario.camera.is_some(), service)
+/// The sensor's main output (its first): camera frames, else spectra, else Earth frames.
+pub fn sensor_main_output(scenario: &Scenario) -> TopicId {
+    if scenario.camera.is_some() {
+        TopicId::Frame
+    } else if scenario.spectra.is_some() {
+        TopicId::Spectrum
+    } else {
+        TopicId::EarthFrame
+    }
 }
 
-/// [`output_topic`] for a deployment with or without a camera.
-pub fn output_topic_of(camera: bool, service: ServiceId) -> TopicId {
+/// The output an in-band `drop` or `corrupt` fault hits: the sensor's main output
+/// ([`sensor_main_output`]), the detector's detections, the tracker's tracks, the earth
+/// service's attitudes; the inversion's are its solve answers ([`TopicId::Solve`]).
+pub fn output_topic(scenario: &Scenario, service: ServiceId) -> TopicId {
+    output_topic_of(sensor_main_output(scenario), service)
+}
+
+/// [`output_topic`] given the sensor's main output.
+pub fn output_topic_of(sensor_main: TopicId, service: ServiceId) -> TopicId {
     match service {
-        ServiceId::Sensor if !camera => TopicId::Spectrum,
-        ServiceId::Sensor => TopicId::Frame,
+        ServiceId::Sensor => sensor_main,
         ServiceId::Detector => TopicId::Detections,
         ServiceId::Tracker => TopicId::Tracks,
+        ServiceId::Earth => TopicId::EarthAttitude,
         _ => TopicId::Solve,
     }
 }

@@ -331,15 +331,22 @@ enum ToolCmd {
         sigma_table: Option<PathBuf>,
     },
     /// The [003] lookup version's σ(μ) table from calibration frames (fisheye Earth images at
-    /// known angles, 16- or 8-bit PGM): one t fit per frame; writes CSV `mu_deg,sigma_deg`.
+    /// known angles, 16- or 8-bit PGM), or from a scenario's own `[earth]` sensor at 0°–60°:
+    /// one t fit per frame; writes CSV `mu_deg,sigma_deg`.
     EarthCalibrate {
         /// Calibration frames.
-        #[arg(required = true)]
+        #[arg(required_unless_present = "scenario")]
         frames: Vec<PathBuf>,
-        #[arg(long = "f-px", value_parser = parse_positive)]
-        f_px: f64,
-        #[arg(long, value_parser = parse_point)]
-        center: (f64, f64),
+        /// Calibrate a scenario's `[earth]` sensor on frames it renders (instead of files).
+        #[arg(long, conflicts_with_all = ["frames", "f_px", "center"])]
+        scenario: Option<PathBuf>,
+        /// Frames per angle with `--scenario`.
+        #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=100))]
+        images: u32,
+        #[arg(long = "f-px", value_parser = parse_positive, required_unless_present = "scenario")]
+        f_px: Option<f64>,
+        #[arg(long, value_parser = parse_point, required_unless_present = "scenario")]
+        center: Option<(f64, f64)>,
         #[arg(long = "altitude-km", default_value_t = 950.0, value_parser = parse_altitude)]
         altitude_km: f64,
         /// The table file to write.
@@ -355,12 +362,28 @@ enum ToolCmd {
         out: PathBuf,
         #[arg(long)]
         seed: Option<u64>,
+        /// Render the `[earth]` sensor's frame instead of the camera's.
+        #[arg(long)]
+        earth: bool,
     },
 }
 
 fn load(path: Option<&PathBuf>) -> Result<(Scenario, String), ScenarioError> {
     match path {
-        Some(p) => Ok((Scenario::from_file(p)?, p.display().to_string())),
+        Some(p) => {
+            let sc = Scenario::from_file(p)?;
+            // The files a scenario names are read now, not by a service after deployment.
+            if let Some(Err(e)) = (sc.earth.as_ref()).map(glint_earth::service_core::sigma_table) {
+                return Err(ScenarioError::Invalid {
+                    file: p.display().to_string(),
+                    errors: vec![shared_types::scenario::FieldError {
+                        field: "earth.sigma_table".into(),
+                        message: e.to_string(),
+                    }],
+                });
+            }
+            Ok((sc, p.display().to_string()))
+        }
         None => Ok((
             Scenario::from_toml_str(DEFAULT_SCENARIO, "(built-in default)")?,
             "(built-in default)".to_string(),
@@ -457,14 +480,16 @@ fn main() -> ExitCode {
             }
             ExitCode::SUCCESS
         }
-        Cmd::Validate { scenario } => match Scenario::from_file(&scenario) {
-            Ok(s) => {
+        Cmd::Validate { scenario } => match load(Some(&scenario)) {
+            Ok((s, _)) => {
+                let yes = |b: bool| if b { "yes" } else { "no" };
                 println!(
-                    "{}: ok ({}: camera {}, spectra {})",
+                    "{}: ok ({}: camera {}, spectra {}, earth {})",
                     scenario.display(),
                     s.name,
-                    if s.camera.is_some() { "yes" } else { "no" },
-                    if s.spectra.is_some() { "yes" } else { "no" }
+                    yes(s.camera.is_some()),
+                    yes(s.spectra.is_some()),
+                    yes(s.earth.is_some())
                 );
                 ExitCode::SUCCESS
             }
@@ -724,30 +749,43 @@ fn main() -> ExitCode {
                 }
                 ToolCmd::EarthCalibrate {
                     frames,
+                    scenario,
+                    images,
                     f_px,
                     center,
                     altitude_km,
                     out,
-                } => {
-                    let tool = tools::EarthTool {
-                        f_px,
-                        center_px: center,
-                        altitude_km,
-                    };
-                    tools::earth_calibrate(&frames, &tool, &out).map(|j| println!("{j}"))
-                }
+                } => match (scenario, f_px, center) {
+                    (Some(file), _, _) => match Scenario::from_file(&file) {
+                        Ok(sc) => tools::earth_calibrate_scenario(&sc, images, &out)
+                            .map(|j| println!("{j}")),
+                        Err(e) => Err(anyhow::anyhow!("{e}")),
+                    },
+                    (None, Some(f_px), Some(center)) => {
+                        let tool = tools::EarthTool {
+                            f_px,
+                            center_px: center,
+                            altitude_km,
+                        };
+                        tools::earth_calibrate(&frames, &tool, &out).map(|j| println!("{j}"))
+                    }
+                    _ => Err(anyhow::anyhow!(
+                        "give calibration frames with --f-px and --center, or --scenario"
+                    )),
+                },
                 ToolCmd::Tfit { samples } => tools::tfit(&samples).map(|json| println!("{json}")),
                 ToolCmd::Render {
                     scenario,
                     frame,
                     out,
                     seed,
+                    earth,
                 } => match Scenario::from_file(&scenario) {
                     Ok(mut sc) => {
                         if let Some(s) = seed {
                             sc.seed = s;
                         }
-                        tools::render(&sc, frame, &out)
+                        tools::render(&sc, frame, &out, earth)
                     }
                     Err(e) => Err(anyhow::anyhow!("{e}")),
                 },
@@ -791,9 +829,10 @@ fn main() -> ExitCode {
                 Some(ServiceId::Inversion) => {
                     run_service::<glint_inversion::node::InversionNode>(args)
                 }
+                Some(ServiceId::Earth) => run_service::<glint_earth::node::EarthNode>(args),
                 _ => {
                     eprintln!(
-                        "error: unknown service '{name}' (available: sensor, detector, tracker, inversion)"
+                        "error: unknown service '{name}' (available: sensor, detector, tracker, inversion, earth)"
                     );
                     return ExitCode::from(2);
                 }

@@ -103,7 +103,7 @@ fn deploy_and_run(
     progress: bool,
 ) -> Result<RunFacts> {
     let node = open_node(prefix, "orchestrator")?;
-    let _services = shared_types::topics::create_all(&node, scenario.frame_px())?;
+    let _services = shared_types::topics::create_all(&node, scenario)?;
     let (mut consumer, listeners) = Consumer::open(&node, scenario)?;
     let mut sequencer = crate::sequence::Sequencer::open(&node, scenario)?;
 
@@ -132,6 +132,8 @@ fn deploy_and_run(
         &listeners.spectrum,
         &listeners.detections,
         &listeners.tracks,
+        &listeners.earth_frame,
+        &listeners.earth,
     ]
     .into_iter()
     .flatten()

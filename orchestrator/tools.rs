@@ -60,7 +60,10 @@ pub fn detect(path: &Path, threshold_dn: Option<u16>) -> Result<String> {
 }
 
 /// Renders frame `k` of a scenario into a 16-bit PGM.
-pub fn render(scenario: &Scenario, k: u64, out: &Path) -> Result<()> {
+pub fn render(scenario: &Scenario, k: u64, out: &Path, earth: bool) -> Result<()> {
+    if earth {
+        return render_earth(scenario, k, out);
+    }
     let cam = scenario
         .camera
         .as_ref()
@@ -82,6 +85,25 @@ pub fn render(scenario: &Scenario, k: u64, out: &Path) -> Result<()> {
         pixels,
     };
     write_pgm(out, &img).map_err(|e| anyhow!("{}: {e}", out.display()))
+}
+
+/// Earth frame `k` of a scenario's `[earth]` sensor, as the sensor renders it.
+fn render_earth(scenario: &Scenario, k: u64, out: &Path) -> Result<()> {
+    let e = (scenario.earth.as_ref()).context("the scenario has no [earth] section")?;
+    let frames = e.frames();
+    if k >= frames {
+        return Err(anyhow!("--frame {k} is out of range 0..={}", frames - 1));
+    }
+    let scene = glint_sensor::earth_scene::EarthScene::new(e, scenario.seed);
+    let mut pixels = vec![0u16; e.pixels()];
+    scene.render(k, &mut shared_types::FrameHeader::default(), &mut pixels);
+    let img = PgmImage {
+        width: e.width_px as usize,
+        height: e.height_px as usize,
+        maxval: 65535,
+        pixels,
+    };
+    write_pgm(out, &img).map_err(|err| anyhow!("{}: {err}", out.display()))
 }
 
 /// Largest sample file `glint tool tfit` reads.
@@ -146,6 +168,44 @@ pub fn read_sigma_table(path: &Path) -> Result<glint_earth::estimate::SigmaTable
         .with_context(|| format!("{}: cannot read", path.display()))?;
     glint_earth::estimate::SigmaTable::parse(&text, &path.display().to_string())
         .map_err(|e| anyhow!("{e}"))
+}
+
+/// Noise stream of the calibration frames: other noise than any run of the same seed has.
+const CALIBRATION_SEED: u64 = 0xca11_b4a7e;
+
+/// The σ table of a scenario's `[earth]` sensor, calibrated on frames its own renderer makes
+/// at 0°, 1°, …, 60° (`images` per angle, noise independent of the run's), written to `out`.
+pub fn earth_calibrate_scenario(scenario: &Scenario, images: u32, out: &Path) -> Result<String> {
+    let e = (scenario.earth.as_ref()).context("the scenario has no [earth] section")?;
+    let mut section = e.clone();
+    section.sigma_table = None;
+    section.trajectory_deg = (0..=60).map(f64::from).collect();
+    section.images_per_angle = images;
+    let scene =
+        glint_sensor::earth_scene::EarthScene::new(&section, scenario.seed ^ CALIBRATION_SEED);
+    let config = glint_earth::service_core::config(&section).map_err(|err| anyhow!("{err}"))?;
+    let mut core = glint_earth::pipeline::EarthCore::new(config);
+    let (w, h) = (section.width_px as usize, section.height_px as usize);
+    let mut px = vec![0u16; w * h];
+    let mut header = shared_types::FrameHeader::default();
+    let mut fits = vec![];
+    for k in 0..section.frames() {
+        scene.render(k, &mut header, &mut px);
+        let r = core.process(&px, w, h).map_err(|err| anyhow!("{err}"))?;
+        // Keyed by the turntable angle, which calibration knows: the images of one angle
+        // average into one row.
+        if let Some(f) = r.fit {
+            fits.push((scene.tilt_deg(k), f.sigma));
+        }
+    }
+    let table = glint_earth::estimate::SigmaTable::from_fits(&fits);
+    std::fs::write(out, table.to_csv()).with_context(|| format!("writing {}", out.display()))?;
+    Ok(serde_json::to_string_pretty(&json!({
+        "table": out.display().to_string(),
+        "angles": table.points.len(),
+        "frames": section.frames(),
+        "fitted": fits.len(),
+    }))?)
 }
 
 /// β and tilt of one fisheye Earth frame by every [003] method, as JSON.

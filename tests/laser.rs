@@ -35,7 +35,7 @@ fn sensor_answers_range_requests_against_truth() {
     let cam = sc.camera.as_ref().unwrap();
     {
         let node = open_node(&prefix, "test-orchestrator").unwrap();
-        let _services = create_all(&node, sc.frame_px()).unwrap();
+        let _services = create_all(&node, &sc).unwrap();
         let (mut hb, _l) = Inbox::<Heartbeat>::open(
             &node,
             TopicId::Heartbeat,

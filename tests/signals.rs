@@ -35,7 +35,7 @@ fn sigstop_sigcont_does_not_end_a_service_and_shutdown_does() {
     {
         let node = open_node(&prefix, "test-orchestrator").unwrap();
         let sc = shared_types::Scenario::from_file(&scenario("debris-geo.toml")).unwrap();
-        let _services = create_all(&node, sc.frame_px()).unwrap();
+        let _services = create_all(&node, &sc).unwrap();
         let (mut hb, _l) = Inbox::<Heartbeat>::open(
             &node,
             TopicId::Heartbeat,

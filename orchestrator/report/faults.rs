@@ -8,7 +8,7 @@ use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use serde_json::Value;
 use shared_types::scenario::FaultKind;
-use shared_types::{DropReason, ServiceId};
+use shared_types::{DropReason, ServiceId, TopicId};
 
 use super::{producer_of, RunFacts, TopicFact};
 use crate::plots::{BLUE, GREEN, ORANGE, RED};
@@ -55,10 +55,15 @@ fn tampered(f: &RunFacts, service: ServiceId, kind: FaultKind) -> (u64, u64) {
     } else {
         (DropReason::Malformed, DropReason::Malformed)
     };
+    // The sensor's main output is its first topic this run carried.
+    let sensor_main = [TopicId::Frame, TopicId::Spectrum, TopicId::EarthFrame]
+        .into_iter()
+        .find(|t| f.topics.contains_key(t))
+        .unwrap_or(TopicId::Frame);
     let topic = f
         .topics
         .iter()
-        .find(|(t, _)| crate::faults::output_topic_of(f.debris.is_some(), service) == **t);
+        .find(|(t, _)| crate::faults::output_topic_of(sensor_main, service) == **t);
     let Some((_, t)) = topic else {
         return (0, 0);
     };

@@ -1,7 +1,7 @@
 //! The run report: `report.json` (machine-readable) and `summary.md` (what a person reads).
 //!
-//! Everything outside the `run` and `timing` objects and the `pid` fields is a function of the
-//! scenario and the seed alone, so two runs of the same scenario and seed give byte-identical
+//! Everything outside the `run` and `timing` objects, the `pid` fields and the Earth methods'
+//! `time_us_per_frame` is a function of the scenario and the seed alone, so two runs of the same scenario and seed give byte-identical
 //! reports once those are removed (keys are sorted; serde_json's map is a BTreeMap).
 
 use std::collections::BTreeMap;
@@ -13,6 +13,8 @@ use serde_json::{json, Value};
 use shared_types::{deployment, DropReason, Scenario, ServiceId, TopicCounters, TopicId};
 
 pub mod debris;
+pub mod earth;
+mod earth_frame;
 pub mod faults;
 pub mod fit;
 pub mod inversion;
@@ -63,8 +65,17 @@ pub struct DebrisFacts {
     pub truths: Vec<shared_types::Truth>,
 }
 
+/// What the Earth sensor's section and pictures need.
+pub struct EarthFacts {
+    pub score: earth::EarthScore,
+    pub snapshot: Option<(u64, u32, u32, Vec<u16>)>,
+    pub answers: Vec<shared_types::EarthAttitude>,
+    pub truths: Vec<shared_types::Truth>,
+}
+
 pub struct RunFacts {
     pub debris: Option<DebrisFacts>,
+    pub earth: Option<EarthFacts>,
     pub solve: Vec<shared_types::SolveResponse>,
     pub spectra: Vec<shared_types::Spectrum>,
     pub services: Vec<ServiceFact>,
@@ -140,6 +151,8 @@ impl RunFacts {
             TopicId::Detections,
             TopicId::Tracks,
             TopicId::Spectrum,
+            TopicId::EarthFrame,
+            TopicId::EarthAttitude,
             TopicId::Truth,
         ] {
             if deployment::expected_messages(scenario, t) == 0 {
@@ -208,8 +221,21 @@ impl RunFacts {
                 truths: frame_truths,
             }
         });
+        let earth = scenario.earth.as_ref().map(|_| {
+            let truths: Vec<shared_types::Truth> = (consumer.truths.iter())
+                .filter(|t| t.kind == shared_types::Truth::KIND_EARTH)
+                .copied()
+                .collect();
+            EarthFacts {
+                score: earth::score(&truths, &consumer.earth_msgs),
+                snapshot: consumer.earth_snapshot.clone(),
+                answers: consumer.earth_msgs.clone(),
+                truths,
+            }
+        });
         RunFacts {
             debris,
+            earth,
             solve,
             spectra: consumer.spectra_msgs.clone(),
             services,
@@ -313,6 +339,7 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
             .map_or(0, |t: &TopicFact| t.published.unwrap_or(t.expected))
     };
     let (frames, spectra) = (produced(TopicId::Frame), produced(TopicId::Spectrum));
+    let earth_frames = produced(TopicId::EarthFrame);
     let rate = |n: u64| {
         if f.outcome.production_s > 0.0 {
             n as f64 / f.outcome.production_s
@@ -329,8 +356,10 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
             .unwrap_or(Value::Null),
         None => Value::Null,
     };
+    let earth = f.earth.as_ref().map_or(Value::Null, |e| e.score.json());
     json!({
         "inversion": inversion,
+        "earth": earth,
         "detection": detection,
         "tracking": tracking,
         "glint_version": env!("CARGO_PKG_VERSION"),
@@ -340,6 +369,7 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
             "clock": format!("{:?}", scenario.clock).to_lowercase(),
             "frames": frames,
             "spectra": spectra,
+            "earth_frames": earth_frames,
         },
         "seed": scenario.seed,
         "success": f.success(),
@@ -365,6 +395,7 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
             "production_s": f.outcome.production_s,
             "frames_per_s": rate(frames),
             "spectra_per_s": rate(spectra),
+            "earth_frames_per_s": rate(earth_frames),
             "frame_latency_us": percentiles_us(&f.frame_latency_ns),
             "spectrum_latency_us": percentiles_us(&f.spectrum_latency_ns),
             "stage_latency_us": f.stage_latency_ns.iter()
@@ -442,6 +473,9 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     if let Some(sp) = &scenario.spectra {
         let report = inversion::InversionReport::new(sp, &f.solve);
         s.push_str(&report.markdown(sp.wavelengths_nm().len()));
+    }
+    if let Some(e) = &f.earth {
+        s.push_str(&e.score.markdown());
     }
     let _ = writeln!(
         s,
@@ -584,6 +618,9 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
             &d.truths,
         )?;
     }
+    if let (Some(e), Some(section)) = (&facts.earth, &scenario.earth) {
+        earth_plots(dir, scenario.seed, section, e)?;
+    }
     if let Some((_, bands, _)) = facts.light_curve.first() {
         let colors = [crate::plots::BLUE, crate::plots::GREEN, crate::plots::RED];
         let labels: Vec<String> = bands.iter().map(|b| format!("{b:.0} nm")).collect();
@@ -608,6 +645,23 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
         )?;
     }
     Ok(facts.success())
+}
+
+/// The Earth sensor's pictures: error against angle, the β_k samples at the paper's three
+/// angles, one annotated frame.
+fn earth_plots(
+    dir: &Path,
+    seed: u64,
+    section: &shared_types::scenario::EarthScenario,
+    e: &EarthFacts,
+) -> Result<()> {
+    earth::error_plot(dir, &e.score)?;
+    let figures = earth::sample_figures(section, seed, &[5.0, 30.0, 60.0])?;
+    earth::samples_plot(dir, &figures)?;
+    if let Some((k, w, h, px)) = &e.snapshot {
+        earth_frame::annotated(dir, section, *k, *w, *h, px, &e.answers, &e.truths)?;
+    }
+    Ok(())
 }
 
 /// Per-frame latencies of the debris pipeline's stages from the send times the messages carry

@@ -13,6 +13,9 @@ pub fn services(scenario: &Scenario) -> Vec<ServiceId> {
     if scenario.spectra.is_some() {
         v.push(ServiceId::Inversion);
     }
+    if scenario.earth.is_some() {
+        v.push(ServiceId::Earth);
+    }
     v
 }
 
@@ -32,6 +35,12 @@ pub fn consumers(scenario: &Scenario, topic: TopicId) -> Vec<ServiceId> {
         TopicId::Spectrum if scenario.spectra.is_some() => {
             vec![ServiceId::Inversion, ServiceId::Orchestrator]
         }
+        // The orchestrator reads Earth frame headers (accounting, the digest, one frame for the
+        // annotated picture); the earth service reads the pixels.
+        TopicId::EarthFrame if scenario.earth.is_some() => {
+            vec![ServiceId::Earth, ServiceId::Orchestrator]
+        }
+        TopicId::EarthAttitude if scenario.earth.is_some() => vec![ServiceId::Orchestrator],
         TopicId::Truth => vec![ServiceId::Orchestrator],
         _ => vec![],
     }
@@ -44,19 +53,23 @@ pub fn expected_messages(scenario: &Scenario, topic: TopicId) -> u64 {
         .spectra
         .as_ref()
         .map_or(0, |s| s.stable_samples + s.motion_frames);
+    let earth = scenario.earth.as_ref().map_or(0, |e| e.frames());
     match topic {
         TopicId::Frame | TopicId::Detections | TopicId::Tracks => frames,
         TopicId::Spectrum => spectra,
-        TopicId::Truth => frames + spectra,
+        TopicId::EarthFrame | TopicId::EarthAttitude => earth,
+        TopicId::Truth => frames + spectra + earth,
         _ => 0,
     }
 }
 
-/// The service that publishes a data topic (the sensor publishes frames, spectra and truth).
+/// The service that publishes a data topic (the sensor publishes frames, Earth frames, spectra
+/// and truth).
 pub fn producer(topic: TopicId) -> ServiceId {
     match topic {
         TopicId::Detections => ServiceId::Detector,
         TopicId::Tracks => ServiceId::Tracker,
+        TopicId::EarthAttitude => ServiceId::Earth,
         _ => ServiceId::Sensor,
     }
 }
@@ -69,6 +82,8 @@ pub fn inputs(scenario: &Scenario, service: ServiceId) -> Vec<TopicId> {
         TopicId::Truth,
         TopicId::Detections,
         TopicId::Tracks,
+        TopicId::EarthFrame,
+        TopicId::EarthAttitude,
     ]
     .into_iter()
     .filter(|t| consumers(scenario, *t).contains(&service))

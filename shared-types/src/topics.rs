@@ -27,14 +27,16 @@ pub enum ServiceId {
     Detector = 2,
     Tracker = 3,
     Inversion = 4,
+    Earth = 5,
 }
 
 impl ServiceId {
-    pub const SPAWNABLE: [ServiceId; 4] = [
+    pub const SPAWNABLE: [ServiceId; 5] = [
         ServiceId::Sensor,
         ServiceId::Detector,
         ServiceId::Tracker,
         ServiceId::Inversion,
+        ServiceId::Earth,
     ];
 
     pub fn name(self) -> &'static str {
@@ -44,6 +46,7 @@ impl ServiceId {
             ServiceId::Detector => "detector",
             ServiceId::Tracker => "tracker",
             ServiceId::Inversion => "inversion",
+            ServiceId::Earth => "earth",
         }
     }
 
@@ -76,10 +79,12 @@ pub enum TopicId {
     Detections = 7,
     Tracks = 8,
     Solve = 9,
+    EarthFrame = 10,
+    EarthAttitude = 11,
 }
 
 impl TopicId {
-    pub const ALL: [TopicId; 10] = [
+    pub const ALL: [TopicId; 12] = [
         TopicId::Frame,
         TopicId::Spectrum,
         TopicId::Truth,
@@ -90,6 +95,8 @@ impl TopicId {
         TopicId::Detections,
         TopicId::Tracks,
         TopicId::Solve,
+        TopicId::EarthFrame,
+        TopicId::EarthAttitude,
     ];
 
     /// Short name used in reports (`topics.<name>`).
@@ -105,6 +112,8 @@ impl TopicId {
             TopicId::Detections => "detections",
             TopicId::Tracks => "tracks",
             TopicId::Solve => "solve",
+            TopicId::EarthFrame => "earth_frame",
+            TopicId::EarthAttitude => "earth_attitude",
         }
     }
 
@@ -145,12 +154,15 @@ pub fn frame_window(frame_px: usize) -> usize {
 pub const SPECTRUM_HISTORY: usize = SPECTRUM_BUFFER;
 pub const DETECTIONS_BUFFER: usize = 16;
 pub const TRACKS_BUFFER: usize = 16;
+pub const EARTH_ATTITUDE_BUFFER: usize = 16;
 
-/// The sim-clock credit window of a produced data topic (its subscriber buffer); frames of
-/// `frame_px` pixels.
-pub fn credit_window(topic: TopicId, frame_px: usize) -> usize {
+/// The sim-clock credit window of a produced data topic (its subscriber buffer), for the
+/// frame sizes of `scenario`.
+pub fn credit_window(topic: TopicId, scenario: &crate::Scenario) -> usize {
     match topic {
-        TopicId::Frame => frame_window(frame_px),
+        TopicId::Frame => frame_window(scenario.frame_px()),
+        TopicId::EarthFrame => frame_window(scenario.earth_px()),
+        TopicId::EarthAttitude => EARTH_ATTITUDE_BUFFER,
         TopicId::Spectrum => SPECTRUM_BUFFER,
         TopicId::Truth => TRUTH_BUFFER,
         TopicId::Detections => DETECTIONS_BUFFER,
@@ -208,10 +220,23 @@ pub type EventService = event::PortFactory<Ipc>;
 pub type RangeService = request_response::PortFactory<Ipc, RangeRequest, (), RangeResponse, ()>;
 pub type SolveService = request_response::PortFactory<Ipc, SolveRequest, (), SolveResponse, ()>;
 
-/// Opens (or creates) the frame topic: `[u16]` pixels with a [`FrameHeader`], frames of
-/// `frame_px` pixels (every process of a deployment derives it from the same scenario).
+/// Opens (or creates) the debris camera's frame topic: `[u16]` pixels with a [`FrameHeader`],
+/// frames of `frame_px` pixels (every process of a deployment derives it from the same
+/// scenario).
 pub fn frame_service(node: &IpcNode, frame_px: usize) -> Result<FrameService, OpenError> {
-    let t = TopicId::Frame;
+    frame_service_on(node, TopicId::Frame, frame_px)
+}
+
+/// Opens (or creates) the Earth sensor's frame topic, frames of `frame_px` pixels.
+pub fn earth_frame_service(node: &IpcNode, frame_px: usize) -> Result<FrameService, OpenError> {
+    frame_service_on(node, TopicId::EarthFrame, frame_px)
+}
+
+fn frame_service_on(
+    node: &IpcNode,
+    t: TopicId,
+    frame_px: usize,
+) -> Result<FrameService, OpenError> {
     let window = frame_window(frame_px);
     node.service_builder(&name(t)?)
         .publish_subscribe::<[u16]>()
@@ -292,6 +317,17 @@ pub fn tracks_service(node: &IpcNode) -> Result<PubSubService<Tracks>, OpenError
     )
 }
 
+pub fn earth_attitude_service(node: &IpcNode) -> Result<PubSubService<EarthAttitude>, OpenError> {
+    pubsub(
+        node,
+        TopicId::EarthAttitude,
+        2,
+        MAX_DATA_SUBSCRIBERS,
+        EARTH_ATTITUDE_BUFFER,
+        EARTH_ATTITUDE_BUFFER,
+    )
+}
+
 pub fn heartbeat_service(node: &IpcNode) -> Result<PubSubService<Heartbeat>, OpenError> {
     pubsub(node, TopicId::Heartbeat, MAX_PEERS, 4, HEARTBEAT_BUFFER, 0)
 }
@@ -356,13 +392,24 @@ pub fn event_service(node: &IpcNode, t: TopicId, reply: bool) -> Result<EventSer
 }
 
 /// Creates every service of the contract (the orchestrator does this before spawning children),
-/// for frames of `frame_px` pixels.
+/// with the frame sizes of `scenario`.
 pub fn create_all(
     node: &IpcNode,
+    scenario: &crate::Scenario,
+) -> Result<Vec<Box<dyn std::any::Any>>, OpenError> {
+    create_all_sized(node, scenario.frame_px(), scenario.earth_px())
+}
+
+/// [`create_all`] for camera frames of `frame_px` and Earth frames of `earth_px` pixels.
+pub fn create_all_sized(
+    node: &IpcNode,
     frame_px: usize,
+    earth_px: usize,
 ) -> Result<Vec<Box<dyn std::any::Any>>, OpenError> {
     let mut keep: Vec<Box<dyn std::any::Any>> = vec![
         Box::new(frame_service(node, frame_px)?),
+        Box::new(earth_frame_service(node, earth_px)?),
+        Box::new(earth_attitude_service(node)?),
         Box::new(spectrum_service(node)?),
         Box::new(truth_service(node)?),
         Box::new(heartbeat_service(node)?),

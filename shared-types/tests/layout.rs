@@ -49,7 +49,7 @@ fn spectrum_layout() {
 
 #[test]
 fn truth_layout() {
-    assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (1176, 8));
+    assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (1192, 8));
     assert_eq!(offset_of!(Truth, kind), 32);
     assert_eq!(offset_of!(Truth, n_debris), 36);
     assert_eq!(offset_of!(Truth, frame_index), 40);
@@ -59,6 +59,27 @@ fn truth_layout() {
     assert_eq!(offset_of!(Truth, window), 912);
     assert_eq!(offset_of!(Truth, n_false), 916);
     assert_eq!(offset_of!(Truth, false_targets_px), 920);
+    assert_eq!(offset_of!(Truth, earth_beta_deg), 1176);
+    assert_eq!(offset_of!(Truth, earth_tilt_deg), 1184);
+}
+
+#[test]
+fn earth_attitude_layout() {
+    assert_eq!(
+        (size_of::<EarthMethod>(), align_of::<EarthMethod>()),
+        (32, 8)
+    );
+    assert_eq!(offset_of!(EarthMethod, time_us), 16);
+    assert_eq!(offset_of!(EarthMethod, valid), 24);
+    assert_eq!(
+        (size_of::<EarthAttitude>(), align_of::<EarthAttitude>()),
+        (72 + 3 * 32, 8)
+    );
+    assert_eq!(offset_of!(EarthAttitude, frame_index), 32);
+    assert_eq!(offset_of!(EarthAttitude, edge_points), 40);
+    assert_eq!(offset_of!(EarthAttitude, samples), 44);
+    assert_eq!(offset_of!(EarthAttitude, fit_mu_deg), 48);
+    assert_eq!(offset_of!(EarthAttitude, methods), 72);
 }
 
 #[test]
@@ -162,6 +183,8 @@ fn type_names_carry_the_contract_version() {
             <Tracks as ZeroCopySend>::type_name(),
             <SolveRequest as ZeroCopySend>::type_name(),
             <SolveResponse as ZeroCopySend>::type_name(),
+            <EarthMethod as ZeroCopySend>::type_name(),
+            <EarthAttitude as ZeroCopySend>::type_name(),
         ]
     };
     for name in names {

@@ -136,3 +136,71 @@ fn campaign_values_are_validated_as_the_scenario_they_make() {
         "{e}"
     );
 }
+
+fn earth_base() -> String {
+    std::fs::read_to_string(scenarios_dir().join("earth-sensor-turntable.toml")).unwrap()
+}
+
+#[test]
+fn the_earth_sweep_is_the_papers() {
+    let s = Scenario::from_file(&scenarios_dir().join("earth-sensor-turntable.toml")).unwrap();
+    let e = s.earth.as_ref().unwrap();
+    let angles = e.angles_deg();
+    // −50…−11 and 11…50 in 1° steps (2 × 40), −10…10 in 0.1° steps (201).
+    assert_eq!(angles.len(), 281);
+    assert_eq!((angles[0], angles[280]), (-50.0, 50.0));
+    assert!(angles.windows(2).all(|w| w[1] > w[0]));
+    let fine: Vec<f64> = angles.iter().copied().filter(|a| a.abs() <= 10.0).collect();
+    assert_eq!(fine.len(), 201);
+    assert!(fine.windows(2).all(|w| ((w[1] - w[0]) - 0.1).abs() < 1e-9));
+    assert_eq!(e.frames(), 281 * e.images_per_angle as u64);
+    // K images per angle: frames k·K … k·K + K − 1 share angle k.
+    let k = e.images_per_angle as u64;
+    assert_eq!(e.tilt_deg(&angles, 0), -50.0);
+    assert_eq!(e.tilt_deg(&angles, k - 1), -50.0);
+    assert_eq!(e.tilt_deg(&angles, k), -49.0);
+    // The σ table is found beside the scenario file.
+    let table = e.sigma_table.as_ref().unwrap();
+    assert!(
+        table.is_absolute() || table.starts_with(scenarios_dir()),
+        "{table:?}"
+    );
+}
+
+#[test]
+fn bad_earth_fields_are_named_with_their_range() {
+    let e = error_of(&earth_base().replace("f_px = 130.0", "f_px = 0.5"));
+    assert!(e.contains("earth.f_px") && e.contains("10..=10000"), "{e}");
+    let e =
+        error_of(&earth_base().replace("center_px = [255.5, 255.5]", "center_px = [600.0, 255.5]"));
+    assert!(
+        e.contains("earth.center_px[0]") && e.contains("0..=511"),
+        "{e}"
+    );
+    let e = error_of(&earth_base().replace("space_dn = 20.0", "space_dn = 5000.0"));
+    assert!(
+        e.contains("earth.earth_dn") && e.contains("earth.space_dn"),
+        "{e}"
+    );
+    let e = error_of(&earth_base().replace("[earth]", "[earth]\ntrajectory_deg = [0.0, 95.0]"));
+    assert!(
+        e.contains("earth.trajectory_deg[1]") && e.contains("-80..=80"),
+        "{e}"
+    );
+    let e = error_of(&earth_base().replace("images_per_angle = 2", "images_per_angle = 0"));
+    assert!(e.contains("earth.images_per_angle"), "{e}");
+    let e = error_of(&earth_base().replace("noise_dn = 10.0", "noise_dn = 10.0\nnoise = 3"));
+    assert!(
+        e.contains("earth.noise") && e.contains("unknown field"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_given_trajectory_replaces_the_sweep() {
+    let text = earth_base().replace("[earth]", "[earth]\ntrajectory_deg = [1.0, -2.0, 3.5]");
+    let s = Scenario::from_toml_str(&text, "t.toml").unwrap();
+    let e = s.earth.unwrap();
+    assert_eq!(e.angles_deg(), vec![1.0, -2.0, 3.5]);
+    assert_eq!(e.frames(), 3 * e.images_per_angle as u64);
+}

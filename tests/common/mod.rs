@@ -142,6 +142,18 @@ pub fn deterministic_part(report: &Value) -> Value {
     let obj = r.as_object_mut().unwrap();
     obj.remove("run");
     obj.remove("timing");
+    // Compute times per method of the Earth sensor.
+    if let Some(methods) = obj
+        .get_mut("earth")
+        .and_then(|e| e.get_mut("methods"))
+        .and_then(|m| m.as_object_mut())
+    {
+        for m in methods.values_mut() {
+            if let Some(m) = m.as_object_mut() {
+                m.remove("time_us_per_frame");
+            }
+        }
+    }
     if let Some(services) = obj.get_mut("services").and_then(|s| s.as_array_mut()) {
         for s in services {
             s.as_object_mut().unwrap().remove("pid");

@@ -12,13 +12,18 @@
 //! - [`special`]: digamma and trigamma, which the fit needs.
 //! - [`synthetic`]: reference frames in closed form, for tests and benchmarks.
 //! - [`samples`]: the sample files `glint tool tfit` reads.
+//! - [`service_core`]: one frame's wire answer from the scenario's settings; [`node`]: the
+//!   service on glint's runtime (feature `node`).
 
 pub mod edges;
 pub mod estimate;
 pub mod hough;
+#[cfg(feature = "node")]
+pub mod node;
 pub mod pipeline;
 pub mod ring;
 pub mod samples;
+pub mod service_core;
 pub mod special;
 pub mod synthetic;
 pub mod tfit;

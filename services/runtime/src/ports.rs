@@ -275,7 +275,18 @@ pub struct FrameOutbox {
 }
 
 impl FrameOutbox {
+    /// The debris camera's frame publisher.
     pub fn open(node: &IpcNode, service: &FrameService, pixels: usize) -> Result<Self> {
+        Self::open_on(node, TopicId::Frame, service, pixels)
+    }
+
+    /// A frame publisher on `topic` (the camera's or the Earth sensor's frames).
+    pub fn open_on(
+        node: &IpcNode,
+        topic: TopicId,
+        service: &FrameService,
+        pixels: usize,
+    ) -> Result<Self> {
         let publisher = service
             .publisher_builder()
             .initial_max_slice_len(pixels)
@@ -285,11 +296,11 @@ impl FrameOutbox {
             .map_err(|e| anyhow!("frame publisher: {e:?}"))?;
         Ok(FrameOutbox {
             publisher,
-            notifier: notifier(node, TopicId::Frame)?,
+            notifier: notifier(node, topic)?,
             pixels,
             next_seq: 0,
             tamper: Tamper::default(),
-            stats: TopicStats::new(TopicId::Frame),
+            stats: TopicStats::new(topic),
         })
     }
 
@@ -377,7 +388,17 @@ pub struct FrameInbox {
 }
 
 impl FrameInbox {
+    /// The debris camera's frame subscriber.
     pub fn open(node: &IpcNode, service: &FrameService) -> Result<(Self, Listener<Ipc>)> {
+        Self::open_on(node, TopicId::Frame, service)
+    }
+
+    /// A frame subscriber on `topic` (the camera's or the Earth sensor's frames).
+    pub fn open_on(
+        node: &IpcNode,
+        topic: TopicId,
+        service: &FrameService,
+    ) -> Result<(Self, Listener<Ipc>)> {
         let subscriber = service
             .subscriber_builder()
             .create()
@@ -385,11 +406,11 @@ impl FrameInbox {
         Ok((
             FrameInbox {
                 subscriber,
-                stats: TopicStats::new(TopicId::Frame),
+                stats: TopicStats::new(topic),
                 last_reject: None,
                 verify_checksum: true,
             },
-            listener(node, TopicId::Frame)?,
+            listener(node, topic)?,
         ))
     }
 

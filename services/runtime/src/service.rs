@@ -374,7 +374,7 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
             let consumers = deployment::consumers(scenario, topic);
             (
                 topic,
-                Credit::new(credit_window(topic, scenario.frame_px()), consumers),
+                Credit::new(credit_window(topic, scenario), consumers),
             )
         })
         .collect();

@@ -4,7 +4,7 @@
 
 use glint_runtime::ports::{Inbox, Outbox};
 use glint_runtime::{open_node, remove_shm, shm_entries};
-use shared_types::topics::{create_all, spectrum_service, SPECTRUM_BUFFER};
+use shared_types::topics::{create_all_sized, spectrum_service, SPECTRUM_BUFFER};
 use shared_types::{DropReason, Message, Meta, ServiceId, Spectrum, TopicId};
 
 fn prefix(tag: &str) -> String {
@@ -30,7 +30,7 @@ fn malformed_messages_are_rejected_and_counted() {
     let p = prefix("m");
     {
         let node = open_node(&p, "test").unwrap();
-        let _keep = create_all(&node, 64 * 64).unwrap();
+        let _keep = create_all_sized(&node, 64 * 64, 0).unwrap();
         let svc = spectrum_service(&node).unwrap();
         let mut out = Outbox::open(&node, TopicId::Spectrum, &svc, ServiceId::Sensor).unwrap();
         let (mut inbox, _l) = Inbox::<Spectrum>::open(&node, TopicId::Spectrum, &svc).unwrap();
@@ -71,7 +71,7 @@ fn overflow_is_counted_and_the_invariant_holds() {
     let p = prefix("o");
     {
         let node = open_node(&p, "test").unwrap();
-        let _keep = create_all(&node, 64 * 64).unwrap();
+        let _keep = create_all_sized(&node, 64 * 64, 0).unwrap();
         let svc = spectrum_service(&node).unwrap();
         let mut out = Outbox::open(&node, TopicId::Spectrum, &svc, ServiceId::Sensor).unwrap();
         let (mut inbox, _l) = Inbox::<Spectrum>::open(&node, TopicId::Spectrum, &svc).unwrap();

@@ -2,11 +2,13 @@
 //! produces time series of the satellite's spectrum ([000]), answers laser-range requests, and
 //! publishes truth for scoring; renders fisheye infrared Earth frames ([003], `earth_render`).
 //!
-//! Pure cores (`render`, `laser`, `debris_scene`, `spectra_scene`, `earth_render`) beside one
+//! Pure cores (`render`, `laser`, `debris_scene`, `spectra_scene`, `earth_render`,
+//! `earth_scene`) beside one
 //! node loop (`node`).
 
 pub mod debris_scene;
 pub mod earth_render;
+pub mod earth_scene;
 pub mod laser;
 #[cfg(feature = "node")]
 pub mod node;

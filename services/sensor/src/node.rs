@@ -1,4 +1,5 @@
-//! The sensor on the service skeleton: after `Start` it produces frames, spectra and truth — in
+//! The sensor on the service skeleton: after `Start` it produces camera frames, spectra, Earth
+//! frames and truth — in
 //! sim-clock mode as fast as the consumers' acknowledgements allow (lockstep, nothing dropped),
 //! in realtime mode frames paced by the wall clock — while answering laser-range requests.
 //! A restarted sensor produces everything again from the start (rendering is stateless), and
@@ -11,7 +12,7 @@ use glint_runtime::ports::{FrameOutbox, Outbox};
 use glint_runtime::rpc::RangeServer;
 use glint_runtime::waitloop::{Step, Wake};
 use glint_runtime::{Io, NoInput, Output, Service, Setup, TopicStats};
-use shared_types::topics::{frame_service, spectrum_service, truth_service};
+use shared_types::topics::{earth_frame_service, frame_service, spectrum_service, truth_service};
 use shared_types::{Command, DropReason, ServiceId, Spectrum, TopicId, Truth};
 
 use crate::service_core::{Emission, SensorCore};
@@ -23,10 +24,12 @@ pub struct SensorNode {
     core: SensorCore,
     frames: Option<FrameOutbox>,
     spectra: Option<Outbox<Spectrum>>,
+    earth: Option<FrameOutbox>,
     truth: Outbox<Truth>,
     range: RangeServer,
     /// Realtime: frame `k` is due `k` frame periods after `Start`.
     frame_period_ns: u64,
+    earth_period_ns: u64,
     started_ns: Option<u64>,
     paused: bool,
 }
@@ -57,22 +60,40 @@ impl Service for SensorNode {
             )?),
             None => None,
         };
+        let earth = match &sc.earth {
+            Some(e) => Some(FrameOutbox::open_on(
+                node,
+                TopicId::EarthFrame,
+                &earth_frame_service(node, e.pixels())?,
+                e.pixels(),
+            )?),
+            None => None,
+        };
         let core = SensorCore::new(sc)?;
-        tracing::info!(core.n_frames, core.n_spectra, ?sc.clock, "sensor scenes built");
+        tracing::info!(
+            core.n_frames,
+            core.n_spectra,
+            core.n_earth,
+            ?sc.clock,
+            "sensor scenes built"
+        );
         let sensor = SensorNode {
             core,
             frames,
             spectra,
+            earth,
             truth,
             range,
             frame_period_ns: sc.camera.as_ref().map_or(0, |c| c.frame_period_ns()),
+            earth_period_ns: (sc.earth.as_ref()).map_or(0, |e| e.exposure_end_ns(0)),
             started_ns: None,
             paused: false,
         };
         Ok((sensor, NoInput))
     }
 
-    /// Frames first (the main output: in-band drops and corruptions hit it), then spectra.
+    /// Camera frames first (the main output: in-band drops and corruptions hit it), then
+    /// spectra, then Earth frames.
     fn outputs(&mut self) -> Vec<&mut dyn Output> {
         let mut all: Vec<&mut dyn Output> = vec![];
         if let Some(f) = self.frames.as_mut() {
@@ -81,6 +102,9 @@ impl Service for SensorNode {
         if let Some(s) = self.spectra.as_mut() {
             all.push(s);
         }
+        if let Some(e) = self.earth.as_mut() {
+            all.push(e);
+        }
         all.push(&mut self.truth);
         all
     }
@@ -88,7 +112,8 @@ impl Service for SensorNode {
     fn stats(&self) -> Vec<&TopicStats> {
         let f = self.frames.as_ref().map(|f| &f.stats);
         let s = self.spectra.as_ref().map(|s| &s.stats);
-        [f, s, Some(&self.truth.stats), Some(&self.range.stats)]
+        let e = self.earth.as_ref().map(|e| &e.stats);
+        [f, s, e, Some(&self.truth.stats), Some(&self.range.stats)]
             .into_iter()
             .flatten()
             .collect()
@@ -119,7 +144,11 @@ impl Service for SensorNode {
         for _ in 0..BATCH {
             let nf = self.frames.as_ref().map_or(u64::MAX, |f| f.next_seq());
             let ns = self.spectra.as_ref().map_or(u64::MAX, |s| s.next_seq());
-            let frame_first = matches!(self.core.next(nf, ns), Some(Emission::Frame { .. }));
+            let ne = self.earth.as_ref().map_or(u64::MAX, |e| e.next_seq());
+            let next = self.core.next(nf, ns, ne);
+            let frame_first = matches!(next, Some(Emission::Frame { .. }));
+            let spectrum_first = matches!(next, Some(Emission::Spectrum { .. }));
+            let earth_first = matches!(next, Some(Emission::Earth { .. }));
             let mut progressed = false;
             if let (Some(Emission::Frame { k, t_ns }), Some(out)) =
                 (self.core.frame(nf), self.frames.as_mut())
@@ -152,12 +181,36 @@ impl Service for SensorNode {
                 let replay = out.replaying();
                 let truth_ok = io.allows(TopicId::Truth, self.truth.stats.published);
                 let due = io.realtime
-                    || (!frame_first && io.allows(TopicId::Spectrum, k) && (replay || truth_ok));
+                    || (spectrum_first && io.allows(TopicId::Spectrum, k) && (replay || truth_ok));
                 if due {
                     io.pace()?;
                     let (sp, truth, t_ns) = self.core.spectrum(k)?;
                     out.send(sp, t_ns)?;
                     if !replay {
+                        self.truth.send(truth, t_ns)?;
+                    }
+                    progressed = true;
+                }
+            }
+            if let (Some(Emission::Earth { k, t_ns }), Some(out)) =
+                (self.core.earth_at(ne), self.earth.as_mut())
+            {
+                let replay = out.replaying();
+                let due = if io.realtime {
+                    let (at, now) = (self.earth_period_ns * k, io.now_ns() - t0_ns);
+                    if now < at {
+                        next_wake_ns = Some(next_wake_ns.map_or(at - now, |w| w.min(at - now)));
+                    }
+                    now >= at
+                } else {
+                    let truth_ok = io.allows(TopicId::Truth, self.truth.stats.published);
+                    earth_first && io.allows(TopicId::EarthFrame, k) && (truth_ok || replay)
+                };
+                if due {
+                    io.pace()?;
+                    let core = &self.core;
+                    out.publish(t_ns, |h, px| core.render_earth(k, h, px))?;
+                    if let (false, Some(truth)) = (replay, self.core.earth_truth(k)) {
                         self.truth.send(truth, t_ns)?;
                     }
                     progressed = true;
@@ -174,7 +227,12 @@ impl Service for SensorNode {
             .is_none_or(|f| f.next_seq() >= self.core.n_frames);
         let spectra_done =
             (self.spectra.as_ref()).is_none_or(|s| s.next_seq() >= self.core.n_spectra);
-        if frames_done && spectra_done && io.state() == shared_types::Heartbeat::RUNNING {
+        let earth_done = (self.earth.as_ref()).is_none_or(|e| e.next_seq() >= self.core.n_earth);
+        if frames_done
+            && spectra_done
+            && earth_done
+            && io.state() == shared_types::Heartbeat::RUNNING
+        {
             io.finish();
             tracing::info!("sensor finished producing");
         }

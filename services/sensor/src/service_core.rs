@@ -10,6 +10,7 @@ use shared_types::{
 };
 
 use crate::debris_scene::DebrisScene;
+use crate::earth_scene::EarthScene;
 use crate::laser::{respond, LaserConfig, RangeOutcome};
 use crate::render::noise::{inverse_normal_cdf, Xoshiro256pp};
 use crate::spectra_scene::SpectraScene;
@@ -23,16 +24,30 @@ pub enum Emission {
     Frame { k: u64, t_ns: u64 },
     /// Spectrum sample `k`.
     Spectrum { k: u64, t_ns: u64 },
+    /// Earth-sensor frame `k`, its exposure ending at `t_ns`.
+    Earth { k: u64, t_ns: u64 },
+}
+
+impl Emission {
+    fn t_ns(self) -> u64 {
+        match self {
+            Emission::Frame { t_ns, .. }
+            | Emission::Spectrum { t_ns, .. }
+            | Emission::Earth { t_ns, .. } => t_ns,
+        }
+    }
 }
 
 /// The scenes of a scenario and how many messages each stream has.
 pub struct SensorCore {
     pub debris: Option<DebrisScene>,
     pub spectra: Option<SpectraScene>,
+    pub earth: Option<EarthScene>,
     laser: Option<LaserConfig>,
     seed: u64,
     pub n_frames: u64,
     pub n_spectra: u64,
+    pub n_earth: u64,
     exposure_ns: u64,
     interval_ns: u64,
 }
@@ -49,10 +64,12 @@ impl SensorCore {
             Some(sp) => Some(SpectraScene::new(sp, scenario.seed).context("spectra scene")?),
             None => None,
         };
+        let earth = (scenario.earth.as_ref()).map(|e| EarthScene::new(e, scenario.seed));
         let cam = scenario.camera.as_ref();
         Ok(SensorCore {
             debris,
             spectra,
+            earth,
             laser: cam.map(|c| LaserConfig {
                 beam_full_width_rad: c.laser.beam_deg.to_radians(),
                 range_sigma_m: c.laser.range_sigma_m,
@@ -61,6 +78,7 @@ impl SensorCore {
             seed: scenario.seed,
             n_frames: deployment::expected_messages(scenario, TopicId::Frame),
             n_spectra: deployment::expected_messages(scenario, TopicId::Spectrum),
+            n_earth: deployment::expected_messages(scenario, TopicId::EarthFrame),
             exposure_ns: cam.map_or(0, |c| (c.exposure_s * 1e9).round() as u64),
             interval_ns: cam.map_or(0, |c| (c.interval_s * 1e9).round() as u64),
         })
@@ -82,17 +100,40 @@ impl SensorCore {
         })
     }
 
-    /// The next message when the streams stand at frame `next_frame` and spectrum
-    /// `next_spectrum`: strictly in simulated-time order, frames before spectra on a tie, so
-    /// the interleaving — and with it every sequence number — is deterministic.
-    pub fn next(&self, next_frame: u64, next_spectrum: u64) -> Option<Emission> {
-        match (self.frame(next_frame), self.spectrum_at(next_spectrum)) {
-            (
-                Some(f @ Emission::Frame { t_ns: tf, .. }),
-                Some(s @ Emission::Spectrum { t_ns: ts, .. }),
-            ) => Some(if tf <= ts { f } else { s }),
-            (f, s) => f.or(s),
+    /// Earth frame `k` (while `k < n_earth`).
+    pub fn earth_at(&self, k: u64) -> Option<Emission> {
+        let scene = self.earth.as_ref().filter(|_| k < self.n_earth)?;
+        Some(Emission::Earth {
+            k,
+            t_ns: scene.t_ns(k),
+        })
+    }
+
+    /// The next message when the streams stand at frame `next_frame`, spectrum
+    /// `next_spectrum` and Earth frame `next_earth`: strictly in simulated-time order — camera
+    /// frames, then spectra, then Earth frames on a tie — so the interleaving, and with it
+    /// every sequence number, is deterministic.
+    pub fn next(&self, next_frame: u64, next_spectrum: u64, next_earth: u64) -> Option<Emission> {
+        [
+            self.frame(next_frame),
+            self.spectrum_at(next_spectrum),
+            self.earth_at(next_earth),
+        ]
+        .into_iter()
+        .flatten()
+        .min_by_key(|e| e.t_ns())
+    }
+
+    /// Renders Earth frame `k` into `pixels` and fills the header's frame fields.
+    pub fn render_earth(&self, k: u64, header: &mut FrameHeader, pixels: &mut [u16]) {
+        if let Some(scene) = self.earth.as_ref() {
+            scene.render(k, header, pixels);
         }
+    }
+
+    /// The truth of Earth frame `k`.
+    pub fn earth_truth(&self, k: u64) -> Option<Truth> {
+        self.earth.as_ref().map(|s| s.truth(k))
     }
 
     /// Renders frame `k`: every pixel of `pixels` and the header's frame fields.

@@ -44,7 +44,7 @@ impl DropReason {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v2.TopicCounters")]
+#[type_name("glint.v3.TopicCounters")]
 #[repr(C)]
 pub struct TopicCounters {
     /// [`crate::TopicId`] as u32, or `u32::MAX` for an unused slot.
@@ -66,7 +66,7 @@ pub struct TopicCounters {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v2.Heartbeat")]
+#[type_name("glint.v3.Heartbeat")]
 #[repr(C)]
 pub struct Heartbeat {
     pub meta: Meta,
@@ -99,7 +99,7 @@ impl Heartbeat {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v2.Ack")]
+#[type_name("glint.v3.Ack")]
 #[repr(C)]
 pub struct Ack {
     pub meta: Meta,
@@ -148,7 +148,7 @@ impl Command {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v2.Control")]
+#[type_name("glint.v3.Control")]
 #[repr(C)]
 pub struct Control {
     pub meta: Meta,

@@ -18,12 +18,14 @@ use iceoryx2::prelude::ZeroCopySend;
 use crate::CONTRACT_VERSION;
 
 mod camera;
+mod earth;
 mod housekeeping;
 mod range;
 mod spectrum;
 mod truth;
 
 pub use camera::*;
+pub use earth::*;
 pub use housekeeping::*;
 pub use range::*;
 pub use spectrum::*;
@@ -42,7 +44,7 @@ pub const MAX_TOPICS: usize = 8;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v2.Meta")]
+#[type_name("glint.v3.Meta")]
 #[repr(C)]
 pub struct Meta {
     /// Per-producer, per-topic sequence number, starting at 0, without gaps.
@@ -193,6 +195,18 @@ impl Message for Spectrum {
 }
 
 message!(Truth, |m: &Truth| m.validate());
+message!(
+    EarthAttitude,
+    |m: &EarthAttitude| m.validate(),
+    |m: &mut EarthAttitude, how| {
+        use crate::scenario::Corruption;
+        match how {
+            Corruption::Nan => m.methods[0].beta_deg = f64::NAN,
+            Corruption::Count => m.methods[0].valid = 2,
+            Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
+        }
+    }
+);
 message!(
     Detections,
     |m: &Detections| m.validate(),

@@ -6,11 +6,12 @@ use super::*;
 
 /// Ground truth for scoring; read only by the orchestrator.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v2.Truth")]
+#[type_name("glint.v3.Truth")]
 #[repr(C)]
 pub struct Truth {
     pub meta: Meta,
-    /// Which stream this truth belongs to: 0 = camera frame, 1 = spectrum sample.
+    /// Which stream this truth belongs to: 0 = camera frame, 1 = spectrum sample, 2 = Earth
+    /// frame.
     pub kind: u32,
     /// Number of valid debris entries.
     pub n_debris: u32,
@@ -29,6 +30,10 @@ pub struct Truth {
     pub n_false: u32,
     /// False targets rendered into this frame: 0-based pixel (x, y).
     pub false_targets_px: [[f64; 2]; MAX_DEBRIS],
+    /// Earth frame: β, the angle from the optical axis to nadir [deg], and the nadir's signed
+    /// tilt about the turntable axis [deg].
+    pub earth_beta_deg: f64,
+    pub earth_tilt_deg: f64,
 }
 
 impl Default for Truth {
@@ -44,6 +49,8 @@ impl Default for Truth {
             window: 0,
             n_false: 0,
             false_targets_px: [[0.0; 2]; MAX_DEBRIS],
+            earth_beta_deg: 0.0,
+            earth_tilt_deg: 0.0,
         }
     }
 }
@@ -51,12 +58,15 @@ impl Default for Truth {
 impl Truth {
     pub const KIND_FRAME: u32 = 0;
     pub const KIND_SPECTRUM: u32 = 1;
+    pub const KIND_EARTH: u32 = 2;
 
     pub fn validate(&self) -> Result<(), Reject> {
         self.meta.validate()?;
-        if self.kind > 1 {
-            return Err(Reject::new("truth.kind", "not 0 or 1"));
+        if self.kind > 2 {
+            return Err(Reject::new("truth.kind", "not 0, 1 or 2"));
         }
+        finite(self.earth_beta_deg, "truth.earth_beta_deg")?;
+        finite(self.earth_tilt_deg, "truth.earth_tilt_deg")?;
         if self.n_debris as usize > MAX_DEBRIS || self.n_false as usize > MAX_DEBRIS {
             return Err(Reject::new("truth.n_debris/n_false", "out of range 0..=16"));
         }

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 mod camera;
 mod campaign;
+mod earth;
 mod fault;
 mod matrix;
 mod spectra;
@@ -16,6 +17,7 @@ mod supervision;
 
 pub use camera::*;
 pub use campaign::*;
+pub use earth::*;
 pub use fault::*;
 pub use matrix::*;
 pub use spectra::*;
@@ -90,6 +92,9 @@ pub struct Scenario {
     pub camera: Option<CameraScenario>,
     /// The spectrometer looking at the satellite ([000]); absent = no spectra.
     pub spectra: Option<SpectraScenario>,
+    /// The infrared Earth sensor ([003]); absent = no Earth frames.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub earth: Option<EarthScenario>,
     /// Sweep one parameter: one full deployment per value, results tabulated.
     pub campaign: Option<Campaign>,
     /// Faults to inject (`[[fault]]`; also `glint run --fault`).
@@ -184,6 +189,11 @@ impl Scenario {
         self.camera.as_ref().map_or(0, |c| c.pixels())
     }
 
+    /// Pixels of one Earth-sensor frame; 0 without an `[earth]` section.
+    pub fn earth_px(&self) -> usize {
+        self.earth.as_ref().map_or(0, |e| e.pixels())
+    }
+
     /// Parses and validates a scenario held in memory; `file` names it in errors.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Scenario, ScenarioError> {
         let scenario: Scenario = toml::from_str(text).map_err(|e| parse_error(text, file, &e))?;
@@ -204,7 +214,17 @@ impl Scenario {
                 file: file.clone(),
                 source,
             })?;
-        Self::from_toml_str(&text, &file)
+        let mut scenario = Self::from_toml_str(&text, &file)?;
+        // Files the scenario names are relative to the scenario file.
+        let dir = path.parent().unwrap_or(std::path::Path::new(""));
+        if let Some(t) = scenario.earth.as_mut().and_then(|e| e.sigma_table.as_mut()) {
+            if t.is_relative() {
+                // Absolute: the resolved scenario is read again from the run directory.
+                let joined = dir.join(&*t);
+                *t = std::path::absolute(&joined).unwrap_or(joined);
+            }
+        }
+        Ok(scenario)
     }
 
     /// Serialises back to TOML (the resolved scenario written into the run directory).
@@ -241,11 +261,14 @@ impl Scenario {
                 "must be at least twice run.heartbeat_period_ms".into(),
             );
         }
-        if self.camera.is_none() && self.spectra.is_none() {
+        if self.camera.is_none() && self.spectra.is_none() && self.earth.is_none() {
             c.fail(
                 "camera",
-                "a scenario needs a [camera] or a [spectra] section (or both)".into(),
+                "a scenario needs a [camera], [spectra] or [earth] section (or several)".into(),
             );
+        }
+        if let Some(e) = &self.earth {
+            check_earth(&mut c, e);
         }
         if let Some(cam) = &self.camera {
             check_camera(&mut c, cam);

@@ -1,0 +1,400 @@
+//! The [003] Earth sensor in the report: each method's error in the attitude angle against the
+//! turntable's truth, per interval of the paper (|β| ≤ 10°, 10–40°, 40–50°), its time per
+//! frame, and the pictures (error against angle, the β_k samples with their fitted t density,
+//! one annotated frame).
+//!
+//! The error of a frame is `sign(tilt) · β − angle`: β with the sign of the measured tilt
+//! about the turntable axis against the turntable's signed angle, so the ±10° sweep through
+//! nadir is scored as the paper's turntable reads it.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::Result;
+use serde_json::{json, Value};
+use shared_types::scenario::EarthScenario;
+use shared_types::{EarthAttitude, Truth};
+
+use crate::plots::{line_chart, Series, BLUE, GREEN, ORANGE, RED};
+
+/// The paper's intervals of |angle| [deg]: (report name, lower bound exclusive except the
+/// first, upper bound inclusive).
+pub const INTERVALS: [(&str, f64, f64); 3] = [
+    ("within_10", 0.0, 10.0),
+    ("10_to_40", 10.0, 40.0),
+    ("40_to_50", 40.0, 50.0),
+];
+
+/// The paper's figures (math.md §4.8): error σ within ±10° of the cross-product method and of
+/// the Hough baseline [deg], and the lookup version's time as a fraction of the baseline's.
+pub const PAPER_SIGMA_CROSS_DEG: f64 = 0.03;
+pub const PAPER_SIGMA_HOUGH_DEG: f64 = 0.06;
+pub const PAPER_LOOKUP_TIME_RATIO: f64 = 0.13;
+
+/// Error statistics over one interval.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IntervalScore {
+    pub frames: u64,
+    pub err_mean_deg: f64,
+    /// Sample standard deviation about the mean (n − 1).
+    pub err_sigma_deg: f64,
+    /// Largest |error|.
+    pub err_max_deg: f64,
+}
+
+/// One method over the run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MethodScore {
+    pub name: &'static str,
+    pub intervals: [IntervalScore; 3],
+    /// Frames with truth the method gave no answer on.
+    pub missed: u64,
+    /// Frames outside the paper's intervals (|angle| > 50°), scored nowhere.
+    pub outside: u64,
+    /// Mean compute time per answered frame, the shared edge extraction included [µs].
+    pub time_us_per_frame: Option<f64>,
+    /// (angle [deg], error [deg]) per answered frame, for the plot.
+    pub errors: Vec<(f64, f64)>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EarthScore {
+    pub methods: Vec<MethodScore>,
+    /// Frames with both an answer and a truth.
+    pub frames: u64,
+}
+
+fn stats(errors: &[f64]) -> IntervalScore {
+    let n = errors.len();
+    if n == 0 {
+        return IntervalScore::default();
+    }
+    let mean = errors.iter().sum::<f64>() / n as f64;
+    let var = if n > 1 {
+        errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1) as f64
+    } else {
+        0.0
+    };
+    IntervalScore {
+        frames: n as u64,
+        err_mean_deg: mean,
+        err_sigma_deg: var.sqrt(),
+        err_max_deg: errors.iter().fold(0.0, |m, e| m.max(e.abs())),
+    }
+}
+
+/// The interval of a turntable angle, if any.
+fn interval_of(angle_deg: f64) -> Option<usize> {
+    let a = angle_deg.abs();
+    INTERVALS
+        .iter()
+        .position(|&(_, lo, hi)| (a > lo || lo == 0.0) && a <= hi)
+}
+
+/// Scores every answer against the Earth truths of its frame.
+pub fn score(truths: &[Truth], answers: &[EarthAttitude]) -> EarthScore {
+    let truth: BTreeMap<u64, &Truth> = (truths.iter())
+        .filter(|t| t.kind == Truth::KIND_EARTH)
+        .map(|t| (t.frame_index, t))
+        .collect();
+    let scored: Vec<(&EarthAttitude, &Truth)> = answers
+        .iter()
+        .filter_map(|a| truth.get(&a.frame_index).map(|t| (a, *t)))
+        .collect();
+    let methods = EarthAttitude::METHOD_NAMES
+        .iter()
+        .enumerate()
+        .map(|(i, &name)| {
+            let mut per: [Vec<f64>; 3] = Default::default();
+            let mut m = MethodScore {
+                name,
+                ..Default::default()
+            };
+            let mut time_us = vec![];
+            for (a, t) in &scored {
+                let r = a.methods[i];
+                if r.valid != 1 {
+                    m.missed += 1;
+                    continue;
+                }
+                let signed = if r.tilt_deg < 0.0 {
+                    -r.beta_deg
+                } else {
+                    r.beta_deg
+                };
+                let err = signed - t.earth_tilt_deg;
+                m.errors.push((t.earth_tilt_deg, err));
+                time_us.push(r.time_us);
+                match interval_of(t.earth_tilt_deg) {
+                    Some(k) => per[k].push(err),
+                    None => m.outside += 1,
+                }
+            }
+            m.intervals = [stats(&per[0]), stats(&per[1]), stats(&per[2])];
+            m.time_us_per_frame =
+                (!time_us.is_empty()).then(|| time_us.iter().sum::<f64>() / time_us.len() as f64);
+            m
+        })
+        .collect();
+    EarthScore {
+        methods,
+        frames: scored.len() as u64,
+    }
+}
+
+impl EarthScore {
+    fn method(&self, name: &str) -> Option<&MethodScore> {
+        self.methods.iter().find(|m| m.name == name)
+    }
+
+    /// σ within ±10° of a method, if it answered there.
+    fn sigma_within_10(&self, name: &str) -> Option<f64> {
+        let s = &self.method(name)?.intervals[0];
+        (s.frames > 1).then_some(s.err_sigma_deg)
+    }
+
+    /// The lookup version's time per frame over the Hough baseline's.
+    fn lookup_time_ratio(&self) -> Option<f64> {
+        let l = self.method("lookup")?.time_us_per_frame?;
+        let h = self.method("hough")?.time_us_per_frame?;
+        (h > 0.0).then(|| l / h)
+    }
+
+    /// `earth` in report.json.
+    pub fn json(&self) -> Value {
+        let methods: serde_json::Map<String, Value> = self
+            .methods
+            .iter()
+            .map(|m| {
+                let mut o = serde_json::Map::new();
+                for ((name, _, _), s) in INTERVALS.iter().zip(&m.intervals) {
+                    let v = if s.frames == 0 {
+                        json!({ "frames": 0, "err_mean_deg": null, "err_sigma_deg": null, "err_max_deg": null })
+                    } else {
+                        json!({
+                            "frames": s.frames,
+                            "err_mean_deg": s.err_mean_deg,
+                            "err_sigma_deg": s.err_sigma_deg,
+                            "err_max_deg": s.err_max_deg,
+                        })
+                    };
+                    o.insert(name.to_string(), v);
+                }
+                o.insert("missed".into(), json!(m.missed));
+                o.insert("outside_intervals".into(), json!(m.outside));
+                o.insert("time_us_per_frame".into(), json!(m.time_us_per_frame));
+                (m.name.to_string(), Value::Object(o))
+            })
+            .collect();
+        json!({
+            "frames": self.frames,
+            "methods": methods,
+            "paper": {
+                "cross_product_sigma_within_10_deg": PAPER_SIGMA_CROSS_DEG,
+                "hough_sigma_within_10_deg": PAPER_SIGMA_HOUGH_DEG,
+                "lookup_time_over_hough": PAPER_LOOKUP_TIME_RATIO,
+            },
+        })
+    }
+
+    /// The summary's section: the answer first, then the table beside the paper.
+    pub fn markdown(&self) -> String {
+        let mut s = String::from("\n## Earth sensor [003]: attitude angle β\n\n");
+        if self.frames == 0 {
+            s.push_str("**No Earth frame was answered and scored.**\n");
+            return s;
+        }
+        let f = |v: Option<f64>, d: usize| v.map_or("—".to_string(), |v| format!("{v:.d$}"));
+        let (cross, hough) = (
+            self.sigma_within_10("cross_product"),
+            self.sigma_within_10("hough"),
+        );
+        let ratio = match (cross, hough) {
+            (Some(c), Some(h)) if h > 0.0 => format!(" — {:.2}× the baseline's", c / h),
+            _ => String::new(),
+        };
+        let _ = writeln!(
+            s,
+            "**β error σ within ±10°: cross product {}° (paper {PAPER_SIGMA_CROSS_DEG}°), Hough \
+             baseline {}° (paper {PAPER_SIGMA_HOUGH_DEG}°){ratio}; the lookup version takes {}× \
+             the baseline's time per frame (paper {PAPER_LOOKUP_TIME_RATIO}×).**\n",
+            f(cross, 4),
+            f(hough, 4),
+            f(self.lookup_time_ratio(), 2),
+        );
+        let _ = writeln!(
+            s,
+            "Error = sign(tilt)·β − turntable angle over {} frames; mean / σ / max |error| in \
+             degrees per interval of |angle|; time per frame includes the shared edge \
+             extraction (this machine, not part of the deterministic results).\n",
+            self.frames
+        );
+        let _ = writeln!(
+            s,
+            "| method | ≤ 10° | 10–40° | 40–50° | missed | time/frame [µs] |\n|---|---|---|---|---|---|"
+        );
+        for m in &self.methods {
+            let cell = |i: &IntervalScore| {
+                if i.frames == 0 {
+                    "—".to_string()
+                } else {
+                    format!(
+                        "{:+.4} / {:.4} / {:.4} ({})",
+                        i.err_mean_deg, i.err_sigma_deg, i.err_max_deg, i.frames
+                    )
+                }
+            };
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} |",
+                m.name,
+                cell(&m.intervals[0]),
+                cell(&m.intervals[1]),
+                cell(&m.intervals[2]),
+                m.missed,
+                f(m.time_us_per_frame, 0)
+            );
+        }
+        s.push_str(
+            "\n![error against angle](earth-errors.svg)\n\n![β_k samples and the fitted t \
+             density](earth-samples.svg)\n\n![annotated Earth frame](earth-frame-annotated.svg)\n",
+        );
+        s
+    }
+}
+
+/// `earth-errors.svg`: every method's error against the turntable angle (the paper's
+/// Figs. 11–13 in one chart).
+pub fn error_plot(dir: &Path, score: &EarthScore) -> Result<()> {
+    let colors = [BLUE, GREEN, RED];
+    let series: Vec<Series> = (score.methods.iter().zip(colors))
+        .map(|(m, color)| Series {
+            label: m.name,
+            points: m.errors.clone(),
+            color,
+            markers: true,
+        })
+        .collect();
+    line_chart(
+        &dir.join("earth-errors.svg"),
+        "Attitude-angle error against the turntable angle, per method",
+        "turntable angle [deg]",
+        "sign(tilt)·β − angle [deg]",
+        &series,
+    )
+}
+
+/// The β_k samples of one frame and their fitted t density, as histogram and curve points.
+pub struct SampleFigure {
+    pub angle_deg: f64,
+    pub samples_deg: Vec<f64>,
+    pub fit: Option<glint_earth::tfit::TFit>,
+}
+
+/// The samples of frames rendered at `angles` by the scenario's own sensor and processed by the
+/// earth service's own code (the paper's Figs. 6, 14 and 15 are at 5°, 30° and 60°).
+pub fn sample_figures(e: &EarthScenario, seed: u64, angles: &[f64]) -> Result<Vec<SampleFigure>> {
+    let mut section = e.clone();
+    section.trajectory_deg = angles.to_vec();
+    section.images_per_angle = 1;
+    let scene = glint_sensor::earth_scene::EarthScene::new(&section, seed);
+    let mut core = glint_earth::pipeline::EarthCore::new(
+        glint_earth::service_core::config(&section).map_err(|e| anyhow::anyhow!("{e}"))?,
+    );
+    let (w, h) = (section.width_px as usize, section.height_px as usize);
+    let mut px = vec![0u16; w * h];
+    let mut header = shared_types::FrameHeader::default();
+    let mut out = vec![];
+    for (k, &angle_deg) in angles.iter().enumerate() {
+        scene.render(k as u64, &mut header, &mut px);
+        let r = core
+            .process(&px, w, h)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        out.push(SampleFigure {
+            angle_deg,
+            samples_deg: r.signed_beta_deg,
+            fit: r.fit,
+        });
+    }
+    Ok(out)
+}
+
+/// The t location-scale density at `x`.
+fn t_density(f: &glint_earth::tfit::TFit, x: f64) -> f64 {
+    let z = (x - f.mu) / f.sigma;
+    let nu = f.nu;
+    let ln_c = glint_earth::special::ln_gamma((nu + 1.0) / 2.0)
+        - glint_earth::special::ln_gamma(nu / 2.0)
+        - 0.5 * (nu * std::f64::consts::PI).ln()
+        - f.sigma.ln();
+    (ln_c - (nu + 1.0) / 2.0 * (z * z / nu).ln_1p()).exp()
+}
+
+/// `earth-samples.svg`: each figure's samples as a normalised histogram (steps) about its
+/// fitted μ, and the fitted t density (markers), against β_k − μ.
+pub fn samples_plot(dir: &Path, figures: &[SampleFigure]) -> Result<()> {
+    let colors = [BLUE, GREEN, ORANGE];
+    let mut labels = vec![];
+    for f in figures {
+        let fit = f.fit.as_ref().map_or("no fit".to_string(), |t| {
+            // ν at the fit's upper bound: the samples are normal.
+            let nu = if t.nu >= 1e5 {
+                "ν → ∞".to_string()
+            } else {
+                format!("ν {:.1}", t.nu)
+            };
+            format!("μ {:.3}°, σ {:.3}°, {nu}", t.mu, t.sigma)
+        });
+        labels.push((
+            format!("{}°: β_k ({} samples)", f.angle_deg, f.samples_deg.len()),
+            format!("{}°: fitted t ({fit})", f.angle_deg),
+        ));
+    }
+    let mut series = vec![];
+    for ((f, color), (hist_label, fit_label)) in figures.iter().zip(colors).zip(&labels) {
+        let Some(t) = &f.fit else { continue };
+        let half = 6.0 * t.sigma;
+        let bins = 40;
+        let width = 2.0 * half / bins as f64;
+        let mut counts = vec![0usize; bins];
+        for &b in &f.samples_deg {
+            let k = ((b - t.mu + half) / width).floor();
+            if (0.0..bins as f64).contains(&k) {
+                counts[k as usize] += 1;
+            }
+        }
+        let n = f.samples_deg.len().max(1) as f64;
+        let mut steps = vec![];
+        for (k, c) in counts.iter().enumerate() {
+            let (x0, x1) = (-half + k as f64 * width, -half + (k + 1) as f64 * width);
+            let d = *c as f64 / (n * width);
+            steps.push((x0, d));
+            steps.push((x1, d));
+        }
+        series.push(Series {
+            label: hist_label,
+            points: steps,
+            color,
+            markers: false,
+        });
+        series.push(Series {
+            label: fit_label,
+            points: (0..=bins)
+                .map(|k| {
+                    let x = -half + k as f64 * width;
+                    (x, t_density(t, t.mu + x))
+                })
+                .collect(),
+            color,
+            markers: true,
+        });
+    }
+    line_chart(
+        &dir.join("earth-samples.svg"),
+        "β_k samples of one frame and their fitted t location-scale density",
+        "β_k − μ [deg]",
+        "density [1/deg]",
+        &series,
+    )
+}

@@ -1,0 +1,53 @@
+//! The earth service on the service skeleton: Earth frames in (pixels read in place from
+//! shared memory), one [`EarthAttitude`] out per frame.
+
+use anyhow::{Context, Result};
+use glint_runtime::ports::{FrameInbox, Outbox};
+use glint_runtime::{Frame, Io, Output, Service, Setup};
+use shared_types::topics::{earth_attitude_service, earth_frame_service};
+use shared_types::{DropReason, EarthAttitude, ServiceId, TopicId};
+
+use crate::service_core::EarthServiceCore;
+
+pub struct EarthNode {
+    core: EarthServiceCore,
+    out: Outbox<EarthAttitude>,
+}
+
+impl Service for EarthNode {
+    const ID: ServiceId = ServiceId::Earth;
+    type Input = FrameInbox;
+
+    fn open(setup: &mut Setup<'_>) -> Result<(Self, FrameInbox)> {
+        let e = (setup.scenario.earth.as_ref())
+            .context("the earth service needs an [earth] section")?;
+        let service = earth_frame_service(setup.node, e.pixels())?;
+        let (mut frames, listener) =
+            FrameInbox::open_on(setup.node, TopicId::EarthFrame, &service)?;
+        frames.verify_checksum = true;
+        setup.listen(listener);
+        let out_service = earth_attitude_service(setup.node)?;
+        let mut out = Outbox::open(setup.node, TopicId::EarthAttitude, &out_service, Self::ID)?;
+        // Answers are not re-made on demand: a restarted consumer is sent them again.
+        out.keep_log();
+        let core = EarthServiceCore::new(e).context("earth.sigma_table")?;
+        Ok((EarthNode { core, out }, frames))
+    }
+
+    fn outputs(&mut self) -> Vec<&mut dyn Output> {
+        vec![&mut self.out]
+    }
+
+    fn stats(&self) -> Vec<&glint_runtime::TopicStats> {
+        vec![&self.out.stats]
+    }
+
+    fn on_input(&mut self, _io: &mut Io<'_>, frame: Frame<'_>) -> Result<Result<(), DropReason>> {
+        let msg = match self.core.process(frame.header, frame.pixels) {
+            Ok(m) => m,
+            Err(reason) => return Ok(Err(reason)),
+        };
+        self.out.send(msg, frame.header.meta.t_ns)?;
+        Ok(Ok(()))
+    }
+}

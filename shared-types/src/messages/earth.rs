@@ -1,0 +1,82 @@
+//! The [003] Earth sensor's answer per frame: β and the signed tilt from each method, and what
+//! each took.
+
+use iceoryx2::prelude::ZeroCopySend;
+
+use super::*;
+
+/// One method's answer on one frame.
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
+#[type_name("glint.v3.EarthMethod")]
+#[repr(C)]
+pub struct EarthMethod {
+    /// β, the angle between the optical axis and nadir [deg], ≥ 0.
+    pub beta_deg: f64,
+    /// The nadir's signed tilt about Y_S [deg].
+    pub tilt_deg: f64,
+    /// Compute time, the shared edge extraction included [µs]. A timing: never part of a
+    /// result's digest.
+    pub time_us: f64,
+    /// 1 when the method found an answer on this frame, 0 when it found none (the numbers are
+    /// then 0).
+    pub valid: u32,
+    pub _pad: u32,
+}
+
+/// β and tilt of one Earth frame by every method (math.md §4.4–4.7).
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
+#[type_name("glint.v3.EarthAttitude")]
+#[repr(C)]
+pub struct EarthAttitude {
+    pub meta: Meta,
+    /// Index of the Earth frame answered.
+    pub frame_index: u64,
+    /// Edge points after masks and erosion.
+    pub edge_points: u32,
+    /// β_k samples of the interval cross products.
+    pub samples: u32,
+    /// The t location-scale fit of the signed β_k [deg, deg, 1] (0 without a fit).
+    pub fit_mu_deg: f64,
+    pub fit_sigma_deg: f64,
+    pub fit_nu: f64,
+    /// Indexed by [`EarthAttitude::CROSS_PRODUCT`], [`EarthAttitude::LOOKUP`],
+    /// [`EarthAttitude::HOUGH`].
+    pub methods: [EarthMethod; 3],
+}
+
+impl EarthAttitude {
+    /// The interval cross product with the t location-scale MLE (eqs 10–19, 22).
+    pub const CROSS_PRODUCT: usize = 0;
+    /// Its engineering version: a histogram mode and the σ(μ) table (eq 21).
+    pub const LOOKUP: usize = 1;
+    /// The baseline: Hough circle and Kåsa fit (§4.7).
+    pub const HOUGH: usize = 2;
+    /// Report names of the methods, in index order.
+    pub const METHOD_NAMES: [&'static str; 3] = ["cross_product", "lookup", "hough"];
+
+    pub fn validate(&self) -> Result<(), Reject> {
+        self.meta.validate()?;
+        for v in [self.fit_mu_deg, self.fit_sigma_deg, self.fit_nu] {
+            finite(v, "earth_attitude.fit")?;
+        }
+        for m in &self.methods {
+            if m.valid > 1 {
+                return Err(Reject::new("earth_attitude.methods.valid", "not 0 or 1"));
+            }
+            for v in [m.beta_deg, m.tilt_deg, m.time_us] {
+                finite(v, "earth_attitude.methods")?;
+            }
+            if m.valid == 1 && !(0.0..=180.0).contains(&m.beta_deg) {
+                return Err(Reject::new(
+                    "earth_attitude.methods.beta_deg",
+                    "out of range 0..=180",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
