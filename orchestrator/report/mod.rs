@@ -526,12 +526,13 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     let tm = &j["timing"];
     let _ = writeln!(
         s,
-        "\n## Timing (this machine; not part of the deterministic results)\n\n- wall time {:.3} s (startup {:.3} s, production {:.3} s)\n- frames/s {:.1}, spectra/s {:.1}\n- laser requests served: {}\n- shared memory: {} entries removed, {} left over",
+        "\n## Timing (this machine; not part of the deterministic results)\n\n- wall time {:.3} s (startup {:.3} s, production {:.3} s)\n- frames/s {:.1}, spectra/s {:.1}, Earth frames/s {:.1}\n- laser requests served: {}\n- shared memory: {} entries removed, {} left over",
         f.wall_s,
         f.outcome.startup_s,
         f.outcome.production_s,
         tm["frames_per_s"].as_f64().unwrap_or(0.0),
         tm["spectra_per_s"].as_f64().unwrap_or(0.0),
+        tm["earth_frames_per_s"].as_f64().unwrap_or(0.0),
         f.range_requests,
         f.shm_removed,
         f.shm_leftover.len()

@@ -55,10 +55,22 @@ fn sobel_matches_eq_3_on_a_full_range_step() {
 
 #[test]
 fn otsu_splits_two_levels_between_them() {
-    let values = [2.0f32; 300].into_iter().chain([90.0f32; 100]);
-    let t = otsu(values);
+    let values: Vec<f32> = [2.0f32; 300].into_iter().chain([90.0f32; 100]).collect();
+    let t = otsu(&values);
     assert!(t > 2.0 && t <= 90.0, "{t}");
-    assert_eq!(otsu([0.0f32; 5].into_iter()), 0.0);
+    assert_eq!(otsu(&[0.0f32; 5]), 0.0);
+    // A large input is sampled, and the sample splits it the same way.
+    let big: Vec<f32> = (0..100_000)
+        .map(|i| {
+            if i % 10 < 7 {
+                2.0 + (i % 3) as f32
+            } else {
+                90.0 + (i % 5) as f32
+            }
+        })
+        .collect();
+    let t = otsu(&big);
+    assert!(t > 4.0 && t <= 90.0, "{t}");
 }
 
 #[test]

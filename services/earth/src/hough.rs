@@ -3,7 +3,8 @@
 //! inliers — and β = ‖centre − principal point‖ / f.
 //!
 //! The Hough stage is the gradient-directed form (as OpenCV's `HOUGH_GRADIENT`): each edge
-//! point votes for centres along its Sobel gradient, both ways, at every radius of the range,
+//! point votes for centres along its Sobel gradient, toward the warm side (the Earth is
+//! brighter than space, so its centre lies up the gradient), at every radius of the range,
 //! into a 1-px centre accumulator; the radius is then the most common distance from the best
 //! centre. Under `r = f θ` the limb is not exactly a circle, so the baseline carries a model
 //! bias that grows with β (math.md §4.7 tabulates it; the tests check it).
@@ -145,18 +146,17 @@ impl Hough {
             if g == 0.0 {
                 continue;
             }
+            // The Earth is the warm side: its centre lies up the gradient.
             let (ux, uy) = (gx / g, gy / g);
             for r in r0..=r1 {
-                for sign in [-1.0, 1.0] {
-                    let cx = (x + sign * r as f64 * ux).round();
-                    let cy = (y + sign * r as f64 * uy).round();
-                    if cx >= 0.0 && cy >= 0.0 && (cx as usize) < w && (cy as usize) < h {
-                        let i = cy as usize * w + cx as usize;
-                        if self.votes[i] == 0 {
-                            self.touched.push(i as u32);
-                        }
-                        self.votes[i] += 1;
+                let cx = (x + r as f64 * ux).round();
+                let cy = (y + r as f64 * uy).round();
+                if cx >= 0.0 && cy >= 0.0 && (cx as usize) < w && (cy as usize) < h {
+                    let i = cy as usize * w + cx as usize;
+                    if self.votes[i] == 0 {
+                        self.touched.push(i as u32);
                     }
+                    self.votes[i] += 1;
                 }
             }
         }
