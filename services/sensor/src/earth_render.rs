@@ -10,6 +10,7 @@
 
 use glint_physics::fisheye::{earth_angular_radius_rad, Fisheye};
 
+use crate::earth_hazards::{HazardFrame, Hazards};
 use crate::render::noise::{NormalTable, Xoshiro256pp};
 
 /// PRNG stream offset of the Earth frames' noise (stream = offset + frame index).
@@ -36,6 +37,8 @@ pub struct EarthRenderConfig {
     /// Read noise σ [DN], ≥ 0.
     pub noise_dn: f64,
     pub saturation_dn: u16,
+    /// Oblateness, a seasonal limb, the Sun in the field: none by default.
+    pub hazards: Hazards,
 }
 
 /// The renderer: each pixel's direction, the limb profile, the noise table.
@@ -124,6 +127,23 @@ impl EarthRenderer {
         let (earth, space) = (c.earth_dn as f32, c.space_dn as f32);
         let (noise, sat) = (c.noise_dn as f32, f32::from(c.saturation_dn));
         let mut z = [0.0f32; 4];
+        if c.hazards.any() {
+            let frame =
+                HazardFrame::new(c.hazards, e, c.altitude_km, c.camera.f_px, c.psf_sigma_px);
+            for (i, (px, dir)) in out.iter_mut().zip(&self.directions).enumerate() {
+                if i % 4 == 0 {
+                    z = self.normal.sample4(&mut rng);
+                }
+                let Some(u) = dir else {
+                    *px = 0;
+                    continue;
+                };
+                let u = u.map(f64::from);
+                let v = frame.value(u, c.earth_dn, c.space_dn) as f32 + noise * z[i % 4];
+                *px = v.round().clamp(0.0, sat) as u16;
+            }
+            return true;
+        }
         for (i, (px, dir)) in out.iter_mut().zip(&self.directions).enumerate() {
             if i % 4 == 0 {
                 z = self.normal.sample4(&mut rng);

@@ -16,6 +16,7 @@ fn config(noise_dn: f64) -> EarthRenderConfig {
         psf_sigma_px: 1.2,
         noise_dn,
         saturation_dn: 65535,
+        hazards: Default::default(),
     }
 }
 

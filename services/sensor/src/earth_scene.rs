@@ -5,6 +5,7 @@ use glint_physics::fisheye::Fisheye;
 use shared_types::scenario::EarthScenario;
 use shared_types::{FrameHeader, Meta, Truth};
 
+use crate::earth_hazards::{Hazards, SunInField};
 use crate::earth_render::{nadir, EarthRenderConfig, EarthRenderer};
 
 pub struct EarthScene {
@@ -28,6 +29,7 @@ impl EarthScene {
             psf_sigma_px: e.psf_sigma_px,
             noise_dn: e.noise_dn,
             saturation_dn: e.saturation_dn.min(u16::MAX as u32) as u16,
+            hazards: hazards(e),
         });
         EarthScene {
             renderer,
@@ -83,6 +85,23 @@ impl EarthScene {
     }
 }
 
+/// The harder conditions an `[earth]` section asks for.
+fn hazards(e: &EarthScenario) -> Hazards {
+    let [theta, phi] = e.sun_direction_deg.map(f64::to_radians);
+    Hazards {
+        flattening: e.flattening,
+        limb_radiance_amplitude: e.limb_radiance_amplitude,
+        sun: (e.sun_dn > 0.0).then(|| SunInField {
+            direction: [
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            ],
+            radiance_dn: e.sun_dn,
+        }),
+    }
+}
+
 /// The fisheye of an `[earth]` section.
 pub fn camera(e: &EarthScenario) -> Fisheye {
     Fisheye {
@@ -107,6 +126,27 @@ mod tests {
             trajectory_deg: vec![-4.0, 0.0, 25.0],
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn the_sun_of_the_section_is_where_its_direction_images() {
+        let mut e = section();
+        e.noise_dn = 0.0;
+        e.sun_dn = 1e6;
+        e.sun_direction_deg = [100.0, 90.0];
+        let scene = EarthScene::new(&e, 5);
+        let mut px = vec![0u16; 128 * 128];
+        scene.render(0, &mut FrameHeader::default(), &mut px);
+        // θ = 100° toward +Y: r = f θ below the principal point.
+        let (x, y) = (63.5, 63.5 + 32.0 * 100f64.to_radians());
+        let at = |px: &[u16], x: f64, y: f64| px[y.round() as usize * 128 + x.round() as usize];
+        // It saturates the detector.
+        assert_eq!(at(&px, x, y), e.saturation_dn as u16);
+        assert_eq!(at(&px, x + 12.0, y), e.space_dn as u16);
+        // Without it, space there.
+        e.sun_dn = 0.0;
+        EarthScene::new(&e, 5).render(0, &mut FrameHeader::default(), &mut px);
+        assert_eq!(at(&px, x, y), e.space_dn as u16);
     }
 
     #[test]

@@ -7,6 +7,7 @@
 //! node loop (`node`).
 
 pub mod debris_scene;
+pub mod earth_hazards;
 pub mod earth_render;
 pub mod earth_scene;
 pub mod laser;

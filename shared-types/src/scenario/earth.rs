@@ -49,6 +49,15 @@ pub struct EarthScenario {
     /// Strong-edge threshold on the Sobel magnitude [DN]; absent: Otsu per frame.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub edge_threshold_dn: Option<f64>,
+    /// Harder frames, all off by default. The Earth's flattening, 0–0.01 (0: a sphere; WGS 84:
+    /// 0.0033528), its polar axis along Y_S.
+    pub flattening: f64,
+    /// The limb radiance's relative change from pole to pole (a seasonal limb), 0–0.9.
+    pub limb_radiance_amplitude: f64,
+    /// The Sun in the field: its recorded radiance [DN], 0 (no Sun) to 1e6 (it saturates).
+    pub sun_dn: f64,
+    /// Its direction: angle from the optical axis, 0–180, and azimuth from X_S, −180–180 [deg].
+    pub sun_direction_deg: [f64; 2],
 }
 
 impl Default for EarthScenario {
@@ -71,6 +80,10 @@ impl Default for EarthScenario {
             trajectory_deg: vec![],
             sigma_table: None,
             edge_threshold_dn: None,
+            flattening: 0.0,
+            limb_radiance_amplitude: 0.0,
+            sun_dn: 0.0,
+            sun_direction_deg: [100.0, 90.0],
         }
     }
 }
@@ -176,4 +189,24 @@ pub(super) fn check_earth(c: &mut Checker, e: &EarthScenario) {
     if let Some(t) = e.edge_threshold_dn {
         c.range("earth.edge_threshold_dn", t, 0.0, 1e7);
     }
+    c.range("earth.flattening", e.flattening, 0.0, 0.01);
+    c.range(
+        "earth.limb_radiance_amplitude",
+        e.limb_radiance_amplitude,
+        0.0,
+        0.9,
+    );
+    c.range("earth.sun_dn", e.sun_dn, 0.0, 1e6);
+    c.range(
+        "earth.sun_direction_deg[0]",
+        e.sun_direction_deg[0],
+        0.0,
+        180.0,
+    );
+    c.range(
+        "earth.sun_direction_deg[1]",
+        e.sun_direction_deg[1],
+        -180.0,
+        180.0,
+    );
 }
