@@ -153,27 +153,24 @@ impl Service for SensorNode {
             if let (Some(Emission::Frame { k, t_ns }), Some(out)) =
                 (self.core.frame(nf), self.frames.as_mut())
             {
-                let replay = out.replaying();
-                let due = if io.realtime {
-                    let (at, now) = (self.frame_period_ns * k, io.now_ns() - t0_ns);
-                    if now < at {
-                        next_wake_ns = Some(next_wake_ns.map_or(at - now, |w| w.min(at - now)));
-                    }
-                    now >= at
-                } else {
-                    // A replay (a restarted consumer) carries no truth: it was sent once.
-                    let truth_ok = io.allows(TopicId::Truth, self.truth.stats.published);
-                    frame_first && io.allows(TopicId::Frame, k) && (truth_ok || replay)
+                let turn = Turn {
+                    k,
+                    t_ns,
+                    in_turn: frame_first,
+                    topic: TopicId::Frame,
+                    period_ns: self.frame_period_ns,
+                    t0_ns,
                 };
-                if due {
-                    io.pace()?;
-                    let core = &self.core;
-                    out.publish(t_ns, |h, px| core.render_frame(k, h, px))?;
-                    if let (false, Some(truth)) = (replay, self.core.frame_truth(k)) {
-                        self.truth.send(truth, t_ns)?;
-                    }
-                    progressed = true;
-                }
+                let core = &self.core;
+                progressed |= emit_frame(
+                    io,
+                    out,
+                    &mut self.truth,
+                    &turn,
+                    &mut next_wake_ns,
+                    |h, px| core.render_frame(k, h, px),
+                    || core.frame_truth(k),
+                )?;
             }
             if let (Some(Emission::Spectrum { k, .. }), Some(out)) =
                 (self.core.spectrum_at(ns), self.spectra.as_mut())
@@ -195,26 +192,24 @@ impl Service for SensorNode {
             if let (Some(Emission::Earth { k, t_ns }), Some(out)) =
                 (self.core.earth_at(ne), self.earth.as_mut())
             {
-                let replay = out.replaying();
-                let due = if io.realtime {
-                    let (at, now) = (self.earth_period_ns * k, io.now_ns() - t0_ns);
-                    if now < at {
-                        next_wake_ns = Some(next_wake_ns.map_or(at - now, |w| w.min(at - now)));
-                    }
-                    now >= at
-                } else {
-                    let truth_ok = io.allows(TopicId::Truth, self.truth.stats.published);
-                    earth_first && io.allows(TopicId::EarthFrame, k) && (truth_ok || replay)
+                let turn = Turn {
+                    k,
+                    t_ns,
+                    in_turn: earth_first,
+                    topic: TopicId::EarthFrame,
+                    period_ns: self.earth_period_ns,
+                    t0_ns,
                 };
-                if due {
-                    io.pace()?;
-                    let core = &self.core;
-                    out.publish(t_ns, |h, px| core.render_earth(k, h, px))?;
-                    if let (false, Some(truth)) = (replay, self.core.earth_truth(k)) {
-                        self.truth.send(truth, t_ns)?;
-                    }
-                    progressed = true;
-                }
+                let core = &self.core;
+                progressed |= emit_frame(
+                    io,
+                    out,
+                    &mut self.truth,
+                    &turn,
+                    &mut next_wake_ns,
+                    |h, px| core.render_earth(k, h, px),
+                    || core.earth_truth(k),
+                )?;
             }
             if !progressed {
                 break;
@@ -244,4 +239,51 @@ impl Service for SensorNode {
             _ => Step::Wait,
         })
     }
+}
+
+/// Frame `k` of one frame stream (the camera's or the Earth sensor's), at `t_ns`.
+struct Turn {
+    k: u64,
+    t_ns: u64,
+    /// Whether it is next in simulated-time order of all the sensor's streams.
+    in_turn: bool,
+    topic: TopicId,
+    /// Realtime: frame `k` is due `k` periods after `Start` (`t0_ns`).
+    period_ns: u64,
+    t0_ns: u64,
+}
+
+/// Publishes the frame of `turn` when it is due — in realtime by the wall clock, in sim-clock
+/// mode when it is in turn and its topic and the truth have credit — rendered in place, and
+/// its truth unless it is a replay (a restarted consumer; the truth was sent once). Whether it
+/// was published.
+fn emit_frame(
+    io: &mut Io<'_>,
+    out: &mut FrameOutbox,
+    truth: &mut Outbox<Truth>,
+    turn: &Turn,
+    next_wake_ns: &mut Option<u64>,
+    render: impl FnOnce(&mut shared_types::FrameHeader, &mut [u16]),
+    truth_of: impl FnOnce() -> Option<Truth>,
+) -> Result<bool> {
+    let replay = out.replaying();
+    let due = if io.realtime {
+        let (at, now) = (turn.period_ns * turn.k, io.now_ns() - turn.t0_ns);
+        if now < at {
+            *next_wake_ns = Some(next_wake_ns.map_or(at - now, |w| w.min(at - now)));
+        }
+        now >= at
+    } else {
+        let truth_ok = io.allows(TopicId::Truth, truth.stats.published);
+        turn.in_turn && io.allows(turn.topic, turn.k) && (truth_ok || replay)
+    };
+    if !due {
+        return Ok(false);
+    }
+    io.pace()?;
+    out.publish(turn.t_ns, render)?;
+    if let (false, Some(t)) = (replay, truth_of()) {
+        truth.send(t, turn.t_ns)?;
+    }
+    Ok(true)
 }
