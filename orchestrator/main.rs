@@ -202,7 +202,16 @@ fn main() -> ExitCode {
             if opts.scenario.matrix.is_some() {
                 return finish(matrix::run_matrix(opts));
             }
-            finish(run::run(opts))
+            let result = run::run(opts);
+            if let Ok((dir, _)) = &result {
+                let report = std::fs::read_to_string(dir.join("report.json")).ok();
+                let answer = (report.and_then(|t| serde_json::from_str(&t).ok()))
+                    .and_then(|j: serde_json::Value| report::earth::console(&j));
+                if let Some(text) = answer {
+                    eprint!("{text}");
+                }
+            }
+            finish(result)
         }
         #[cfg(feature = "lab")]
         Cmd::Lab {

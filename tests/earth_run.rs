@@ -77,6 +77,18 @@ fn the_turntable_sweep_deployed_accounts_for_every_frame_and_ranks_the_methods()
         "cross product max error above 40°: {}",
         max("cross_product", "40_to_50")
     );
+    // `glint run` prints the figures (stderr; stdout is the summary's path alone).
+    let printed = String::from_utf8_lossy(&r.output.stderr);
+    assert!(
+        printed.contains("Earth sensor [003]: β error σ within ±10°: cross product 0.0"),
+        "{printed}"
+    );
+    assert!(
+        printed.contains("cross_product") && printed.contains("µs"),
+        "{printed}"
+    );
+    let stdout = String::from_utf8_lossy(&r.output.stdout);
+    assert!(stdout.trim().ends_with("summary.md"), "{stdout}");
     // The summary leads with the answer, beside the paper's figures.
     let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
     let first = summary

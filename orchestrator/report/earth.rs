@@ -398,3 +398,41 @@ pub fn samples_plot(dir: &Path, figures: &[SampleFigure]) -> Result<()> {
         &series,
     )
 }
+
+/// What `glint run` prints of the Earth sensor (to stderr, the summary's path staying alone on
+/// stdout): the figures beside the paper's and a line per method, from `report.json`.
+pub fn console(report: &Value) -> Option<String> {
+    let methods = report.get("earth")?.get("methods")?;
+    let num = |m: &str, i: &str, k: &str| methods[m][i][k].as_f64();
+    let deg = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.4}°"));
+    let time = |m: &str| methods[m]["time_us_per_frame"].as_f64();
+    let ratio = match (time("lookup"), time("hough")) {
+        (Some(l), Some(h)) if h > 0.0 => format!("{:.2}×", l / h),
+        _ => "—".into(),
+    };
+    let mut s = format!(
+        "Earth sensor [003]: β error σ within ±10°: cross product {} (paper {PAPER_SIGMA_CROSS_DEG}°), \
+         Hough baseline {} (paper {PAPER_SIGMA_HOUGH_DEG}°); lookup time {ratio} the baseline's \
+         (paper {PAPER_LOOKUP_TIME_RATIO}×)\n",
+        deg(num("cross_product", "within_10", "err_sigma_deg")),
+        deg(num("hough", "within_10", "err_sigma_deg")),
+    );
+    let _ = writeln!(
+        s,
+        "  {:<14} {:>10} {:>10} {:>10} {:>12} {:>14}",
+        "method", "σ ≤10°", "σ 10–40°", "σ 40–50°", "max 40–50°", "time/frame"
+    );
+    for m in EarthAttitude::METHOD_NAMES {
+        let _ = writeln!(
+            s,
+            "  {:<14} {:>10} {:>10} {:>10} {:>12} {:>14}",
+            m,
+            deg(num(m, "within_10", "err_sigma_deg")),
+            deg(num(m, "10_to_40", "err_sigma_deg")),
+            deg(num(m, "40_to_50", "err_sigma_deg")),
+            deg(num(m, "40_to_50", "err_max_deg")),
+            time(m).map_or("—".into(), |t| format!("{t:.0} µs")),
+        );
+    }
+    Some(s)
+}
