@@ -6,6 +6,8 @@
 //! - `baseline/box_muller_background`: the same background by Box–Muller per pixel (the
 //!   reference renderer), measured in the same run for the ratio.
 //!
+//! - `earth/512`: one 512² [003] fisheye Earth frame.
+//!
 //! Run: `cargo bench --bench render` (criterion; short measurement time set below).
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -79,11 +81,26 @@ fn bench_render(c: &mut Criterion) {
     });
 }
 
+/// One 512² [003] Earth frame of the turntable scenario's sensor, at 12° (`earth/512`).
+fn bench_earth(c: &mut Criterion) {
+    let section = shared_types::scenario::EarthScenario::default();
+    let scene = glint_sensor::earth_scene::EarthScene::new(&section, 2003);
+    let mut out = vec![0u16; section.pixels()];
+    let mut header = shared_types::FrameHeader::default();
+    let mut k = 0u64;
+    c.bench_function("earth/512", |b| {
+        b.iter(|| {
+            k = (k + 1) % scene.frames();
+            scene.render(k, &mut header, black_box(&mut out));
+        })
+    });
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default()
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(3));
-    targets = bench_render
+    targets = bench_render, bench_earth
 }
 criterion_main!(benches);
