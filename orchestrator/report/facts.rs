@@ -1,0 +1,303 @@
+//! What a run leaves to report: its services, every topic's accounting, the science each
+//! section scores, collected once from the orchestrator's consumer and the children.
+
+use std::collections::BTreeMap;
+
+use serde_json::Value;
+use shared_types::{deployment, Scenario, ServiceId, TopicCounters, TopicId};
+
+use super::{earth, science};
+use crate::consume::Consumer;
+use crate::deploy::{Ending, ServiceProcess};
+
+pub struct Outcome {
+    pub startup_s: f64,
+    pub production_s: f64,
+}
+
+pub struct ServiceFact {
+    pub name: String,
+    pub pid: u32,
+    pub restarts: u32,
+    pub ending: Ending,
+    /// CPU time of its last incarnation [s] (none if it did not exit).
+    pub cpu_s: Option<f64>,
+}
+
+pub struct ConsumerFact {
+    pub received: u64,
+    pub dropped: [u64; shared_types::DROP_REASONS],
+    /// Copies skipped because they were already accounted for (replays after a restart).
+    pub duplicates: u64,
+}
+
+pub struct TopicFact {
+    /// What the run had to carry: the scenario's count less what was dropped upstream with a
+    /// counted reason.
+    pub expected: u64,
+    pub published: Option<u64>,
+    /// The producer's own counts of what it dropped (`injected`) or sent invalid
+    /// (`malformed`) on purpose: in-band faults.
+    pub producer_dropped: [u64; shared_types::DROP_REASONS],
+    pub digest: Option<u64>,
+    pub consumers: BTreeMap<String, Option<ConsumerFact>>,
+}
+
+/// What the debris pictures need besides the score.
+pub struct DebrisFacts {
+    pub score: crate::score_debris::DebrisScore,
+    pub camera: glint_physics::camera::PinholeCamera,
+    pub snapshot: Option<(u64, u32, u32, Vec<u16>)>,
+    pub detections: Vec<shared_types::Detections>,
+    pub truths: Vec<shared_types::Truth>,
+}
+
+/// What the Earth sensor's section and pictures need.
+pub struct EarthFacts {
+    pub score: earth::EarthScore,
+    pub snapshot: Option<(u64, u32, u32, Vec<u16>)>,
+    pub answers: Vec<shared_types::EarthAttitude>,
+    pub truths: Vec<shared_types::Truth>,
+}
+
+pub struct RunFacts {
+    pub debris: Option<DebrisFacts>,
+    pub earth: Option<EarthFacts>,
+    pub solve: Vec<shared_types::SolveResponse>,
+    pub spectra: Vec<shared_types::Spectrum>,
+    pub services: Vec<ServiceFact>,
+    pub topics: BTreeMap<TopicId, TopicFact>,
+    pub failure: Option<String>,
+    pub outcome: Outcome,
+    pub frame_latency_ns: Vec<u64>,
+    pub spectrum_latency_ns: Vec<u64>,
+    /// Per pipeline stage, its latency per frame from the messages' send times ([`stages`]).
+    pub stage_latency_ns: Vec<(&'static str, Vec<u64>)>,
+    /// The orchestrator's own CPU time at the end of the run [s].
+    pub orchestrator_cpu_s: Option<f64>,
+    pub light_curve: Vec<(u64, [f64; 3], [f64; 3])>,
+    /// Range requests the sensor served (its current incarnation; retries included).
+    pub range_requests: u64,
+    /// Laser shots the tracker fired (one per confirmed track and frame, from the tracks).
+    pub laser_shots: u64,
+    /// One digest of every result the run produced: each topic's content digest and the
+    /// solve's answers (send times left out). Equal digests, equal science.
+    pub science_digest: u64,
+    pub wall_s: f64,
+    pub prefix: String,
+    pub scenario_file: String,
+    pub shm_removed: usize,
+    pub shm_leftover: Vec<String>,
+    /// Live nodes under the prefix once the deployment ended (processes outside it).
+    pub shm_held_by: Vec<String>,
+    /// The injected faults and what supervision saw of them.
+    pub faults: Vec<crate::faults::Fault>,
+    /// Solve answers the inversion dropped and sent invalid on purpose, and those the
+    /// sequencer noticed as unanswered and rejected as malformed.
+    pub solve_tampered: [u64; 4],
+    /// Nodes under the prefix that were not the deployment's ([`crate::membership`]).
+    pub membership: Value,
+}
+
+/// The service that publishes a topic.
+pub(super) use shared_types::deployment::producer as producer_of;
+
+fn consumer_fact(c: TopicCounters) -> ConsumerFact {
+    ConsumerFact {
+        received: c.received,
+        dropped: c.dropped,
+        duplicates: u64::from(c.duplicates),
+    }
+}
+
+impl RunFacts {
+    pub fn collect(
+        consumer: &Consumer,
+        children: &[ServiceProcess],
+        scenario: &Scenario,
+        solve: Vec<shared_types::SolveResponse>,
+        failure: Option<String>,
+        faults: Vec<crate::faults::Fault>,
+        outcome: Outcome,
+    ) -> Self {
+        let services = children
+            .iter()
+            .map(|c| ServiceFact {
+                name: c.id.name().to_string(),
+                pid: c.pid,
+                restarts: c.restarts,
+                ending: c.ending.clone(),
+                cpu_s: c.cpu_s,
+            })
+            .collect();
+        let digests = consumer.digests();
+        let science = science::digest(&digests, &solve);
+        let mut topics = BTreeMap::new();
+        for t in [
+            TopicId::Frame,
+            TopicId::Detections,
+            TopicId::Tracks,
+            TopicId::Spectrum,
+            TopicId::EarthFrame,
+            TopicId::EarthAttitude,
+            TopicId::Truth,
+        ] {
+            if deployment::expected_messages(scenario, t) == 0 {
+                continue;
+            }
+            let expected = consumer.expected_now(t);
+            let mut consumers = BTreeMap::new();
+            for c in deployment::consumers(scenario, t) {
+                let fact = if c == ServiceId::Orchestrator {
+                    consumer
+                        .own_stats()
+                        .into_iter()
+                        .find(|s| s.topic == t)
+                        .map(|s| consumer_fact(s.counters()))
+                } else {
+                    consumer.reported(c, t).map(consumer_fact)
+                };
+                consumers.insert(c.name().to_string(), fact);
+            }
+            // A publisher killed between heartbeats reported fewer than it published: what its
+            // consumers received (or dropped) it published at least.
+            let reported = consumer.reported(producer_of(t), t).map(|c| c.published);
+            let seen = consumers
+                .values()
+                .flatten()
+                .map(|c| c.received + c.dropped.iter().sum::<u64>())
+                .max();
+            let published = match (reported, seen) {
+                (Some(p), Some(s)) => Some(p.max(s)),
+                (p, s) => p.or(s),
+            };
+            topics.insert(
+                t,
+                TopicFact {
+                    expected,
+                    published,
+                    producer_dropped: consumer
+                        .reported(producer_of(t), t)
+                        .map_or([0; shared_types::DROP_REASONS], |c| c.dropped),
+                    digest: digests.get(&t).copied(),
+                    consumers,
+                },
+            );
+        }
+        let debris = scenario.camera.as_ref().map(|cam| {
+            let camera = glint_detector::service_core::camera(cam);
+            let a_m = cam.orbit_semi_major_axis_km * 1e3;
+            let n_rad_s = (glint_physics::orbit::MU_EARTH_M3_S2 / (a_m * a_m * a_m)).sqrt();
+            let frame_truths: Vec<shared_types::Truth> = consumer
+                .truths
+                .iter()
+                .filter(|t| t.kind == shared_types::Truth::KIND_FRAME)
+                .copied()
+                .collect();
+            DebrisFacts {
+                score: crate::score_debris::score(
+                    &camera,
+                    n_rad_s,
+                    &frame_truths,
+                    &consumer.detection_msgs,
+                    &consumer.track_msgs,
+                ),
+                camera,
+                snapshot: consumer.snapshot.clone(),
+                detections: consumer.detection_msgs.clone(),
+                truths: frame_truths,
+            }
+        });
+        let earth = scenario.earth.as_ref().map(|_| {
+            let truths: Vec<shared_types::Truth> = (consumer.truths.iter())
+                .filter(|t| t.kind == shared_types::Truth::KIND_EARTH)
+                .copied()
+                .collect();
+            EarthFacts {
+                score: earth::score(&truths, &consumer.earth_msgs),
+                snapshot: consumer.earth_snapshot.clone(),
+                answers: consumer.earth_msgs.clone(),
+                truths,
+            }
+        });
+        RunFacts {
+            debris,
+            earth,
+            solve,
+            spectra: consumer.spectra_msgs.clone(),
+            services,
+            topics,
+            failure,
+            outcome,
+            frame_latency_ns: consumer.frame_latency_ns.clone(),
+            stage_latency_ns: stages(consumer),
+            orchestrator_cpu_s: crate::deploy::cpu_seconds("self"),
+            spectrum_latency_ns: consumer.spectrum_latency_ns.clone(),
+            light_curve: consumer.light_curve.clone(),
+            range_requests: consumer
+                .reported(ServiceId::Sensor, TopicId::Range)
+                .map_or(0, |c| c.received + c.dropped.iter().sum::<u64>()),
+            laser_shots: consumer
+                .track_msgs
+                .iter()
+                .flat_map(|m| m.items[..(m.n as usize).min(m.items.len())].iter())
+                .filter(|e| e.range_status != u32::MAX)
+                .count() as u64,
+            science_digest: science,
+            wall_s: 0.0,
+            prefix: String::new(),
+            scenario_file: String::new(),
+            shm_removed: 0,
+            shm_leftover: vec![],
+            shm_held_by: vec![],
+            faults,
+            solve_tampered: [0; 4],
+            membership: Value::Null,
+        }
+    }
+
+    /// received + dropped == published == expected, for every topic and consumer.
+    pub fn invariant_held(&self) -> bool {
+        self.topics.values().all(|t| {
+            t.published == Some(t.expected)
+                && t.consumers.values().all(|c| {
+                    c.as_ref()
+                        .is_some_and(|c| c.received + c.dropped.iter().sum::<u64>() == t.expected)
+                })
+        })
+    }
+
+    pub fn success(&self) -> bool {
+        self.failure.is_none()
+            && self.invariant_held()
+            && self.shm_leftover.is_empty()
+            && self.services.iter().all(|s| s.ending == Ending::Shutdown)
+    }
+}
+
+/// Per-frame latencies of the debris pipeline's stages from the send times the messages carry
+/// (one CLOCK_MONOTONIC on this host): `detect` = frame sent → its detections sent (the hop,
+/// the checksum and the detection), `track` = detections sent → tracks sent (the hop, the
+/// filters and the laser round trip), `end_to_end` = frame sent → tracks sent.
+fn stages(c: &Consumer) -> Vec<(&'static str, Vec<u64>)> {
+    let frames: BTreeMap<u64, u64> = c.frame_send_ns.iter().copied().collect();
+    let dets: BTreeMap<u64, u64> = (c.detection_msgs.iter())
+        .map(|d| (d.meta.seq, d.meta.send_mono_ns))
+        .collect();
+    let gap = |a: &BTreeMap<u64, u64>, b: &BTreeMap<u64, u64>| -> Vec<u64> {
+        b.iter()
+            .filter_map(|(seq, t1)| a.get(seq).map(|t0| t1.saturating_sub(*t0)))
+            .collect()
+    };
+    if frames.is_empty() || dets.is_empty() {
+        return vec![];
+    }
+    let tracks: BTreeMap<u64, u64> = (c.track_msgs.iter())
+        .map(|t| (t.meta.seq, t.meta.send_mono_ns))
+        .collect();
+    vec![
+        ("detect", gap(&frames, &dets)),
+        ("track", gap(&dets, &tracks)),
+        ("end_to_end", gap(&frames, &tracks)),
+    ]
+}
