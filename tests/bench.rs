@@ -138,6 +138,48 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
         let l = &report["timing"]["stage_latency_us"][stage];
         assert_eq!(l["count"], 30, "{stage}: {l}");
     }
+    // Where each process's time went: awake or asleep from before Start to after the last
+    // result, so the three cover the production and fit in the run; busy's parts fit in busy;
+    // and the kernel's CPU count (/proc, independent of the timers) fits in the awake time
+    // (plus the start-up before the timers run).
+    let production_s = f(&report["timing"]["production_s"]);
+    assert_eq!(p["time_s"], report["timing"]["time_s"]);
+    for name in ["sensor", "detector", "tracker"] {
+        let t = &p["time_s"][name];
+        let busy = f(&t["busy_s"]);
+        let total = busy + f(&t["credit_wait_s"]) + f(&t["idle_s"]);
+        assert!(
+            total >= production_s - 1e-3 && total <= wall_s,
+            "{name}: {t}, production {production_s} s, wall {wall_s} s"
+        );
+        let parts = f(&t["checksum_s"]) + f(&t["publish_s"]) + f(&t["rpc_wait_s"]);
+        assert!(
+            parts <= busy + 1e-9 && f(&t["work_s"]) >= 0.0,
+            "{name}: {t}"
+        );
+        assert!(
+            f(&p["stages"][name]["cpu_s"]) <= busy + 0.1,
+            "{name}: {t} against {}",
+            p["stages"][name]
+        );
+        assert!(f(&t["publish_s"]) > 0.0, "{name}: {t}");
+    }
+    let t = &p["time_s"];
+    // The sensor hashes every frame, the detector verifies it; only the tracker waits for the
+    // laser.
+    assert!(
+        f(&t["sensor"]["checksum_s"]) > 0.0 && f(&t["detector"]["checksum_s"]) > 0.0,
+        "{t}"
+    );
+    assert_eq!(f(&t["tracker"]["checksum_s"]), 0.0, "{t}");
+    assert!(
+        f(&t["tracker"]["rpc_wait_s"]) > 0.0 && f(&t["sensor"]["rpc_wait_s"]) == 0.0,
+        "{t}"
+    );
+    assert!(
+        stdout.contains("where the time goes (the deployment, ms per frame)"),
+        "{stdout}"
+    );
     assert!(dir.join("pipeline.csv").is_file());
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -169,6 +169,8 @@ pub struct Deployed {
     pub cpu_s: Vec<(String, f64)>,
     /// Per stage: (name, p50 [µs], p99 [µs]) from the messages' send times.
     pub stages: Vec<(String, f64, f64)>,
+    /// Per process: where its time went (the report's `timing.time_s`).
+    pub time_s: serde_json::Map<String, Value>,
     pub science_digest: String,
     pub success: bool,
 }
@@ -200,6 +202,7 @@ pub fn read_report(report: &Value) -> Deployed {
         dropped,
         cpu_s,
         stages,
+        time_s: timing["time_s"].as_object().cloned().unwrap_or_default(),
         science_digest: report["science"]["digest_xxh3"]
             .as_str()
             .unwrap_or("")
@@ -256,6 +259,7 @@ pub fn json(o: &PipelineOptions, d: &Deployed, ip: &InProcess) -> Value {
             "orchestrator": stage("frame_hop", "orchestrator"),
             "end_to_end": stage("end_to_end", "all"),
         },
+        "time_s": d.time_s,
         "in_process": { "frames": ip.frames, "wall_s": ip.wall_s, "stages": breakdown },
     })
 }
@@ -295,6 +299,7 @@ pub fn print(o: &PipelineOptions, d: &Deployed, ip: &InProcess) {
     for (name, p50, p99) in &d.stages {
         println!("{name:<13} {p50:>10.1} {p99:>10.1}");
     }
+    print_time(d);
     println!("\nwhere the time goes (in one process, per frame)\n");
     println!(
         "{:<13} {:>10} {:>10} {:>10}",
@@ -303,5 +308,35 @@ pub fn print(o: &PipelineOptions, d: &Deployed, ip: &InProcess) {
     for (name, ns) in &ip.stages {
         let (mean, p50, p99) = stats_us(ns);
         println!("{name:<13} {mean:>10.1} {p50:>10.1} {p99:>10.1}");
+    }
+}
+
+/// Each process's time per frame in the deployment: busy (its work, checksums, publishing,
+/// laser round trips) or asleep (held back by a consumer's credit, or idle).
+fn print_time(d: &Deployed) {
+    const COLUMNS: [(&str, &str); 6] = [
+        ("work", "work_s"),
+        ("checksum", "checksum_s"),
+        ("publish", "publish_s"),
+        ("laser wait", "rpc_wait_s"),
+        ("credit wait", "credit_wait_s"),
+        ("idle", "idle_s"),
+    ];
+    println!("\nwhere the time goes (the deployment, ms per frame)\n");
+    print!("{:<13}", "process");
+    for (head, _) in COLUMNS {
+        print!(" {head:>11}");
+    }
+    println!();
+    let per_frame_ms = 1e3 / d.frames.max(1) as f64;
+    for (name, t) in &d.time_s {
+        print!("{name:<13}");
+        for (_, key) in COLUMNS {
+            print!(
+                " {:>11.3}",
+                t[key].as_f64().unwrap_or(f64::NAN) * per_frame_ms
+            );
+        }
+        println!();
     }
 }

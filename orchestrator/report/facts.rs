@@ -22,6 +22,8 @@ pub struct ServiceFact {
     pub ending: Ending,
     /// CPU time of its last incarnation [s] (none if it did not exit).
     pub cpu_s: Option<f64>,
+    /// Where its last incarnation's time went, from its last heartbeat.
+    pub time: Option<shared_types::ServiceTime>,
 }
 
 pub struct ConsumerFact {
@@ -128,6 +130,7 @@ impl RunFacts {
                 restarts: c.restarts,
                 ending: c.ending.clone(),
                 cpu_s: c.cpu_s,
+                time: consumer.seen.get(&c.id).map(|s| s.heartbeat.time),
             })
             .collect();
         let digests = consumer.digests();

@@ -138,7 +138,26 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
             "cpu_s": f.services.iter().map(|s| (s.name.clone(), json!(s.cpu_s)))
                 .chain([("orchestrator".to_string(), json!(f.orchestrator_cpu_s))])
                 .collect::<serde_json::Map<_, _>>(),
+            "time_s": f.services.iter()
+                .filter_map(|s| Some((s.name.clone(), time_json(&s.time?))))
+                .collect::<serde_json::Map<_, _>>(),
         },
+    })
+}
+
+/// Where a service's time went [s]: asleep (`credit_wait`, `idle`) or `busy`, and busy's
+/// parts (`work` is the rest: its own computation and housekeeping).
+fn time_json(t: &shared_types::ServiceTime) -> Value {
+    let s = |ns: u64| ns as f64 * 1e-9;
+    let parts = t.publish_ns + t.checksum_ns + t.rpc_wait_ns;
+    json!({
+        "busy_s": s(t.busy_ns),
+        "credit_wait_s": s(t.credit_wait_ns),
+        "idle_s": s(t.idle_ns),
+        "work_s": s(t.busy_ns.saturating_sub(parts)),
+        "checksum_s": s(t.checksum_ns),
+        "publish_s": s(t.publish_ns),
+        "rpc_wait_s": s(t.rpc_wait_ns),
     })
 }
 

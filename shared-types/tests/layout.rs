@@ -146,7 +146,14 @@ fn housekeeping_layout() {
     assert_eq!(offset_of!(TopicCounters, received), 16);
     assert_eq!(offset_of!(TopicCounters, dropped), 24);
     assert_eq!(offset_of!(TopicCounters, next_seq), 88);
-    assert_eq!((size_of::<Heartbeat>(), align_of::<Heartbeat>()), (816, 8));
+    assert_eq!((size_of::<Heartbeat>(), align_of::<Heartbeat>()), (864, 8));
+    assert_eq!(offset_of!(Heartbeat, time), 816);
+    assert_eq!(
+        (size_of::<ServiceTime>(), align_of::<ServiceTime>()),
+        (48, 8)
+    );
+    assert_eq!(offset_of!(ServiceTime, credit_wait_ns), 8);
+    assert_eq!(offset_of!(ServiceTime, rpc_wait_ns), 40);
     assert_eq!(offset_of!(Heartbeat, pid), 32);
     assert_eq!(offset_of!(Heartbeat, state), 36);
     assert_eq!(offset_of!(Heartbeat, last_latency_ns), 40);
@@ -175,6 +182,7 @@ fn type_names_carry_the_contract_version() {
             <RangeResponse as ZeroCopySend>::type_name(),
             <Heartbeat as ZeroCopySend>::type_name(),
             <TopicCounters as ZeroCopySend>::type_name(),
+            <ServiceTime as ZeroCopySend>::type_name(),
             <Ack as ZeroCopySend>::type_name(),
             <Control as ZeroCopySend>::type_name(),
             <Detection as ZeroCopySend>::type_name(),

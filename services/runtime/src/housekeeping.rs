@@ -6,8 +6,8 @@ use iceoryx2::port::listener::Listener;
 use shared_types::scenario::FaultKind;
 use shared_types::topics::{ack_service, control_service, heartbeat_service, Ipc, IpcNode};
 use shared_types::{
-    Ack, Command, Control, Heartbeat, InBandFault, Replay, ServiceId, TopicCounters, TopicId,
-    MAX_TOPICS,
+    Ack, Command, Control, Heartbeat, InBandFault, Replay, ServiceId, ServiceTime, TopicCounters,
+    TopicId, MAX_TOPICS,
 };
 
 use crate::ports::{Inbox, Outbox};
@@ -39,6 +39,8 @@ pub struct Housekeeping {
     pub state: u32,
     /// Last end-to-end latency seen by this service [ns].
     pub last_latency_ns: u64,
+    /// Where the service's time went, as of its last heartbeat.
+    pub time: ServiceTime,
 }
 
 impl Housekeeping {
@@ -66,6 +68,7 @@ impl Housekeeping {
                 last_beat: None,
                 state: Heartbeat::STARTING,
                 last_latency_ns: 0,
+                time: ServiceTime::default(),
             },
             listener,
         ))
@@ -195,6 +198,7 @@ impl Housekeeping {
             state: self.state,
             last_latency_ns: self.last_latency_ns,
             topics,
+            time: self.time,
             ..Default::default()
         };
         self.heartbeat.send(hb, t_ns)?;

@@ -113,7 +113,14 @@ impl<T: Message> Outbox<T> {
 
     /// Fills the header (next seq, `t_ns`, send time), seals and sends a copy, wakes consumers.
     /// Returns the seq used.
-    pub fn send(&mut self, mut msg: T, t_ns: u64) -> Result<u64> {
+    pub fn send(&mut self, msg: T, t_ns: u64) -> Result<u64> {
+        let t0 = std::time::Instant::now();
+        let sent = self.send_timed(msg, t_ns);
+        self.stats.publish_ns += t0.elapsed().as_nanos() as u64;
+        sent
+    }
+
+    fn send_timed(&mut self, mut msg: T, t_ns: u64) -> Result<u64> {
         let seq = self.next_seq;
         *msg.meta_mut() = Meta::new(seq, t_ns, mono_ns(), self.producer);
         msg.seal();
@@ -328,6 +335,7 @@ impl FrameOutbox {
         render: impl FnOnce(&mut FrameHeader, &mut [u16]),
     ) -> Result<u64> {
         let seq = self.next_seq;
+        let t_loan = std::time::Instant::now();
         let mut sample = self
             .publisher
             .loan_slice_uninit(self.pixels)
@@ -344,8 +352,13 @@ impl FrameOutbox {
             meta: Meta::new(seq, t_ns, 0, ServiceId::Sensor),
             ..Default::default()
         };
+        let t_render = std::time::Instant::now();
+        self.stats.publish_ns += (t_render - t_loan).as_nanos() as u64;
         render(&mut header, pixels);
+        let t_sum = std::time::Instant::now();
         header.pixels_xxh3 = shared_types::pixels_xxh3(pixels);
+        let t_send = std::time::Instant::now();
+        self.stats.checksum_ns += (t_send - t_sum).as_nanos() as u64;
         header.meta.send_mono_ns = mono_ns();
         match self.tamper.verdict_unless_replay(self.replaying()) {
             Verdict::Send => {}
@@ -375,6 +388,7 @@ impl FrameOutbox {
         self.notifier
             .notify_with_custom_event_id(EVENT_DATA)
             .map_err(|e| anyhow!("frame notify: {e:?}"))?;
+        self.stats.publish_ns += t_send.elapsed().as_nanos() as u64;
         Ok(seq)
     }
 }
@@ -414,6 +428,14 @@ impl FrameInbox {
         ))
     }
 
+    /// Whether the pixels hash to the header's `pixels_xxh3` (timed).
+    fn checksum_holds(&mut self, header: &FrameHeader, pixels: &[u16]) -> bool {
+        let t0 = std::time::Instant::now();
+        let holds = shared_types::pixels_xxh3(pixels) == header.pixels_xxh3;
+        self.stats.checksum_ns += t0.elapsed().as_nanos() as u64;
+        holds
+    }
+
     /// Receives every queued frame and hands header + pixels (read in place) to `handle`.
     pub fn drain(
         &mut self,
@@ -446,7 +468,7 @@ impl FrameInbox {
                 self.last_reject = Some(r);
                 continue;
             }
-            if self.verify_checksum && shared_types::pixels_xxh3(pixels) != header.pixels_xxh3 {
+            if self.verify_checksum && !self.checksum_holds(&header, pixels) {
                 self.stats.observe_seq(header.meta.seq);
                 self.stats.drop_for(DropReason::Malformed);
                 self.last_reject = Some(Reject {

@@ -236,6 +236,8 @@ pub struct RpcClient<R: Rpc> {
     reply: Listener<Ipc>,
     producer: ServiceId,
     next_id: u64,
+    /// Time spent waiting in calls [ns].
+    wait_ns: u64,
 }
 
 /// Outcome of [`RpcClient::call`].
@@ -271,6 +273,7 @@ impl<R: Rpc> RpcClient<R> {
             reply,
             producer,
             next_id: 0,
+            wait_ns: 0,
         })
     }
 
@@ -303,8 +306,27 @@ impl<R: Rpc> RpcClient<R> {
         t_ns: u64,
         timeout: Duration,
     ) -> Result<CallOutcome<R::Resp>> {
-        let pending = self.send(req, id, t_ns)?;
         let t0 = Instant::now();
+        let outcome = self.wait_for(node, req, id, t_ns, timeout, t0);
+        self.wait_ns += t0.elapsed().as_nanos() as u64;
+        outcome
+    }
+
+    /// Time spent in [`RpcClient::call`] so far [ns]: the round trips, answers included.
+    pub fn wait_ns(&self) -> u64 {
+        self.wait_ns
+    }
+
+    fn wait_for(
+        &mut self,
+        node: &IpcNode,
+        req: R::Req,
+        id: u64,
+        t_ns: u64,
+        timeout: Duration,
+        t0: Instant,
+    ) -> Result<CallOutcome<R::Resp>> {
+        let pending = self.send(req, id, t_ns)?;
         loop {
             if let Some(outcome) = self.poll(&pending)? {
                 return Ok(outcome);

@@ -22,7 +22,7 @@
 //! again from the first one and rebuilds its state exactly; consumers skip what they already
 //! have as duplicates.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use iceoryx2::port::listener::Listener;
@@ -30,7 +30,7 @@ use shared_types::scenario::Clock as ClockMode;
 use shared_types::topics::{credit_window, Ipc, IpcNode};
 use shared_types::{
     deployment, Command, DropReason, FrameHeader, Heartbeat, InBandFault, Message, Scenario,
-    ServiceId, TopicId,
+    ServiceId, ServiceTime, TopicId,
 };
 
 use crate::credit::{AckReader, Credit};
@@ -296,6 +296,11 @@ pub trait Service: Sized {
     /// Every counter the service keeps besides its input's (outputs, servers), for heartbeats.
     fn stats(&self) -> Vec<&TopicStats>;
 
+    /// Time spent waiting for RPC answers so far [ns] (a service that calls one).
+    fn rpc_wait_ns(&self) -> u64 {
+        0
+    }
+
     /// Arms an in-band `drop` or `corrupt` on the service's main output (its first).
     fn arm(&mut self, fault: &InBandFault) {
         if let Some(out) = self.outputs().into_iter().next() {
@@ -379,13 +384,16 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
         })
         .collect();
     hk.state = Heartbeat::READY;
+    let mut timer = LoopTimer::new();
     // A first heartbeat at once: a service blocked before its first tick still has one to repeat.
+    hk.time = timer.time(&input, &svc);
     hk.beat(0, &all_stats(&input, &svc))?;
     tracing::info!("{name} ready");
 
     let waits: Vec<(&Listener<Ipc>, Option<Duration>)> =
         listeners.iter().map(|l| (l, None)).collect();
     let exit = run_loop(&waits, tick, |wakes| {
+        timer.woke();
         // 1. Control.
         for cmd in hk.poll_control()? {
             if cmd == Command::Start && hk.state == Heartbeat::READY {
@@ -404,6 +412,8 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
         }
         if hk.shutdown_requested {
             hk.state = Heartbeat::STOPPING;
+            timer.asleep(false);
+            hk.time = timer.time(&input, &svc);
             hk.beat(0, &all_stats(&input, &svc))?;
             return Ok(Step::Stop);
         }
@@ -510,14 +520,99 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
         };
         // 6. Heartbeat.
         if wakes.contains(&Wake::Tick) {
+            hk.time = timer.time(&input, &svc);
             hk.beat(last_t_ns, &all_stats(&input, &svc))?;
         }
+        // Asleep next with an output's credit used up: held back by a consumer.
+        let mut outputs = svc.outputs();
+        let held = outputs.iter_mut().any(|o| {
+            let topic = o.stats().topic;
+            credits
+                .iter()
+                .find(|(t, _)| *t == topic)
+                .is_some_and(|(_, c)| c.available(o.next_seq()) == 0)
+        });
+        timer.asleep(held);
         Ok(step)
     })?;
     if exit == Exit::Terminated {
         tracing::info!("{name} terminated by signal");
     }
     Ok(())
+}
+
+/// Where the service's time goes: asleep (held by credit, or idle) or handling a wake-up.
+struct LoopTimer {
+    /// Since the last change between asleep and awake.
+    since: Instant,
+    asleep: bool,
+    held: bool,
+    busy_ns: u64,
+    credit_wait_ns: u64,
+    idle_ns: u64,
+}
+
+impl LoopTimer {
+    /// Awake (starting up) from now.
+    fn new() -> Self {
+        LoopTimer {
+            since: Instant::now(),
+            asleep: false,
+            held: false,
+            busy_ns: 0,
+            credit_wait_ns: 0,
+            idle_ns: 0,
+        }
+    }
+
+    fn lap(&mut self) -> u64 {
+        let now = Instant::now();
+        let ns = (now - self.since).as_nanos() as u64;
+        self.since = now;
+        ns
+    }
+
+    /// A wake-up: the sleep since [`LoopTimer::asleep`] ends.
+    fn woke(&mut self) {
+        if self.asleep {
+            let ns = self.lap();
+            match self.held {
+                true => self.credit_wait_ns += ns,
+                false => self.idle_ns += ns,
+            }
+            self.asleep = false;
+        }
+    }
+
+    /// Going to sleep, `held` back by a consumer's credit or not.
+    fn asleep(&mut self, held: bool) {
+        if !self.asleep {
+            self.busy_ns += self.lap();
+            self.asleep = true;
+        }
+        self.held = held;
+    }
+
+    /// The totals so far (the current stretch included), with the ports' and RPC parts.
+    fn time<S: Service>(&self, input: &S::Input, svc: &S) -> ServiceTime {
+        let now_ns = self.since.elapsed().as_nanos() as u64;
+        let (mut busy_ns, mut credit_wait_ns, mut idle_ns) =
+            (self.busy_ns, self.credit_wait_ns, self.idle_ns);
+        match (self.asleep, self.held) {
+            (false, _) => busy_ns += now_ns,
+            (true, true) => credit_wait_ns += now_ns,
+            (true, false) => idle_ns += now_ns,
+        }
+        let ports = all_stats(input, svc);
+        ServiceTime {
+            busy_ns,
+            credit_wait_ns,
+            idle_ns,
+            publish_ns: ports.iter().map(|s| s.publish_ns).sum(),
+            checksum_ns: ports.iter().map(|s| s.checksum_ns).sum(),
+            rpc_wait_ns: svc.rpc_wait_ns(),
+        }
+    }
 }
 
 /// The input's counters, then the service's.

@@ -29,6 +29,11 @@ pub struct TopicStats {
     /// Messages rejected as malformed since the last accepted one: each held a seq the
     /// consumer could not trust, so the gap they leave is theirs, not an overflow.
     unread_malformed: u64,
+    /// Time spent loaning and sending on this topic [ns] (producer side; a frame's render into
+    /// its loan excluded).
+    pub publish_ns: u64,
+    /// Time spent on frame checksums on this topic [ns]: computed (producer) or verified.
+    pub checksum_ns: u64,
 }
 
 /// What the consumer should do with a message after sequence accounting.
@@ -53,6 +58,8 @@ impl TopicStats {
             awaiting_replay: false,
             peers_restart: false,
             unread_malformed: 0,
+            publish_ns: 0,
+            checksum_ns: 0,
         }
     }
 

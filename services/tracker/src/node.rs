@@ -59,6 +59,10 @@ impl Service for TrackerNode {
         vec![&self.out.stats]
     }
 
+    fn rpc_wait_ns(&self) -> u64 {
+        self.client.as_ref().map_or(0, |c| c.wait_ns())
+    }
+
     fn on_input(&mut self, io: &mut Io<'_>, d: &Detections) -> Result<Result<(), DropReason>> {
         let msg = match self.client.as_mut() {
             Some(client) => {

@@ -44,7 +44,7 @@ impl DropReason {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v3.TopicCounters")]
+#[type_name("glint.v4.TopicCounters")]
 #[repr(C)]
 pub struct TopicCounters {
     /// [`crate::TopicId`] as u32, or `u32::MAX` for an unused slot.
@@ -62,11 +62,33 @@ pub struct TopicCounters {
     pub next_seq: u64,
 }
 
+/// Where a service's wall-clock time went since its process started (cumulative, ns). The
+/// first three add up to the time since start; the others are parts of `busy_ns`.
+#[derive(
+    Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
+)]
+#[type_name("glint.v4.ServiceTime")]
+#[repr(C)]
+pub struct ServiceTime {
+    /// Handling wake-ups: its own work, checksums, publishing, waiting for RPC answers.
+    pub busy_ns: u64,
+    /// Asleep with an output's credit used up: held back by a consumer (sim clock).
+    pub credit_wait_ns: u64,
+    /// Asleep otherwise: waiting for input, for its clock, or for the run to end.
+    pub idle_ns: u64,
+    /// Of busy: loaning and sending messages (a frame's render into its loan excluded).
+    pub publish_ns: u64,
+    /// Of busy: frame checksums, computed before sending or verified on receipt.
+    pub checksum_ns: u64,
+    /// Of busy: waiting for RPC answers (the tracker's laser round trips).
+    pub rpc_wait_ns: u64,
+}
+
 /// Periodic liveness and counters of a service.
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v3.Heartbeat")]
+#[type_name("glint.v4.Heartbeat")]
 #[repr(C)]
 pub struct Heartbeat {
     pub meta: Meta,
@@ -76,6 +98,8 @@ pub struct Heartbeat {
     /// Last end-to-end latency observed by this service [ns] (send → processed).
     pub last_latency_ns: u64,
     pub topics: [TopicCounters; MAX_TOPICS],
+    /// Where its time went so far.
+    pub time: ServiceTime,
 }
 
 impl Heartbeat {
@@ -99,7 +123,7 @@ impl Heartbeat {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v3.Ack")]
+#[type_name("glint.v4.Ack")]
 #[repr(C)]
 pub struct Ack {
     pub meta: Meta,
@@ -148,7 +172,7 @@ impl Command {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v3.Control")]
+#[type_name("glint.v4.Control")]
 #[repr(C)]
 pub struct Control {
     pub meta: Meta,
