@@ -1,5 +1,6 @@
 //! Charts for the run directory, as SVG (no font files needed: text is emitted as SVG text).
-//! One generic line/scatter chart and one histogram; the report decides what to draw.
+//! One generic line/scatter chart, one histogram and one stacked bar chart; the report decides
+//! what to draw.
 
 use std::path::Path;
 
@@ -19,6 +20,8 @@ pub const BLUE: RGBColor = RGBColor(31, 119, 180);
 pub const GREEN: RGBColor = RGBColor(44, 160, 44);
 pub const RED: RGBColor = RGBColor(214, 39, 40);
 pub const ORANGE: RGBColor = RGBColor(255, 127, 14);
+pub const PURPLE: RGBColor = RGBColor(148, 103, 189);
+pub const GREY: RGBColor = RGBColor(190, 190, 190);
 
 fn bounds(series: &[Series]) -> ((f64, f64), (f64, f64)) {
     let mut x = (f64::INFINITY, f64::NEG_INFINITY);
@@ -160,6 +163,79 @@ pub fn log_histogram(path: &Path, title: &str, x_label: &str, values: &[f64]) ->
             let x0 = lo + i as f64 * width;
             Rectangle::new([(x0, 0.0), (x0 + width * 0.9, *c as f64)], BLUE.filled())
         }))
+        .map_err(|e| anyhow!("{e:?}"))?;
+    root.present().map_err(|e| anyhow!("{e:?}"))?;
+    Ok(())
+}
+
+/// One bar of a stacked bar chart: its name and its segments' lengths, in the parts' order.
+pub struct Bar<'a> {
+    pub name: &'a str,
+    pub lengths: Vec<f64>,
+}
+
+/// Horizontal bars, one per row, each the sum of `parts` (name, color) laid end to end.
+pub fn stacked_bars(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    parts: &[(&str, RGBColor)],
+    bars: &[Bar],
+) -> Result<()> {
+    let total = |b: &Bar| b.lengths.iter().filter(|v| v.is_finite()).sum::<f64>();
+    let x1 = bars.iter().map(total).fold(0.0, f64::max).max(1e-12) * 1.05;
+    let n = bars.len().max(1);
+    let root = SVGBackend::new(path, (900, 120 + 60 * n as u32)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("{e:?}"))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(110)
+        .build_cartesian_2d(0.0..x1, 0.0..n as f64)
+        .map_err(|e| anyhow!("{e:?}"))?;
+    let names: Vec<&str> = bars.iter().map(|b| b.name).collect();
+    chart
+        .configure_mesh()
+        .disable_y_mesh()
+        .x_desc(x_label)
+        .y_labels(n * 2 + 1)
+        .y_label_formatter(&|v| {
+            // Labels at the bars' middles (k + 0.5), none elsewhere.
+            let k = v.floor();
+            match (v - k - 0.5).abs() < 1e-6 {
+                true => names
+                    .get(k as usize)
+                    .map_or(String::new(), |s| s.to_string()),
+                false => String::new(),
+            }
+        })
+        .draw()
+        .map_err(|e| anyhow!("{e:?}"))?;
+    for (j, &(label, color)) in parts.iter().enumerate() {
+        let rects = bars.iter().enumerate().map(|(k, b)| {
+            let start: f64 = b.lengths[..j].iter().filter(|v| v.is_finite()).sum();
+            let len = b
+                .lengths
+                .get(j)
+                .copied()
+                .filter(|v| v.is_finite())
+                .unwrap_or(0.0);
+            let y = k as f64;
+            Rectangle::new([(start, y + 0.2), (start + len, y + 0.8)], color.filled())
+        });
+        chart
+            .draw_series(rects)
+            .map_err(|e| anyhow!("{e:?}"))?
+            .label(label)
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], color.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
         .map_err(|e| anyhow!("{e:?}"))?;
     root.present().map_err(|e| anyhow!("{e:?}"))?;
     Ok(())

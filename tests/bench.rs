@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{glint, read_json, temp_dir};
+use common::{glint, read_json, temp_dir, Svg};
 
 #[test]
 fn bench_ipc_measures_every_transport_and_size() {
@@ -180,6 +180,18 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
         stdout.contains("where the time goes (the deployment, ms per frame)"),
         "{stdout}"
     );
+    let svg = Svg::read(&dir.join("pipeline-time.svg"));
+    for text in [
+        "sensor",
+        "detector",
+        "tracker",
+        "work",
+        "laser wait",
+        "credit wait",
+        "idle",
+    ] {
+        assert!(svg.has_text(text), "{text}: {:?}", svg.texts);
+    }
     assert!(dir.join("pipeline.csv").is_file());
     let _ = std::fs::remove_dir_all(&dir);
 }

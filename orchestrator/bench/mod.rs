@@ -273,6 +273,7 @@ pub fn run_pipeline(o: &pipeline::PipelineOptions, sc: shared_types::Scenario) -
         run_dir: dir,
     } = measure(sc, o.out.join("run"), progress)?;
     pipeline::print(o, &deployed, &ip);
+    pipeline::plot_time(&o.out, &deployed)?;
     let section = pipeline::json(o, &deployed, &ip);
     merge_bench_json(
         &o.out,

@@ -311,17 +311,51 @@ pub fn print(o: &PipelineOptions, d: &Deployed, ip: &InProcess) {
     }
 }
 
-/// Each process's time per frame in the deployment: busy (its work, checksums, publishing,
-/// laser round trips) or asleep (held back by a consumer's credit, or idle).
-fn print_time(d: &Deployed) {
-    const COLUMNS: [(&str, &str); 6] = [
-        ("work", "work_s"),
-        ("checksum", "checksum_s"),
-        ("publish", "publish_s"),
-        ("laser wait", "rpc_wait_s"),
-        ("credit wait", "credit_wait_s"),
-        ("idle", "idle_s"),
+/// The parts of a process's time in the deployment (heading, the report's `time_s` key): busy
+/// (its work, checksums, publishing, laser round trips) or asleep (held back by a consumer's
+/// credit, or idle).
+const TIME_PARTS: [(&str, &str); 6] = [
+    ("work", "work_s"),
+    ("checksum", "checksum_s"),
+    ("publish", "publish_s"),
+    ("laser wait", "rpc_wait_s"),
+    ("credit wait", "credit_wait_s"),
+    ("idle", "idle_s"),
+];
+
+/// `DIR/pipeline-time.svg`: each process's time per frame in the deployment, part by part.
+pub fn plot_time(dir: &std::path::Path, d: &Deployed) -> Result<()> {
+    use crate::plots::{self, Bar};
+    let colors = [
+        plots::BLUE,
+        plots::GREEN,
+        plots::ORANGE,
+        plots::PURPLE,
+        plots::RED,
+        plots::GREY,
     ];
+    let parts: Vec<(&str, _)> = TIME_PARTS.iter().map(|p| p.0).zip(colors).collect();
+    let per_frame_ms = 1e3 / d.frames.max(1) as f64;
+    let bars: Vec<Bar> = (d.time_s.iter())
+        .map(|(name, t)| Bar {
+            name,
+            lengths: (TIME_PARTS.iter())
+                .map(|(_, key)| t[key].as_f64().unwrap_or(f64::NAN) * per_frame_ms)
+                .collect(),
+        })
+        .collect();
+    plots::stacked_bars(
+        &dir.join("pipeline-time.svg"),
+        "Where each process's time goes (the deployment)",
+        "ms per frame",
+        &parts,
+        &bars,
+    )
+}
+
+/// Each process's time per frame in the deployment, part by part ([`TIME_PARTS`]).
+fn print_time(d: &Deployed) {
+    const COLUMNS: [(&str, &str); 6] = TIME_PARTS;
     println!("\nwhere the time goes (the deployment, ms per frame)\n");
     print!("{:<13}", "process");
     for (head, _) in COLUMNS {

@@ -307,7 +307,7 @@ impl<R: Rpc> RpcClient<R> {
         timeout: Duration,
     ) -> Result<CallOutcome<R::Resp>> {
         let t0 = Instant::now();
-        let outcome = self.wait_for(node, req, id, t_ns, timeout, t0);
+        let outcome = self.answer_by(node, req, id, t_ns, t0 + timeout);
         self.wait_ns += t0.elapsed().as_nanos() as u64;
         outcome
     }
@@ -317,21 +317,21 @@ impl<R: Rpc> RpcClient<R> {
         self.wait_ns
     }
 
-    fn wait_for(
+    /// Sends the request and waits for its outcome until `deadline`.
+    fn answer_by(
         &mut self,
         node: &IpcNode,
         req: R::Req,
         id: u64,
         t_ns: u64,
-        timeout: Duration,
-        t0: Instant,
+        deadline: Instant,
     ) -> Result<CallOutcome<R::Resp>> {
         let pending = self.send(req, id, t_ns)?;
         loop {
             if let Some(outcome) = self.poll(&pending)? {
                 return Ok(outcome);
             }
-            let left = timeout.saturating_sub(t0.elapsed());
+            let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
                 return Ok(CallOutcome::TimedOut);
             }
