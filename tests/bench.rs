@@ -180,6 +180,22 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
         stdout.contains("where the time goes (the deployment, ms per frame)"),
         "{stdout}"
     );
+    // The run's summary gives each service's busy share, from the same timers.
+    let summary = std::fs::read_to_string(dir.join("run").join("summary.md")).unwrap();
+    for name in ["sensor", "detector", "tracker"] {
+        let t = &p["time_s"][name];
+        let busy = f(&t["busy_s"]);
+        let working = busy - f(&t["rpc_wait_s"]);
+        let share = 100.0 * working / (busy + f(&t["credit_wait_s"]) + f(&t["idle_s"]));
+        let row = (summary.lines())
+            .find(|l| l.starts_with(&format!("| {name} |")))
+            .unwrap_or_else(|| panic!("{name} row: {summary}"));
+        let shown: f64 = (row.rsplit('|').nth(1))
+            .and_then(|c| c.trim().strip_suffix(" %"))
+            .and_then(|c| c.parse().ok())
+            .unwrap_or_else(|| panic!("busy column of {row}"));
+        assert!((shown - share).abs() <= 0.51, "{row}: {share}");
+    }
     let svg = Svg::read(&dir.join("pipeline-time.svg"));
     for text in [
         "sensor",

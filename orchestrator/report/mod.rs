@@ -145,6 +145,12 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
     })
 }
 
+/// The share of a service's time it was working [%]: awake and not waiting for an RPC answer.
+pub fn busy_percent(t: &shared_types::ServiceTime) -> f64 {
+    let total = t.busy_ns + t.credit_wait_ns + t.idle_ns;
+    100.0 * t.busy_ns.saturating_sub(t.rpc_wait_ns) as f64 / total.max(1) as f64
+}
+
 /// Where a service's time went [s]: asleep (`credit_wait`, `idle`) or `busy`, and busy's
 /// parts (`work` is the rest: its own computation and housekeeping).
 fn time_json(t: &shared_types::ServiceTime) -> Value {
@@ -232,17 +238,21 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     }
     let _ = writeln!(
         s,
-        "\n## Services\n\n| service | pid | restarts | ended by | CPU [s] |\n|---|---|---|---|---|"
+        "\n## Services\n\nbusy: the share of its time a service was working (the one near 100 % is the \
+         bottleneck); the rest it waited: for input, for a consumer, for an RPC answer.\n\n\
+         | service | pid | restarts | ended by | CPU [s] | busy |\n|---|---|---|---|---|---|"
     );
     for sv in &f.services {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} |",
             sv.name,
             sv.pid,
             sv.restarts,
             sv.ending.label(),
-            sv.cpu_s.map_or("—".into(), |c| format!("{c:.2}"))
+            sv.cpu_s.map_or("—".into(), |c| format!("{c:.2}")),
+            sv.time
+                .map_or("—".into(), |t| format!("{:.0} %", busy_percent(&t)))
         );
     }
     s.push_str(&faults::markdown(f));
