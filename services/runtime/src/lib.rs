@@ -8,6 +8,7 @@ pub mod clock;
 pub mod credit;
 pub mod housekeeping;
 pub mod lifeline;
+mod loop_timer;
 pub mod node;
 pub mod ports;
 pub mod rpc;

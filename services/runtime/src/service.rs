@@ -22,7 +22,7 @@
 //! again from the first one and rebuilds its state exactly; consumers skip what they already
 //! have as duplicates.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::Result;
 use iceoryx2::port::listener::Listener;
@@ -30,11 +30,12 @@ use shared_types::scenario::Clock as ClockMode;
 use shared_types::topics::{credit_window, Ipc, IpcNode};
 use shared_types::{
     deployment, Command, DropReason, FrameHeader, Heartbeat, InBandFault, Message, Scenario,
-    ServiceId, ServiceTime, TopicId,
+    ServiceId, TopicId,
 };
 
 use crate::credit::{AckReader, Credit};
 use crate::housekeeping::Housekeeping;
+use crate::loop_timer::LoopTimer;
 use crate::ports::{FrameInbox, FrameOutbox, Inbox, Outbox};
 use crate::stats::TopicStats;
 use crate::tamper::Tamper;
@@ -541,82 +542,8 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
     Ok(())
 }
 
-/// Where the service's time goes: asleep (held by credit, or idle) or handling a wake-up.
-struct LoopTimer {
-    /// Since the last change between asleep and awake.
-    since: Instant,
-    asleep: bool,
-    held: bool,
-    busy_ns: u64,
-    credit_wait_ns: u64,
-    idle_ns: u64,
-}
-
-impl LoopTimer {
-    /// Awake (starting up) from now.
-    fn new() -> Self {
-        LoopTimer {
-            since: Instant::now(),
-            asleep: false,
-            held: false,
-            busy_ns: 0,
-            credit_wait_ns: 0,
-            idle_ns: 0,
-        }
-    }
-
-    fn lap(&mut self) -> u64 {
-        let now = Instant::now();
-        let ns = (now - self.since).as_nanos() as u64;
-        self.since = now;
-        ns
-    }
-
-    /// A wake-up: the sleep since [`LoopTimer::asleep`] ends.
-    fn woke(&mut self) {
-        if self.asleep {
-            let ns = self.lap();
-            match self.held {
-                true => self.credit_wait_ns += ns,
-                false => self.idle_ns += ns,
-            }
-            self.asleep = false;
-        }
-    }
-
-    /// Going to sleep, `held` back by a consumer's credit or not.
-    fn asleep(&mut self, held: bool) {
-        if !self.asleep {
-            self.busy_ns += self.lap();
-            self.asleep = true;
-        }
-        self.held = held;
-    }
-
-    /// The totals so far (the current stretch included), with the ports' and RPC parts.
-    fn time<S: Service>(&self, input: &S::Input, svc: &S) -> ServiceTime {
-        let now_ns = self.since.elapsed().as_nanos() as u64;
-        let (mut busy_ns, mut credit_wait_ns, mut idle_ns) =
-            (self.busy_ns, self.credit_wait_ns, self.idle_ns);
-        match (self.asleep, self.held) {
-            (false, _) => busy_ns += now_ns,
-            (true, true) => credit_wait_ns += now_ns,
-            (true, false) => idle_ns += now_ns,
-        }
-        let ports = all_stats(input, svc);
-        ServiceTime {
-            busy_ns,
-            credit_wait_ns,
-            idle_ns,
-            publish_ns: ports.iter().map(|s| s.publish_ns).sum(),
-            checksum_ns: ports.iter().map(|s| s.checksum_ns).sum(),
-            rpc_wait_ns: svc.rpc_wait_ns(),
-        }
-    }
-}
-
 /// The input's counters, then the service's.
-fn all_stats<'a, S: Service>(input: &'a S::Input, svc: &'a S) -> Vec<&'a TopicStats> {
+pub(crate) fn all_stats<'a, S: Service>(input: &'a S::Input, svc: &'a S) -> Vec<&'a TopicStats> {
     let mut all: Vec<&TopicStats> = input.stats().into_iter().collect();
     all.extend(svc.stats());
     all
