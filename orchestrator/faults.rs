@@ -6,7 +6,7 @@
 use rustix::process::Signal;
 use serde_json::{json, Value};
 use shared_types::scenario::{FaultKind, FaultSpec};
-use shared_types::{InBandFault, Scenario, ServiceId, TopicId};
+use shared_types::{deployment, InBandFault, Scenario, ServiceId, TopicId};
 
 /// Where a fault is in its life.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,6 +34,11 @@ pub struct Fault {
     pub recovered_s: Option<f64>,
     /// Restarts of the service after this fault.
     pub restarts: u32,
+    /// The topic whose progress fires an `at_seq` fault (the table's main input of the
+    /// service; a source's main output).
+    pub trigger: Option<TopicId>,
+    /// The output an in-band drop or corruption hits (the service's main output).
+    pub output: Option<TopicId>,
 }
 
 /// What the loop sends to a service.
@@ -51,47 +56,6 @@ pub struct Action {
     pub act: Act,
 }
 
-/// The input topic whose progress triggers an `at_seq` fault: what the service consumes (for
-/// the sensor, what it produces).
-pub fn trigger_topic(scenario: &Scenario, service: ServiceId) -> TopicId {
-    match service {
-        ServiceId::Sensor => sensor_main_output(scenario),
-        ServiceId::Detector => TopicId::Frame,
-        ServiceId::Tracker => TopicId::Detections,
-        ServiceId::Earth => TopicId::EarthFrame,
-        _ => TopicId::Spectrum,
-    }
-}
-
-/// The sensor's main output (its first): camera frames, else spectra, else Earth frames.
-pub fn sensor_main_output(scenario: &Scenario) -> TopicId {
-    if scenario.camera.is_some() {
-        TopicId::Frame
-    } else if scenario.spectra.is_some() {
-        TopicId::Spectrum
-    } else {
-        TopicId::EarthFrame
-    }
-}
-
-/// The output an in-band `drop` or `corrupt` fault hits: the sensor's main output
-/// ([`sensor_main_output`]), the detector's detections, the tracker's tracks, the earth
-/// service's attitudes; the inversion's are its solve answers ([`TopicId::Solve`]).
-pub fn output_topic(scenario: &Scenario, service: ServiceId) -> TopicId {
-    output_topic_of(sensor_main_output(scenario), service)
-}
-
-/// [`output_topic`] given the sensor's main output.
-pub fn output_topic_of(sensor_main: TopicId, service: ServiceId) -> TopicId {
-    match service {
-        ServiceId::Sensor => sensor_main,
-        ServiceId::Detector => TopicId::Detections,
-        ServiceId::Tracker => TopicId::Tracks,
-        ServiceId::Earth => TopicId::EarthAttitude,
-        _ => TopicId::Solve,
-    }
-}
-
 pub struct Injector {
     pub faults: Vec<Fault>,
 }
@@ -103,8 +67,11 @@ impl Injector {
             .fault
             .iter()
             .filter_map(|spec| {
+                let service = spec.service_id()?;
                 Some(Fault {
-                    service: spec.service_id()?,
+                    trigger: deployment::trigger_topic(scenario, service),
+                    output: deployment::fault_output(scenario, service),
+                    service,
                     spec: spec.clone(),
                     state: State::Armed,
                     injected_s: None,
@@ -119,15 +86,15 @@ impl Injector {
         Injector { faults }
     }
 
-    /// The signals due at `now_s`; `carried(service)` is how many messages of the service's
+    /// The signals due at `now_s`; `carried(topic)` is how many messages of a fault's
     /// trigger topic have been seen.
-    pub fn step(&mut self, now_s: f64, carried: impl Fn(ServiceId) -> u64) -> Vec<Action> {
+    pub fn step(&mut self, now_s: f64, carried: impl Fn(TopicId) -> u64) -> Vec<Action> {
         let mut actions = vec![];
         for f in &mut self.faults {
             match f.state {
                 State::Armed => {
                     let due = match (f.spec.at_seq, f.spec.at_s) {
-                        (Some(seq), _) => carried(f.service) > seq,
+                        (Some(seq), _) => f.trigger.is_some_and(|t| carried(t) > seq),
                         (None, Some(at)) => now_s >= at,
                         (None, None) => false,
                     };
@@ -212,8 +179,9 @@ impl Injector {
         }
     }
 
-    /// The drop and corrupt faults injected into `service` and not yet seen counted.
-    pub fn awaiting_count(&self) -> Vec<(usize, ServiceId, FaultKind)> {
+    /// The drop and corrupt faults injected and not yet seen counted: (index, the output
+    /// they hit, kind).
+    pub fn awaiting_count(&self) -> Vec<(usize, Option<TopicId>, FaultKind)> {
         self.faults
             .iter()
             .enumerate()
@@ -221,7 +189,7 @@ impl Injector {
                 matches!(f.spec.kind, FaultKind::Drop | FaultKind::Corrupt)
                     && f.state == State::Injected
             })
-            .map(|(i, f)| (i, f.service, f.spec.kind))
+            .map(|(i, f)| (i, f.output, f.spec.kind))
             .collect()
     }
 

@@ -25,7 +25,9 @@ mod run;
 mod run_dir;
 mod score_debris;
 mod sequence;
+mod service;
 mod supervise;
+mod taps;
 mod tools;
 
 use std::io::IsTerminal;
@@ -500,24 +502,14 @@ fn main() -> ExitCode {
                 scenario: &sc,
                 restarted,
             };
-            use glint_runtime::run_service;
-            let result = match ServiceId::from_name(&name) {
-                Some(ServiceId::Sensor) => run_service::<glint_sensor::node::SensorNode>(args),
-                Some(ServiceId::Detector) => {
-                    run_service::<glint_detector::node::DetectorNode>(args)
-                }
-                Some(ServiceId::Tracker) => run_service::<glint_tracker::node::TrackerNode>(args),
-                Some(ServiceId::Inversion) => {
-                    run_service::<glint_inversion::node::InversionNode>(args)
-                }
-                Some(ServiceId::Earth) => run_service::<glint_earth::node::EarthNode>(args),
-                _ => {
-                    eprintln!(
-                        "error: unknown service '{name}' (available: sensor, detector, tracker, inversion, earth)"
-                    );
-                    return ExitCode::from(2);
-                }
+            let Some(id) = ServiceId::from_name(&name) else {
+                eprintln!(
+                    "error: unknown service '{name}' (available: {})",
+                    ServiceId::names()
+                );
+                return ExitCode::from(2);
             };
+            let result = service::run(id, args);
             match result {
                 Ok(()) => ExitCode::SUCCESS,
                 Err(e) => {

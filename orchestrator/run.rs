@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use glint_runtime::{open_node, remove_shm, run_loop, shm_entries, Step, Wake};
 use shared_types::scenario::Clock;
-use shared_types::{deployment, Command, Control, Heartbeat, Replay, Scenario, ServiceId};
+use shared_types::{deployment, Command, Control, Heartbeat, Replay, Scenario, ServiceId, TopicId};
 
 use crate::consume::Consumer;
 use crate::deploy::{stop_ladder, Ending, ServiceProcess};
@@ -104,7 +104,8 @@ fn deploy_and_run(
 ) -> Result<RunFacts> {
     let node = open_node(prefix, "orchestrator")?;
     let _services = shared_types::topics::create_all(&node, scenario)?;
-    let (mut consumer, listeners) = Consumer::open(&node, scenario)?;
+    let snapshots = report::snapshots(scenario);
+    let (mut consumer, listeners) = Consumer::open(&node, scenario, &snapshots)?;
     let mut sequencer = crate::sequence::Sequencer::open(&node, scenario)?;
 
     let log_dir = out_dir.join("logs");
@@ -124,22 +125,7 @@ fn deploy_and_run(
     let mut phase = Phase::Starting;
     let mut failure: Option<String> = None;
 
-    let mut inputs = vec![(&listeners.heartbeat, None), (&listeners.truth, None)];
-    if let Some(l) = &listeners.frame {
-        inputs.push((l, None));
-    }
-    for l in [
-        &listeners.spectrum,
-        &listeners.detections,
-        &listeners.tracks,
-        &listeners.earth_frame,
-        &listeners.earth,
-    ]
-    .into_iter()
-    .flatten()
-    {
-        inputs.push((l, None));
-    }
+    let mut inputs: Vec<_> = listeners.iter().map(|l| (l, None)).collect();
     // Solve answers wake the loop (the sequencer polls its call in flight).
     let solve_reply = match &sequencer {
         Some(_) => Some(
@@ -174,9 +160,7 @@ fn deploy_and_run(
         consumer.poll()?;
         if phase == Phase::Running {
             let now_s = since_start(Instant::now(), t_running);
-            let due = injector.step(now_s, |s| {
-                consumer.carried(crate::faults::trigger_topic(scenario, s))
-            });
+            let due = injector.step(now_s, |t| consumer.carried(t));
             for a in due {
                 tracing::info!(service = a.service.name(), act = ?a.act, "fault injected");
                 match a.act {
@@ -189,10 +173,12 @@ fn deploy_and_run(
                 }
             }
             // Drops and corruptions are noticed where they are counted.
-            for (i, service, kind) in injector.awaiting_count() {
-                let counted = match (service, &sequencer) {
-                    (ServiceId::Inversion, Some(seq)) => seq.counted(kind),
-                    _ => consumer.counted(crate::faults::output_topic(scenario, service), kind),
+            for (i, output, kind) in injector.awaiting_count() {
+                // The solve answers' one client is the sequencer.
+                let counted = match (output, &sequencer) {
+                    (Some(TopicId::Solve), Some(seq)) => seq.counted(kind),
+                    (Some(topic), _) => consumer.counted(topic, kind),
+                    (None, _) => false,
                 };
                 if counted {
                     injector.counted(i, since_start(Instant::now(), t_running));
@@ -298,13 +284,16 @@ fn deploy_and_run(
                                         topic,
                                         from_seq: 0,
                                     };
-                                    consumer.replay(deployment::producer(topic), order)?;
+                                    if let Some(producer) = deployment::producer(topic) {
+                                        consumer.replay(producer, order)?;
+                                    }
                                 }
                             }
                             consumer.command(Command::Start, id as u32)?;
                             injector.restarted(id, now_s);
-                            if let (ServiceId::Inversion, Some(seq)) = (id, sequencer.as_mut()) {
-                                seq.inversion_restarted();
+                            let serves_solve = deployment::producer(TopicId::Solve) == Some(id);
+                            if let (true, Some(seq)) = (serves_solve, sequencer.as_mut()) {
+                                seq.server_restarted();
                             }
                             tracing::info!(service = id.name(), "restarted service resumed");
                         }
@@ -397,7 +386,8 @@ fn deploy_and_run(
 
     // A run that failed produced until it stopped: its rates are over that time.
     let production_s = t_running.map_or(0.0, |a| (t_done.unwrap_or(t_stopped) - a).as_secs_f64());
-    let server = consumer.reported(ServiceId::Inversion, shared_types::TopicId::Solve);
+    let server =
+        deployment::producer(TopicId::Solve).and_then(|p| consumer.reported(p, TopicId::Solve));
     let solve_tampered = match (&sequencer, server) {
         (Some(seq), Some(c)) => [
             c.dropped[shared_types::DropReason::Injected as usize],

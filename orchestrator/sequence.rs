@@ -71,7 +71,7 @@ impl Sequencer {
 
     /// The inversion restarted: its new incarnation holds no stage, so the solve starts again
     /// from stage 1 (the answers come out the same: the replay gives it the same spectra).
-    pub fn inversion_restarted(&mut self) {
+    pub fn server_restarted(&mut self) {
         if self.done() {
             return;
         }

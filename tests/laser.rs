@@ -16,7 +16,7 @@ use glint_runtime::rpc::{CallOutcome, RangeClient};
 use glint_runtime::{open_node, remove_shm, shm_entries};
 use nalgebra::{Vector3, Vector6};
 use rustix::process::{kill_process, Pid, Signal};
-use shared_types::topics::{create_all, heartbeat_service};
+use shared_types::topics::create_all;
 use shared_types::{Heartbeat, RangeRequest, RangeStatus, Scenario, ServiceId, TopicId};
 
 struct KillOnDrop(std::process::Child);
@@ -36,12 +36,7 @@ fn sensor_answers_range_requests_against_truth() {
     {
         let node = open_node(&prefix, "test-orchestrator").unwrap();
         let _services = create_all(&node, &sc).unwrap();
-        let (mut hb, _l) = Inbox::<Heartbeat>::open(
-            &node,
-            TopicId::Heartbeat,
-            &heartbeat_service(&node).unwrap(),
-        )
-        .unwrap();
+        let (mut hb, _l) = Inbox::<Heartbeat>::open(&node, TopicId::Heartbeat).unwrap();
         let mut sensor = KillOnDrop(
             glint()
                 .args(["service", "sensor", "--prefix", &prefix, "--scenario"])

@@ -12,7 +12,7 @@ use common::*;
 use glint_runtime::ports::{Inbox, Outbox};
 use glint_runtime::{open_node, remove_shm, shm_entries};
 use rustix::process::{kill_process, Pid, Signal};
-use shared_types::topics::{control_service, create_all, heartbeat_service};
+use shared_types::topics::create_all;
 use shared_types::{Command, Control, Heartbeat, ServiceId, TopicId};
 
 fn heartbeats_within(hb: &mut Inbox<Heartbeat>, window: Duration) -> usize {
@@ -36,19 +36,8 @@ fn sigstop_sigcont_does_not_end_a_service_and_shutdown_does() {
         let node = open_node(&prefix, "test-orchestrator").unwrap();
         let sc = shared_types::Scenario::from_file(&scenario("debris-geo.toml")).unwrap();
         let _services = create_all(&node, &sc).unwrap();
-        let (mut hb, _l) = Inbox::<Heartbeat>::open(
-            &node,
-            TopicId::Heartbeat,
-            &heartbeat_service(&node).unwrap(),
-        )
-        .unwrap();
-        let mut control = Outbox::open(
-            &node,
-            TopicId::Control,
-            &control_service(&node).unwrap(),
-            ServiceId::Orchestrator,
-        )
-        .unwrap();
+        let (mut hb, _l) = Inbox::<Heartbeat>::open(&node, TopicId::Heartbeat).unwrap();
+        let mut control = Outbox::open(&node, TopicId::Control, ServiceId::Orchestrator).unwrap();
         let mut sensor = KillOnDrop(
             glint()
                 .args(["service", "sensor", "--prefix", &prefix, "--scenario"])

@@ -70,7 +70,7 @@ pub fn plots(
     dir: &Path,
     score: &DebrisScore,
     camera: &PinholeCamera,
-    snapshot: Option<&(u64, u32, u32, Vec<u16>)>,
+    snapshot: Option<&crate::taps::Snapshot>,
     detections: &[Detections],
     truths: &[Truth],
 ) -> Result<()> {
@@ -148,8 +148,9 @@ pub fn plots(
         "position error [m]",
         &series,
     )?;
-    if let Some((k, w, h, px)) = snapshot {
-        annotated_frame(dir, camera, *k, *w, *h, px, detections, truths)?;
+    if let Some(snap) = snapshot {
+        let (k, w, h) = (snap.frame_index, snap.width_px, snap.height_px);
+        annotated_frame(dir, camera, k, w, h, &snap.pixels, detections, truths)?;
     }
     Ok(())
 }

@@ -65,19 +65,17 @@ fn cross_mark(svg: &mut String, (x, y): (f64, f64), color: &str) {
     );
 }
 
-/// Writes the picture of frame `k` (`w`×`h` pixels `px`).
-#[allow(clippy::too_many_arguments)]
+/// Writes the picture of the frame kept in `snap`.
 pub fn annotated(
     dir: &Path,
     e: &EarthScenario,
-    k: u64,
-    w: u32,
-    h: u32,
-    px: &[u16],
+    snap: &crate::taps::Snapshot,
     answers: &[EarthAttitude],
     truths: &[Truth],
 ) -> Result<()> {
-    let (w, h) = (w as usize, h as usize);
+    let k = snap.frame_index;
+    let px = &snap.pixels;
+    let (w, h) = (snap.width_px as usize, snap.height_px as usize);
     let cam = glint_earth::service_core::camera(e);
     let lo = e.space_dn;
     let hi = e.earth_dn.max(lo + 1.0);

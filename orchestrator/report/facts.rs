@@ -9,6 +9,7 @@ use shared_types::{deployment, Scenario, ServiceId, TopicCounters, TopicId};
 use super::{earth, science};
 use crate::consume::Consumer;
 use crate::deploy::{Ending, ServiceProcess};
+use crate::taps::Snapshot;
 
 pub struct Outcome {
     pub startup_s: f64,
@@ -49,7 +50,7 @@ pub struct TopicFact {
 pub struct DebrisFacts {
     pub score: crate::score_debris::DebrisScore,
     pub camera: glint_physics::camera::PinholeCamera,
-    pub snapshot: Option<(u64, u32, u32, Vec<u16>)>,
+    pub snapshot: Option<Snapshot>,
     pub detections: Vec<shared_types::Detections>,
     pub truths: Vec<shared_types::Truth>,
 }
@@ -57,7 +58,7 @@ pub struct DebrisFacts {
 /// What the Earth sensor's section and pictures need.
 pub struct EarthFacts {
     pub score: earth::EarthScore,
-    pub snapshot: Option<(u64, u32, u32, Vec<u16>)>,
+    pub snapshot: Option<Snapshot>,
     pub answers: Vec<shared_types::EarthAttitude>,
     pub truths: Vec<shared_types::Truth>,
 }
@@ -77,7 +78,6 @@ pub struct RunFacts {
     pub stage_latency_ns: Vec<(&'static str, Vec<u64>)>,
     /// The orchestrator's own CPU time at the end of the run [s].
     pub orchestrator_cpu_s: Option<f64>,
-    pub light_curve: Vec<(u64, [f64; 3], [f64; 3])>,
     /// Range requests the sensor served (its current incarnation; retries included).
     pub range_requests: u64,
     /// Laser shots the tracker fired (one per confirmed track and frame, from the tracks).
@@ -100,9 +100,6 @@ pub struct RunFacts {
     /// Nodes under the prefix that were not the deployment's ([`crate::membership`]).
     pub membership: Value,
 }
-
-/// The service that publishes a topic.
-pub(super) use shared_types::deployment::producer as producer_of;
 
 fn consumer_fact(c: TopicCounters) -> ConsumerFact {
     ConsumerFact {
@@ -134,20 +131,11 @@ impl RunFacts {
             })
             .collect();
         let digests = consumer.digests();
+        let taps = &consumer.taps;
         let science = science::digest(&digests, &solve);
         let mut topics = BTreeMap::new();
-        for t in [
-            TopicId::Frame,
-            TopicId::Detections,
-            TopicId::Tracks,
-            TopicId::Spectrum,
-            TopicId::EarthFrame,
-            TopicId::EarthAttitude,
-            TopicId::Truth,
-        ] {
-            if deployment::expected_messages(scenario, t) == 0 {
-                continue;
-            }
+        for spec in deployment::data_topics(scenario) {
+            let t = spec.id;
             let expected = consumer.expected_now(t);
             let mut consumers = BTreeMap::new();
             for c in deployment::consumers(scenario, t) {
@@ -164,7 +152,10 @@ impl RunFacts {
             }
             // A publisher killed between heartbeats reported fewer than it published: what its
             // consumers received (or dropped) it published at least.
-            let reported = consumer.reported(producer_of(t), t).map(|c| c.published);
+            let producer = deployment::producer(t);
+            let reported = producer
+                .and_then(|p| consumer.reported(p, t))
+                .map(|c| c.published);
             let seen = consumers
                 .values()
                 .flatten()
@@ -179,8 +170,8 @@ impl RunFacts {
                 TopicFact {
                     expected,
                     published,
-                    producer_dropped: consumer
-                        .reported(producer_of(t), t)
+                    producer_dropped: producer
+                        .and_then(|p| consumer.reported(p, t))
                         .map_or([0; shared_types::DROP_REASONS], |c| c.dropped),
                     digest: digests.get(&t).copied(),
                     consumers,
@@ -191,35 +182,35 @@ impl RunFacts {
             let camera = glint_detector::service_core::camera(cam);
             let a_m = cam.orbit_semi_major_axis_km * 1e3;
             let n_rad_s = (glint_physics::orbit::MU_EARTH_M3_S2 / (a_m * a_m * a_m)).sqrt();
-            let frame_truths: Vec<shared_types::Truth> = consumer
-                .truths
-                .iter()
-                .filter(|t| t.kind == shared_types::Truth::KIND_FRAME)
-                .copied()
-                .collect();
+            let frame_truths: Vec<shared_types::Truth> =
+                (taps.messages::<shared_types::Truth>(TopicId::Truth).iter())
+                    .filter(|t| t.kind == shared_types::Truth::KIND_FRAME)
+                    .copied()
+                    .collect();
             DebrisFacts {
                 score: crate::score_debris::score(
                     &camera,
                     n_rad_s,
                     &frame_truths,
-                    &consumer.detection_msgs,
-                    &consumer.track_msgs,
+                    taps.messages(TopicId::Detections),
+                    taps.messages(TopicId::Tracks),
                 ),
                 camera,
-                snapshot: consumer.snapshot.clone(),
-                detections: consumer.detection_msgs.clone(),
+                snapshot: taps.snapshot(TopicId::Frame).cloned(),
+                detections: taps.messages(TopicId::Detections).to_vec(),
                 truths: frame_truths,
             }
         });
         let earth = scenario.earth.as_ref().map(|_| {
-            let truths: Vec<shared_types::Truth> = (consumer.truths.iter())
-                .filter(|t| t.kind == shared_types::Truth::KIND_EARTH)
-                .copied()
-                .collect();
+            let truths: Vec<shared_types::Truth> =
+                (taps.messages::<shared_types::Truth>(TopicId::Truth).iter())
+                    .filter(|t| t.kind == shared_types::Truth::KIND_EARTH)
+                    .copied()
+                    .collect();
             EarthFacts {
-                score: earth::score(&truths, &consumer.earth_msgs),
-                snapshot: consumer.earth_snapshot.clone(),
-                answers: consumer.earth_msgs.clone(),
+                score: earth::score(&truths, taps.messages(TopicId::EarthAttitude)),
+                snapshot: taps.snapshot(TopicId::EarthFrame).cloned(),
+                answers: taps.messages(TopicId::EarthAttitude).to_vec(),
                 truths,
             }
         });
@@ -227,25 +218,24 @@ impl RunFacts {
             debris,
             earth,
             solve,
-            spectra: consumer.spectra_msgs.clone(),
+            spectra: taps.messages(TopicId::Spectrum).to_vec(),
             services,
             topics,
             failure,
             outcome,
-            frame_latency_ns: consumer.frame_latency_ns.clone(),
-            stage_latency_ns: stages(consumer),
+            frame_latency_ns: taps.latency_ns(TopicId::Frame).to_vec(),
+            stage_latency_ns: stages(taps),
             orchestrator_cpu_s: crate::deploy::cpu_seconds("self"),
-            spectrum_latency_ns: consumer.spectrum_latency_ns.clone(),
-            light_curve: consumer.light_curve.clone(),
-            range_requests: consumer
-                .reported(ServiceId::Sensor, TopicId::Range)
+            spectrum_latency_ns: taps.latency_ns(TopicId::Spectrum).to_vec(),
+            range_requests: deployment::producer(TopicId::Range)
+                .and_then(|p| consumer.reported(p, TopicId::Range))
                 .map_or(0, |c| c.received + c.dropped.iter().sum::<u64>()),
-            laser_shots: consumer
-                .track_msgs
-                .iter()
-                .flat_map(|m| m.items[..(m.n as usize).min(m.items.len())].iter())
-                .filter(|e| e.range_status != u32::MAX)
-                .count() as u64,
+            laser_shots: (taps
+                .messages::<shared_types::Tracks>(TopicId::Tracks)
+                .iter())
+            .flat_map(|m| m.items[..(m.n as usize).min(m.items.len())].iter())
+            .filter(|e| e.range_status != u32::MAX)
+            .count() as u64,
             science_digest: science,
             wall_s: 0.0,
             prefix: String::new(),
@@ -282,11 +272,14 @@ impl RunFacts {
 /// (one CLOCK_MONOTONIC on this host): `detect` = frame sent → its detections sent (the hop,
 /// the checksum and the detection), `track` = detections sent → tracks sent (the hop, the
 /// filters and the laser round trip), `end_to_end` = frame sent → tracks sent.
-fn stages(c: &Consumer) -> Vec<(&'static str, Vec<u64>)> {
-    let frames: BTreeMap<u64, u64> = c.frame_send_ns.iter().copied().collect();
-    let dets: BTreeMap<u64, u64> = (c.detection_msgs.iter())
-        .map(|d| (d.meta.seq, d.meta.send_mono_ns))
-        .collect();
+fn stages(taps: &crate::taps::Taps) -> Vec<(&'static str, Vec<u64>)> {
+    let sent = |t: TopicId| -> BTreeMap<u64, u64> {
+        taps.get(t).map_or(BTreeMap::new(), |tap| {
+            tap.send_ns().iter().copied().collect()
+        })
+    };
+    let frames = sent(TopicId::Frame);
+    let dets = sent(TopicId::Detections);
     let gap = |a: &BTreeMap<u64, u64>, b: &BTreeMap<u64, u64>| -> Vec<u64> {
         b.iter()
             .filter_map(|(seq, t1)| a.get(seq).map(|t0| t1.saturating_sub(*t0)))
@@ -295,9 +288,7 @@ fn stages(c: &Consumer) -> Vec<(&'static str, Vec<u64>)> {
     if frames.is_empty() || dets.is_empty() {
         return vec![];
     }
-    let tracks: BTreeMap<u64, u64> = (c.track_msgs.iter())
-        .map(|t| (t.meta.seq, t.meta.send_mono_ns))
-        .collect();
+    let tracks = sent(TopicId::Tracks);
     vec![
         ("detect", gap(&frames, &dets)),
         ("track", gap(&dets, &tracks)),

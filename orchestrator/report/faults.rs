@@ -8,9 +8,9 @@ use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use serde_json::Value;
 use shared_types::scenario::FaultKind;
-use shared_types::{DropReason, ServiceId, TopicId};
+use shared_types::{deployment, DropReason, ServiceId, TopicId};
 
-use super::{producer_of, RunFacts, TopicFact};
+use super::{RunFacts, TopicFact};
 use crate::plots::{BLUE, GREEN, ORANGE, RED};
 
 /// What the fault cost: for a consumer, the messages published on its inputs that it never
@@ -27,7 +27,7 @@ fn lost(f: &RunFacts, service: ServiceId) -> Option<u64> {
         return Some(
             f.topics
                 .iter()
-                .filter(|(t, _)| producer_of(**t) == ServiceId::Sensor)
+                .filter(|(t, _)| deployment::producer(**t) == Some(ServiceId::Sensor))
                 .map(|(_, t)| t.expected - t.published.unwrap_or(0).min(t.expected))
                 .sum(),
         );
@@ -44,9 +44,10 @@ fn lost(f: &RunFacts, service: ServiceId) -> Option<u64> {
 
 /// A drop or corrupt fault's accounting: (outputs the service dropped or sent invalid on
 /// purpose, the fewest of them any consumer counted as a gap or as malformed).
-fn tampered(f: &RunFacts, service: ServiceId, kind: FaultKind) -> (u64, u64) {
-    let drop = kind == FaultKind::Drop;
-    if service == ServiceId::Inversion {
+fn tampered(f: &RunFacts, fault: &crate::faults::Fault) -> (u64, u64) {
+    let drop = fault.spec.kind == FaultKind::Drop;
+    if fault.output == Some(TopicId::Solve) {
+        // The answers' one client is the orchestrator's sequencer.
         let t = &f.solve_tampered;
         return if drop { (t[0], t[2]) } else { (t[1], t[3]) };
     }
@@ -55,16 +56,7 @@ fn tampered(f: &RunFacts, service: ServiceId, kind: FaultKind) -> (u64, u64) {
     } else {
         (DropReason::Malformed, DropReason::Malformed)
     };
-    // The sensor's main output is its first topic this run carried.
-    let sensor_main = [TopicId::Frame, TopicId::Spectrum, TopicId::EarthFrame]
-        .into_iter()
-        .find(|t| f.topics.contains_key(t))
-        .unwrap_or(TopicId::Frame);
-    let topic = f
-        .topics
-        .iter()
-        .find(|(t, _)| crate::faults::output_topic_of(sensor_main, service) == **t);
-    let Some((_, t)) = topic else {
+    let Some(t) = fault.output.and_then(|o| f.topics.get(&o)) else {
         return (0, 0);
     };
     let injected = t.producer_dropped[theirs as usize];
@@ -83,7 +75,7 @@ pub fn json(f: &RunFacts) -> Vec<Value> {
         .map(|fault| match fault.spec.kind {
             FaultKind::Drop | FaultKind::Corrupt => {
                 // Lost by design; the invariant is that every one of them was counted.
-                let (injected, counted) = tampered(f, fault.service, fault.spec.kind);
+                let (injected, counted) = tampered(f, fault);
                 let mut v = fault.json(Some(injected), f.invariant_held() && injected == counted);
                 v["injected"] = injected.into();
                 v["counted"] = counted.into();

@@ -303,7 +303,7 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     if let Some(d) = &f.debris {
         s.push_str(&debris::markdown(&d.score));
     }
-    if !f.light_curve.is_empty() {
+    if !f.spectra.is_empty() {
         let _ = writeln!(s, "\n## Light curve\n\n![light curve](light-curve.svg)");
     }
     for (label, ns) in [
@@ -385,14 +385,14 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
     if let (Some(e), Some(section)) = (&facts.earth, &scenario.earth) {
         earth_plots(dir, scenario.seed, section, e)?;
     }
-    if let Some((_, bands, _)) = facts.light_curve.first() {
+    let light_curve = light_curve(&facts.spectra);
+    if let Some((_, bands, _)) = light_curve.first() {
         let colors = [crate::plots::BLUE, crate::plots::GREEN, crate::plots::RED];
         let labels: Vec<String> = bands.iter().map(|b| format!("{b:.0} nm")).collect();
         let series: Vec<crate::plots::Series> = (0..3)
             .map(|i| crate::plots::Series {
                 label: &labels[i],
-                points: facts
-                    .light_curve
+                points: light_curve
                     .iter()
                     .map(|(k, _, f)| (*k as f64, f[i]))
                     .collect(),
@@ -422,8 +422,45 @@ fn earth_plots(
     earth::error_plot(dir, &e.score)?;
     let figures = earth::sample_figures(section, seed, &[5.0, 30.0, 60.0])?;
     earth::samples_plot(dir, &figures)?;
-    if let Some((k, w, h, px)) = &e.snapshot {
-        earth_frame::annotated(dir, section, *k, *w, *h, px, &e.answers, &e.truths)?;
+    if let Some(snap) = &e.snapshot {
+        earth_frame::annotated(dir, section, snap, &e.answers, &e.truths)?;
     }
     Ok(())
+}
+
+/// The received spectra reduced for the light-curve plot: (stream index, the first, middle
+/// and last band's centre, their flux).
+fn light_curve(spectra: &[shared_types::Spectrum]) -> Vec<(u64, [f64; 3], [f64; 3])> {
+    spectra
+        .iter()
+        .filter(|m| m.n_bands > 0)
+        .map(|m| {
+            let n = m.n_bands as usize;
+            let pick = [0, n / 2, n - 1];
+            (
+                m.meta.seq,
+                pick.map(|i| m.wavelength_nm[i]),
+                pick.map(|i| m.flux_w[i]),
+            )
+        })
+        .collect()
+}
+
+/// The frames whose pixels the report draws, per frame topic: the debris section's frame 1,
+/// the Earth section's first frame at the angle nearest 20° (a ring clear of the blind zone
+/// and of the image circle's edge).
+pub fn snapshots(scenario: &Scenario) -> Vec<(TopicId, u64)> {
+    let mut v = vec![];
+    if scenario.camera.is_some() {
+        v.push((TopicId::Frame, 1));
+    }
+    if let Some(e) = &scenario.earth {
+        let angles = e.angles_deg();
+        let near_20 = |a: f64| (a.abs() - 20.0).abs();
+        let best = (0..angles.len())
+            .min_by(|&a, &b| near_20(angles[a]).total_cmp(&near_20(angles[b])))
+            .unwrap_or(0);
+        v.push((TopicId::EarthFrame, best as u64 * e.images_per_angle as u64));
+    }
+    v
 }

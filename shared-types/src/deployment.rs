@@ -1,91 +1,178 @@
-//! Who runs and who consumes what, derived from the scenario alone, so the orchestrator and
-//! every producer agree without passing lists around.
+//! Who runs and who consumes what, derived from the scenario and the table
+//! ([`crate::table`]) alone, so the orchestrator and every producer agree without passing
+//! lists around.
 
 use crate::scenario::Scenario;
+use crate::table::{Count, TopicSpec, SERVICES, TOPICS};
 use crate::topics::{ServiceId, TopicId};
+
+/// Whether `scenario` deploys `service`.
+pub fn deploys(scenario: &Scenario, service: ServiceId) -> bool {
+    service.spec().section.present(scenario)
+}
+
+/// Whether `topic` exists in `scenario` (its section is there).
+pub fn carries(scenario: &Scenario, topic: TopicId) -> bool {
+    topic.spec().section.present(scenario)
+}
 
 /// Services the orchestrator spawns for a scenario, in start order.
 pub fn services(scenario: &Scenario) -> Vec<ServiceId> {
-    let mut v = vec![ServiceId::Sensor];
-    if scenario.camera.is_some() {
-        v.extend([ServiceId::Detector, ServiceId::Tracker]);
-    }
-    if scenario.spectra.is_some() {
-        v.push(ServiceId::Inversion);
-    }
-    if scenario.earth.is_some() {
-        v.push(ServiceId::Earth);
-    }
-    v
+    ServiceId::spawnable()
+        .filter(|s| deploys(scenario, *s))
+        .collect()
 }
 
 /// Consumers whose acknowledgement a producer waits for in sim-clock mode (and whose counters
-/// the report checks).
+/// the report checks): every deployed service that lists `topic` among its inputs.
 pub fn consumers(scenario: &Scenario, topic: TopicId) -> Vec<ServiceId> {
-    match topic {
-        // The orchestrator reads frame headers only (accounting and the digest); the detector
-        // reads the pixels.
-        TopicId::Frame if scenario.camera.is_some() => {
-            vec![ServiceId::Detector, ServiceId::Orchestrator]
-        }
-        TopicId::Detections if scenario.camera.is_some() => {
-            vec![ServiceId::Tracker, ServiceId::Orchestrator]
-        }
-        TopicId::Tracks if scenario.camera.is_some() => vec![ServiceId::Orchestrator],
-        TopicId::Spectrum if scenario.spectra.is_some() => {
-            vec![ServiceId::Inversion, ServiceId::Orchestrator]
-        }
-        // The orchestrator reads Earth frame headers (accounting, the digest, one frame for the
-        // annotated picture); the earth service reads the pixels.
-        TopicId::EarthFrame if scenario.earth.is_some() => {
-            vec![ServiceId::Earth, ServiceId::Orchestrator]
-        }
-        TopicId::EarthAttitude if scenario.earth.is_some() => vec![ServiceId::Orchestrator],
-        TopicId::Truth => vec![ServiceId::Orchestrator],
-        _ => vec![],
+    if !carries(scenario, topic) {
+        return vec![];
     }
+    SERVICES
+        .iter()
+        .filter(|s| s.inputs.contains(&topic) && s.section.present(scenario))
+        .map(|s| s.id)
+        .collect()
 }
 
-/// Messages the sensor will publish on a topic over the whole run.
+/// Messages a topic carries over the whole run (0 for housekeeping and calls).
 pub fn expected_messages(scenario: &Scenario, topic: TopicId) -> u64 {
-    let frames = scenario.camera.as_ref().map_or(0, |c| c.frames);
-    let spectra = scenario
-        .spectra
-        .as_ref()
-        .map_or(0, |s| s.stable_samples + s.motion_frames);
-    let earth = scenario.earth.as_ref().map_or(0, |e| e.frames());
-    match topic {
-        TopicId::Frame | TopicId::Detections | TopicId::Tracks => frames,
-        TopicId::Spectrum => spectra,
-        TopicId::EarthFrame | TopicId::EarthAttitude => earth,
-        TopicId::Truth => frames + spectra + earth,
-        _ => 0,
+    let spec = topic.spec();
+    if !spec.section.present(scenario) {
+        return 0;
+    }
+    match spec.count {
+        Count::Stream(n) => n(scenario),
+        Count::PerInput(input) => expected_messages(scenario, input),
+        Count::Truth => TOPICS
+            .iter()
+            .filter(|t| t.truth)
+            .map(|t| expected_messages(scenario, t.id))
+            .sum(),
+        Count::Open => 0,
     }
 }
 
-/// The service that publishes a data topic (the sensor publishes frames, Earth frames, spectra
-/// and truth).
-pub fn producer(topic: TopicId) -> ServiceId {
-    match topic {
-        TopicId::Detections => ServiceId::Detector,
-        TopicId::Tracks => ServiceId::Tracker,
-        TopicId::EarthAttitude => ServiceId::Earth,
-        _ => ServiceId::Sensor,
-    }
+/// The service that publishes a data topic (or serves a call).
+pub fn producer(topic: TopicId) -> Option<ServiceId> {
+    topic.spec().producer()
 }
 
 /// The data topics `service` consumes in this scenario.
 pub fn inputs(scenario: &Scenario, service: ServiceId) -> Vec<TopicId> {
-    [
-        TopicId::Frame,
-        TopicId::Spectrum,
-        TopicId::Truth,
-        TopicId::Detections,
-        TopicId::Tracks,
-        TopicId::EarthFrame,
-        TopicId::EarthAttitude,
-    ]
-    .into_iter()
-    .filter(|t| consumers(scenario, *t).contains(&service))
-    .collect()
+    if !deploys(scenario, service) {
+        return vec![];
+    }
+    (service.spec().inputs.iter())
+        .copied()
+        .filter(|t| carries(scenario, *t))
+        .collect()
+}
+
+/// The topics `service` publishes or serves in this scenario, main first.
+pub fn outputs(scenario: &Scenario, service: ServiceId) -> Vec<TopicId> {
+    if !deploys(scenario, service) {
+        return vec![];
+    }
+    (service.spec().outputs.iter())
+        .copied()
+        .filter(|t| carries(scenario, *t))
+        .collect()
+}
+
+/// The topic whose progress triggers an `at_seq` fault of `service`: its main input; for a
+/// source (the sensor), its main output.
+pub fn trigger_topic(scenario: &Scenario, service: ServiceId) -> Option<TopicId> {
+    let mut inputs = inputs(scenario, service).into_iter();
+    inputs
+        .next()
+        .or_else(|| outputs(scenario, service).into_iter().next())
+}
+
+/// The output an in-band `drop` or `corrupt` fault of `service` hits: its main output.
+pub fn fault_output(scenario: &Scenario, service: ServiceId) -> Option<TopicId> {
+    outputs(scenario, service).into_iter().next()
+}
+
+/// The data topics of the scenario (those it accounts for), in table order.
+pub fn data_topics(scenario: &Scenario) -> Vec<&'static TopicSpec> {
+    TOPICS
+        .iter()
+        .filter(|t| t.is_data() && expected_messages(scenario, t.id) > 0)
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scenario(file: &str) -> Scenario {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/");
+        let text = std::fs::read_to_string(format!("{dir}{file}")).unwrap();
+        Scenario::from_toml_str(&text, file).unwrap()
+    }
+
+    #[test]
+    fn the_debris_chain_is_derived_from_the_table() {
+        let sc = scenario("debris-geo.toml");
+        let frames = sc.camera.as_ref().unwrap().frames;
+        assert_eq!(
+            services(&sc),
+            [ServiceId::Sensor, ServiceId::Detector, ServiceId::Tracker]
+        );
+        assert_eq!(
+            consumers(&sc, TopicId::Frame),
+            [ServiceId::Orchestrator, ServiceId::Detector]
+        );
+        assert_eq!(consumers(&sc, TopicId::Tracks), [ServiceId::Orchestrator]);
+        assert_eq!(consumers(&sc, TopicId::Spectrum), []);
+        for t in [
+            TopicId::Frame,
+            TopicId::Detections,
+            TopicId::Tracks,
+            TopicId::Truth,
+        ] {
+            assert_eq!(expected_messages(&sc, t), frames, "{t:?}");
+        }
+        assert_eq!(expected_messages(&sc, TopicId::Heartbeat), 0);
+        assert_eq!(producer(TopicId::Detections), Some(ServiceId::Detector));
+        assert_eq!(producer(TopicId::Heartbeat), None);
+        assert_eq!(inputs(&sc, ServiceId::Tracker), [TopicId::Detections]);
+        assert_eq!(
+            trigger_topic(&sc, ServiceId::Sensor),
+            Some(TopicId::Frame),
+            "a source's trigger is its main output"
+        );
+        assert_eq!(fault_output(&sc, ServiceId::Tracker), Some(TopicId::Tracks));
+        assert_eq!(trigger_topic(&sc, ServiceId::Earth), None, "not deployed");
+    }
+
+    #[test]
+    fn the_sensor_main_output_follows_the_sections() {
+        let sc = scenario("geo-hover-yspin.toml");
+        assert!(sc.camera.is_none() && sc.spectra.is_some());
+        assert_eq!(
+            trigger_topic(&sc, ServiceId::Sensor),
+            Some(TopicId::Spectrum)
+        );
+        assert_eq!(
+            fault_output(&sc, ServiceId::Inversion),
+            Some(TopicId::Solve)
+        );
+        let sp = sc.spectra.as_ref().unwrap();
+        assert_eq!(
+            expected_messages(&sc, TopicId::Truth),
+            sp.stable_samples + sp.motion_frames
+        );
+        let earth = scenario("earth-sensor-turntable.toml");
+        assert_eq!(
+            trigger_topic(&earth, ServiceId::Sensor),
+            Some(TopicId::EarthFrame)
+        );
+        assert_eq!(
+            consumers(&earth, TopicId::EarthAttitude),
+            [ServiceId::Orchestrator]
+        );
+    }
 }

@@ -1,5 +1,6 @@
 //! glint's wire contract: the messages every service exchanges over iceoryx2 shared memory,
-//! the topic names and QoS (one place, so no two processes disagree), and the scenario schema.
+//! the table of services and topics (one place, so no two processes disagree), their QoS, and
+//! the scenario schema.
 //!
 //! Only this crate and `glint-runtime` touch iceoryx2 directly.
 
@@ -8,12 +9,13 @@ pub mod deployment;
 pub mod input;
 pub mod messages;
 pub mod scenario;
+pub mod table;
 pub mod topics;
 
 pub use config_error::ConfigError;
 pub use messages::*;
 pub use scenario::Scenario;
-pub use topics::{ServiceId, TopicId};
+pub use table::{ServiceId, TopicId};
 
 /// Version of the wire contract. Bump it on any change to a message layout or a topic's QoS:
 /// it is part of every `#[type_name]` and of the `glint.contract` service attribute.

@@ -4,7 +4,6 @@
 use anyhow::{Context, Result};
 use glint_runtime::ports::{FrameInbox, Outbox};
 use glint_runtime::{Frame, Io, Output, Service, Setup};
-use shared_types::topics::{detections_service, frame_service};
 use shared_types::{DropReason, ServiceId, TopicId};
 
 use crate::service_core::DetectorCore;
@@ -21,15 +20,11 @@ impl Service for DetectorNode {
     fn open(setup: &mut Setup<'_>) -> Result<(Self, FrameInbox)> {
         let cam =
             (setup.scenario.camera.as_ref()).context("the detector needs a [camera] section")?;
-        let (mut frames, listener) =
-            FrameInbox::open(setup.node, &frame_service(setup.node, cam.pixels())?)?;
+        let (mut frames, listener) = FrameInbox::open(setup.node, TopicId::Frame, setup.scenario)?;
         // Integrity of the pixels is checked on receipt (one xxh3 pass, ~0.1 ms per 1024² frame).
         frames.verify_checksum = true;
         setup.listen(listener);
-        let service = detections_service(setup.node)?;
-        let mut out = Outbox::open(setup.node, TopicId::Detections, &service, Self::ID)?;
-        // Detections are not re-made from frames on demand: a restarted tracker is sent them again.
-        out.keep_log();
+        let out = Outbox::open(setup.node, TopicId::Detections, Self::ID)?;
         let core = DetectorCore::new(cam).map_err(|e| anyhow::anyhow!("{e}"))?;
         Ok((DetectorNode { core, out }, frames))
     }

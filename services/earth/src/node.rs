@@ -4,7 +4,6 @@
 use anyhow::{Context, Result};
 use glint_runtime::ports::{FrameInbox, Outbox};
 use glint_runtime::{Frame, Io, Output, Service, Setup};
-use shared_types::topics::{earth_attitude_service, earth_frame_service};
 use shared_types::{DropReason, EarthAttitude, ServiceId, TopicId};
 
 use crate::service_core::EarthServiceCore;
@@ -21,15 +20,11 @@ impl Service for EarthNode {
     fn open(setup: &mut Setup<'_>) -> Result<(Self, FrameInbox)> {
         let e = (setup.scenario.earth.as_ref())
             .context("the earth service needs an [earth] section")?;
-        let service = earth_frame_service(setup.node, e.pixels())?;
         let (mut frames, listener) =
-            FrameInbox::open_on(setup.node, TopicId::EarthFrame, &service)?;
+            FrameInbox::open(setup.node, TopicId::EarthFrame, setup.scenario)?;
         frames.verify_checksum = true;
         setup.listen(listener);
-        let out_service = earth_attitude_service(setup.node)?;
-        let mut out = Outbox::open(setup.node, TopicId::EarthAttitude, &out_service, Self::ID)?;
-        // Answers are not re-made on demand: a restarted consumer is sent them again.
-        out.keep_log();
+        let out = Outbox::open(setup.node, TopicId::EarthAttitude, Self::ID)?;
         let core = EarthServiceCore::new(e).context("earth.sigma_table")?;
         Ok((EarthNode { core, out }, frames))
     }

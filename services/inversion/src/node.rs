@@ -11,7 +11,6 @@ use glint_runtime::ports::Inbox;
 use glint_runtime::rpc::{Request, RpcServer, Solve};
 use glint_runtime::waitloop::{Step, Wake};
 use glint_runtime::{Io, Output, Service, Setup, TopicStats};
-use shared_types::topics::spectrum_service;
 use shared_types::{DropReason, InBandFault, ServiceId, SolveResponse, Spectrum, TopicId, Window};
 
 use crate::service_core::{answer, observation, session};
@@ -43,8 +42,7 @@ impl Service for InversionNode {
     fn open(setup: &mut Setup<'_>) -> Result<(Self, Inbox<Spectrum>)> {
         let sp =
             (setup.scenario.spectra.as_ref()).context("the inversion needs a [spectra] section")?;
-        let service = spectrum_service(setup.node)?;
-        let (spectra, listener) = Inbox::open(setup.node, TopicId::Spectrum, &service)?;
+        let (spectra, listener) = Inbox::open(setup.node, TopicId::Spectrum)?;
         setup.listen(listener);
         let (server, listener) = RpcServer::<Solve>::open(setup.node, Self::ID)?;
         setup.listen(listener);

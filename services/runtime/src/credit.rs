@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use anyhow::Result;
 use iceoryx2::port::listener::Listener;
-use shared_types::topics::{ack_service, Ipc, IpcNode};
+use shared_types::topics::{Ipc, IpcNode};
 use shared_types::{Ack, ServiceId, TopicId};
 
 use crate::ports::Inbox;
@@ -72,7 +72,7 @@ pub struct AckReader {
 
 impl AckReader {
     pub fn open(node: &IpcNode) -> Result<(Self, Listener<Ipc>)> {
-        let (mut inbox, l) = Inbox::open(node, TopicId::Ack, &ack_service(node)?)?;
+        let (mut inbox, l) = Inbox::open(node, TopicId::Ack)?;
         inbox.stats.peers_restart();
         Ok((AckReader { inbox }, l))
     }

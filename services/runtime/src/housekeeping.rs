@@ -4,7 +4,7 @@
 use anyhow::Result;
 use iceoryx2::port::listener::Listener;
 use shared_types::scenario::FaultKind;
-use shared_types::topics::{ack_service, control_service, heartbeat_service, Ipc, IpcNode};
+use shared_types::topics::{Ipc, IpcNode};
 use shared_types::{
     Ack, Command, Control, Heartbeat, InBandFault, Replay, ServiceId, ServiceTime, TopicCounters,
     TopicId, MAX_TOPICS,
@@ -46,11 +46,11 @@ pub struct Housekeeping {
 impl Housekeeping {
     /// Opens the housekeeping ports; the returned listener wakes the loop on control messages.
     pub fn open(node: &IpcNode, id: ServiceId) -> Result<(Self, Listener<Ipc>)> {
-        let heartbeat = Outbox::open(node, TopicId::Heartbeat, &heartbeat_service(node)?, id)?;
-        let (mut control, listener) = Inbox::open(node, TopicId::Control, &control_service(node)?)?;
+        let heartbeat = Outbox::open(node, TopicId::Heartbeat, id)?;
+        let (mut control, listener) = Inbox::open(node, TopicId::Control)?;
         // A restarted service joins the control topic at whatever seq it has reached.
         control.stats.peers_restart();
-        let acks = Outbox::open(node, TopicId::Ack, &ack_service(node)?, id)?;
+        let acks = Outbox::open(node, TopicId::Ack, id)?;
         Ok((
             Housekeeping {
                 id,

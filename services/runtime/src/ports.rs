@@ -9,8 +9,9 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
+use shared_types::table::Replay;
 use shared_types::topics::{
-    event_service, EventService, FrameService, Ipc, IpcNode, PubSubService, EVENT_DATA,
+    event_service, frames, messages, EventService, Ipc, IpcNode, EVENT_DATA,
 };
 use shared_types::{DropReason, FrameHeader, Message, Meta, Reject, ServiceId, TopicId};
 
@@ -49,17 +50,15 @@ pub struct Outbox<T: Message> {
 }
 
 impl<T: Message> Outbox<T> {
-    pub fn open(
-        node: &IpcNode,
-        topic: TopicId,
-        service: &PubSubService<T>,
-        producer: ServiceId,
-    ) -> Result<Self> {
-        let publisher = service
+    /// A publisher on message topic `topic`, from `producer`. A topic the table replays from a
+    /// log ([`Replay::Logged`]) keeps every message sent, so that a restarted consumer can be
+    /// sent them again.
+    pub fn open(node: &IpcNode, topic: TopicId, producer: ServiceId) -> Result<Self> {
+        let publisher = messages::<T>(node, topic)?
             .publisher_builder()
             .create()
             .map_err(|e| anyhow!("publisher for {}: {e:?}", topic.name()))?;
-        Ok(Outbox {
+        let mut out = Outbox {
             publisher,
             notifier: notifier(node, topic)?,
             producer,
@@ -67,7 +66,11 @@ impl<T: Message> Outbox<T> {
             log: None,
             tamper: Tamper::default(),
             stats: TopicStats::new(topic),
-        })
+        };
+        if topic.spec().replay == Replay::Logged && topic.spec().producer() == Some(producer) {
+            out.keep_log();
+        }
+        Ok(out)
     }
 
     /// Keeps every message sent, so that a restarted consumer can be sent them again
@@ -203,13 +206,9 @@ pub struct Inbox<T: Message> {
 }
 
 impl<T: Message> Inbox<T> {
-    /// Opens a subscriber and the listener to wait on.
-    pub fn open(
-        node: &IpcNode,
-        topic: TopicId,
-        service: &PubSubService<T>,
-    ) -> Result<(Self, Listener<Ipc>)> {
-        let subscriber = service
+    /// Opens a subscriber on message topic `topic` and the listener to wait on.
+    pub fn open(node: &IpcNode, topic: TopicId) -> Result<(Self, Listener<Ipc>)> {
+        let subscriber = messages::<T>(node, topic)?
             .subscriber_builder()
             .create()
             .map_err(|e| anyhow!("subscriber for {}: {e:?}", topic.name()))?;
@@ -282,19 +281,10 @@ pub struct FrameOutbox {
 }
 
 impl FrameOutbox {
-    /// The debris camera's frame publisher.
-    pub fn open(node: &IpcNode, service: &FrameService, pixels: usize) -> Result<Self> {
-        Self::open_on(node, TopicId::Frame, service, pixels)
-    }
-
-    /// A frame publisher on `topic` (the camera's or the Earth sensor's frames).
-    pub fn open_on(
-        node: &IpcNode,
-        topic: TopicId,
-        service: &FrameService,
-        pixels: usize,
-    ) -> Result<Self> {
-        let publisher = service
+    /// A frame publisher on `topic`, frames of the size `scenario` gives it.
+    pub fn open(node: &IpcNode, topic: TopicId, scenario: &shared_types::Scenario) -> Result<Self> {
+        let pixels = shared_types::topics::frame_pixels(topic, scenario);
+        let publisher = frames(node, topic, scenario)?
             .publisher_builder()
             .initial_max_slice_len(pixels)
             .allocation_strategy(AllocationStrategy::Static)
@@ -402,18 +392,14 @@ pub struct FrameInbox {
 }
 
 impl FrameInbox {
-    /// The debris camera's frame subscriber.
-    pub fn open(node: &IpcNode, service: &FrameService) -> Result<(Self, Listener<Ipc>)> {
-        Self::open_on(node, TopicId::Frame, service)
-    }
-
-    /// A frame subscriber on `topic` (the camera's or the Earth sensor's frames).
-    pub fn open_on(
+    /// A frame subscriber on `topic` (frames of the size `scenario` gives it), verifying
+    /// every frame's checksum unless told otherwise.
+    pub fn open(
         node: &IpcNode,
         topic: TopicId,
-        service: &FrameService,
+        scenario: &shared_types::Scenario,
     ) -> Result<(Self, Listener<Ipc>)> {
-        let subscriber = service
+        let subscriber = frames(node, topic, scenario)?
             .subscriber_builder()
             .create()
             .map_err(|e| anyhow!("frame subscriber: {e:?}"))?;

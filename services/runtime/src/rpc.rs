@@ -11,7 +11,7 @@ use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::server::Server;
 use iceoryx2::service::port_factory::request_response::PortFactory;
-use shared_types::topics::{event_service, range_service, solve_service, Ipc, IpcNode, EVENT_DATA};
+use shared_types::topics::{calls, event_service, Ipc, IpcNode, EVENT_DATA};
 use shared_types::{
     DropReason, Message, Meta, RangeRequest, RangeResponse, ServiceId, SolveRequest, SolveResponse,
     TopicId,
@@ -46,7 +46,7 @@ impl Rpc for Range {
     type Resp = RangeResponse;
     const TOPIC: TopicId = TopicId::Range;
     fn service(node: &IpcNode) -> Result<RpcService<RangeRequest, RangeResponse>> {
-        Ok(range_service(node)?)
+        Ok(calls(node, TopicId::Range)?)
     }
     fn set_request_id(req: &mut RangeRequest, id: u64) {
         req.request_id = id;
@@ -68,7 +68,7 @@ impl Rpc for Solve {
     type Resp = SolveResponse;
     const TOPIC: TopicId = TopicId::Solve;
     fn service(node: &IpcNode) -> Result<RpcService<SolveRequest, SolveResponse>> {
-        Ok(solve_service(node)?)
+        Ok(calls(node, TopicId::Solve)?)
     }
     fn set_request_id(req: &mut SolveRequest, id: u64) {
         req.request_id = id;

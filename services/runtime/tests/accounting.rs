@@ -4,11 +4,19 @@
 
 use glint_runtime::ports::{Inbox, Outbox};
 use glint_runtime::{open_node, remove_shm, shm_entries};
-use shared_types::topics::{create_all_sized, spectrum_service, SPECTRUM_BUFFER};
-use shared_types::{DropReason, Message, Meta, ServiceId, Spectrum, TopicId};
+use shared_types::topics::{create_all, credit_window};
+use shared_types::{DropReason, Message, Meta, Scenario, ServiceId, Spectrum, TopicId};
 
 fn prefix(tag: &str) -> String {
     format!("glt{}{}_", std::process::id() % 100_000, tag)
+}
+
+/// A scenario with a small camera and no other section.
+fn scenario() -> Scenario {
+    let text = include_str!("../../../scenarios/debris-geo.toml")
+        .replace("width_px = 1024", "width_px = 64")
+        .replace("height_px = 1024", "height_px = 64");
+    Scenario::from_toml_str(&text, "debris-geo.toml (64×64)").unwrap()
 }
 
 fn spectrum(k: u64) -> Spectrum {
@@ -30,10 +38,9 @@ fn malformed_messages_are_rejected_and_counted() {
     let p = prefix("m");
     {
         let node = open_node(&p, "test").unwrap();
-        let _keep = create_all_sized(&node, 64 * 64, 0).unwrap();
-        let svc = spectrum_service(&node).unwrap();
-        let mut out = Outbox::open(&node, TopicId::Spectrum, &svc, ServiceId::Sensor).unwrap();
-        let (mut inbox, _l) = Inbox::<Spectrum>::open(&node, TopicId::Spectrum, &svc).unwrap();
+        let _keep = create_all(&node, &scenario()).unwrap();
+        let mut out = Outbox::open(&node, TopicId::Spectrum, ServiceId::Sensor).unwrap();
+        let (mut inbox, _l) = Inbox::<Spectrum>::open(&node, TopicId::Spectrum).unwrap();
 
         out.send(spectrum(0), 0).unwrap();
         // A peer sends a message whose payload no longer matches its hash (corruption)…
@@ -71,12 +78,11 @@ fn overflow_is_counted_and_the_invariant_holds() {
     let p = prefix("o");
     {
         let node = open_node(&p, "test").unwrap();
-        let _keep = create_all_sized(&node, 64 * 64, 0).unwrap();
-        let svc = spectrum_service(&node).unwrap();
-        let mut out = Outbox::open(&node, TopicId::Spectrum, &svc, ServiceId::Sensor).unwrap();
-        let (mut inbox, _l) = Inbox::<Spectrum>::open(&node, TopicId::Spectrum, &svc).unwrap();
+        let _keep = create_all(&node, &scenario()).unwrap();
+        let mut out = Outbox::open(&node, TopicId::Spectrum, ServiceId::Sensor).unwrap();
+        let (mut inbox, _l) = Inbox::<Spectrum>::open(&node, TopicId::Spectrum).unwrap();
         // A consumer that does not keep up: 3 buffers' worth arrive before it reads.
-        let n = 3 * SPECTRUM_BUFFER as u64;
+        let n = 3 * credit_window(TopicId::Spectrum, &scenario()) as u64;
         for k in 0..n {
             out.send(spectrum(k), k).unwrap();
         }

@@ -12,7 +12,6 @@ use glint_runtime::ports::{FrameOutbox, Outbox};
 use glint_runtime::rpc::RangeServer;
 use glint_runtime::waitloop::{Step, Wake};
 use glint_runtime::{Io, NoInput, Output, Service, Setup, TopicStats};
-use shared_types::topics::{earth_frame_service, frame_service, spectrum_service, truth_service};
 use shared_types::{Command, DropReason, ServiceId, Spectrum, TopicId, Truth};
 
 use crate::service_core::{Emission, SensorCore};
@@ -42,31 +41,17 @@ impl Service for SensorNode {
         let (node, sc) = (setup.node, setup.scenario);
         let (range, listener) = RangeServer::open(node, Self::ID)?;
         setup.listen(listener);
-        let truth = Outbox::open(node, TopicId::Truth, &truth_service(node)?, Self::ID)?;
+        let truth = Outbox::open(node, TopicId::Truth, Self::ID)?;
         let frames = match &sc.camera {
-            Some(cam) => Some(FrameOutbox::open(
-                node,
-                &frame_service(node, cam.pixels())?,
-                cam.pixels(),
-            )?),
+            Some(_) => Some(FrameOutbox::open(node, TopicId::Frame, sc)?),
             None => None,
         };
         let spectra = match &sc.spectra {
-            Some(_) => Some(Outbox::open(
-                node,
-                TopicId::Spectrum,
-                &spectrum_service(node)?,
-                Self::ID,
-            )?),
+            Some(_) => Some(Outbox::open(node, TopicId::Spectrum, Self::ID)?),
             None => None,
         };
         let earth = match &sc.earth {
-            Some(e) => Some(FrameOutbox::open_on(
-                node,
-                TopicId::EarthFrame,
-                &earth_frame_service(node, e.pixels())?,
-                e.pixels(),
-            )?),
+            Some(_) => Some(FrameOutbox::open(node, TopicId::EarthFrame, sc)?),
             None => None,
         };
         let core = SensorCore::new(sc)?;

@@ -7,7 +7,6 @@ use anyhow::{Context, Result};
 use glint_runtime::ports::{Inbox, Outbox};
 use glint_runtime::rpc::{CallOutcome, RangeClient};
 use glint_runtime::{Io, Output, Service, Setup, TopicStats};
-use shared_types::topics::{detections_service, tracks_service};
 use shared_types::{
     Detections, DropReason, RangeRequest, RangeResponse, ServiceId, TopicId, Tracks,
 };
@@ -29,11 +28,9 @@ impl Service for TrackerNode {
     fn open(setup: &mut Setup<'_>) -> Result<(Self, Inbox<Detections>)> {
         let cam =
             (setup.scenario.camera.as_ref()).context("the tracker needs a [camera] section")?;
-        let service = detections_service(setup.node)?;
-        let (dets, listener) = Inbox::open(setup.node, TopicId::Detections, &service)?;
+        let (dets, listener) = Inbox::open(setup.node, TopicId::Detections)?;
         setup.listen(listener);
-        let service = tracks_service(setup.node)?;
-        let out = Outbox::open(setup.node, TopicId::Tracks, &service, Self::ID)?;
+        let out = Outbox::open(setup.node, TopicId::Tracks, Self::ID)?;
         let client = match cam.tracker.laser {
             true => Some(RangeClient::open(setup.node, Self::ID)?),
             false => None,

@@ -132,6 +132,14 @@ pub trait Message: std::fmt::Debug + Copy + ZeroCopySend + bytemuck::NoUninit + 
         let _ = how;
         self.meta_mut().contract_version = !CONTRACT_VERSION;
     }
+    /// Folds the message's content into a run's digest: everything that is a function of the
+    /// scenario and the seed, so two runs compare in one value. By default every byte but the
+    /// send time (the only field that differs between two runs of the same scenario and seed).
+    fn fold_digest(&self, digest: &mut xxhash_rust::xxh3::Xxh3) {
+        let mut copy = *self;
+        copy.meta_mut().send_mono_ns = 0;
+        digest.update(bytemuck::bytes_of(&copy));
+    }
 }
 
 macro_rules! message {
@@ -182,6 +190,10 @@ impl Message for Spectrum {
     fn check(&self) -> Result<(), Reject> {
         self.validate()
     }
+    /// Its content hash (the header is left out).
+    fn fold_digest(&self, digest: &mut xxhash_rust::xxh3::Xxh3) {
+        digest.update(&self.content_xxh3.to_le_bytes());
+    }
     fn corrupt(&mut self, how: crate::scenario::Corruption) {
         use crate::scenario::Corruption;
         match how {
@@ -194,19 +206,63 @@ impl Message for Spectrum {
     }
 }
 
-message!(Truth, |m: &Truth| m.validate());
-message!(
-    EarthAttitude,
-    |m: &EarthAttitude| m.validate(),
-    |m: &mut EarthAttitude, how| {
-        use crate::scenario::Corruption;
-        match how {
-            Corruption::Nan => m.methods[0].beta_deg = f64::NAN,
-            Corruption::Count => m.methods[0].valid = 2,
-            Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
+impl Message for Truth {
+    fn meta(&self) -> &Meta {
+        &self.meta
+    }
+    fn meta_mut(&mut self) -> &mut Meta {
+        &mut self.meta
+    }
+    fn check(&self) -> Result<(), Reject> {
+        self.validate()
+    }
+    /// Its seq and time, the debris states, the satellite's attitude and rate, the Earth
+    /// sensor's angles.
+    fn fold_digest(&self, digest: &mut xxhash_rust::xxh3::Xxh3) {
+        digest.update(&self.meta.seq.to_le_bytes());
+        digest.update(&self.meta.t_ns.to_le_bytes());
+        let n = (self.n_debris as usize).min(self.debris_state_lvlh.len());
+        for s in &self.debris_state_lvlh[..n] {
+            for v in s {
+                digest.update(&v.to_le_bytes());
+            }
+        }
+        for v in (self.attitude_body_rest.iter())
+            .chain(self.rate_deg_per_frame.iter())
+            .chain([self.earth_beta_deg, self.earth_tilt_deg].iter())
+        {
+            digest.update(&v.to_le_bytes());
         }
     }
-);
+}
+impl Message for EarthAttitude {
+    fn meta(&self) -> &Meta {
+        &self.meta
+    }
+    fn meta_mut(&mut self) -> &mut Meta {
+        &mut self.meta
+    }
+    fn check(&self) -> Result<(), Reject> {
+        self.validate()
+    }
+    fn corrupt(&mut self, how: crate::scenario::Corruption) {
+        use crate::scenario::Corruption;
+        match how {
+            Corruption::Nan => self.methods[0].beta_deg = f64::NAN,
+            Corruption::Count => self.methods[0].valid = 2,
+            Corruption::Version => self.meta.contract_version = !CONTRACT_VERSION,
+        }
+    }
+    /// The answers, not what they took: compute times differ between runs.
+    fn fold_digest(&self, digest: &mut xxhash_rust::xxh3::Xxh3) {
+        let mut copy = *self;
+        copy.meta.send_mono_ns = 0;
+        for method in &mut copy.methods {
+            method.time_us = 0.0;
+        }
+        digest.update(bytemuck::bytes_of(&copy));
+    }
+}
 message!(
     Detections,
     |m: &Detections| m.validate(),

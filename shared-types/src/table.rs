@@ -1,0 +1,734 @@
+//! The table of glint's services and topics: the one place each is declared.
+//!
+//! A topic row ([`TopicSpec`]) says what it carries, who produces it, how many messages a run
+//! carries, how deep its queues are, and how a restarted consumer gets its messages again. A
+//! service row ([`ServiceSpec`]) says which scenario section deploys it, what it consumes and
+//! what it produces. Everything else reads these rows: the openers and their QoS
+//! ([`crate::topics`]), who consumes what and how many messages to expect
+//! ([`crate::deployment`]), the sim-clock credit, the replay orders after a restart, the fault
+//! triggers and targets, the orchestrator's taps, the report's accounting, validation's
+//! messages, the CLI's list of services.
+//!
+//! [`visit`] is the one place a topic is bound to its Rust payload type; code that must handle
+//! every topic generically (create every service, tap every topic, record every topic) is a
+//! [`PayloadVisitor`].
+//!
+//! Adding a service or a topic: docs/architecture.md, "Adding a service".
+
+use crate::messages::*;
+use crate::scenario::Scenario;
+
+/// Services of a deployment. The numeric value travels in [`Meta::producer`] and [`Ack::consumer`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u32)]
+pub enum ServiceId {
+    Orchestrator = 0,
+    Sensor = 1,
+    Detector = 2,
+    Tracker = 3,
+    Inversion = 4,
+    Earth = 5,
+}
+
+/// Topics of the chain. The numeric value travels in [`Ack::topic`] and the heartbeats' counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u32)]
+pub enum TopicId {
+    Frame = 0,
+    Spectrum = 1,
+    Truth = 2,
+    Heartbeat = 3,
+    Control = 4,
+    Ack = 5,
+    Range = 6,
+    Detections = 7,
+    Tracks = 8,
+    Solve = 9,
+    EarthFrame = 10,
+    EarthAttitude = 11,
+}
+
+/// The scenario section a service or topic exists with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Section {
+    /// Every deployment.
+    Always,
+    /// `[camera]`: the debris camera ([002]).
+    Camera,
+    /// `[spectra]`: the satellite's spectra ([000]).
+    Spectra,
+    /// `[earth]`: the infrared Earth sensor ([003]).
+    Earth,
+}
+
+impl Section {
+    /// Whether `scenario` has this section.
+    pub fn present(self, scenario: &Scenario) -> bool {
+        match self {
+            Section::Always => true,
+            Section::Camera => scenario.camera.is_some(),
+            Section::Spectra => scenario.spectra.is_some(),
+            Section::Earth => scenario.earth.is_some(),
+        }
+    }
+
+    /// How a scenario file names it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Section::Always => "(always)",
+            Section::Camera => "[camera]",
+            Section::Spectra => "[spectra]",
+            Section::Earth => "[earth]",
+        }
+    }
+}
+
+/// How a topic moves its messages, and the sizes of its ports.
+#[derive(Debug, Clone, Copy)]
+pub enum Pattern {
+    /// `[u16]` pixels with a [`FrameHeader`], rendered into the loaned sample and read in
+    /// place. Its queue, history and credit window are sized from the frame
+    /// ([`crate::topics::frame_window`]).
+    Frames {
+        /// Pixels of one frame in a scenario (0 without the section).
+        pixels: fn(&Scenario) -> usize,
+    },
+    /// One fixed-size message per sample.
+    Messages {
+        publishers: usize,
+        subscribers: usize,
+        /// Per-subscriber queue, and the sim-clock credit window of a produced data topic.
+        buffer: usize,
+        /// Kept for late joiners: a restarted consumer finds the last `buffer` messages.
+        history: bool,
+    },
+    /// Request/response with a reply event: the producer serves, `clients` call.
+    Calls {
+        clients: usize,
+        /// Requests one client may have in flight.
+        in_flight: usize,
+        /// Responses queued per client.
+        responses: usize,
+    },
+}
+
+/// Who publishes a topic.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum From {
+    /// One service (a data topic's producer, a call's server).
+    One(ServiceId),
+    /// Every service (heartbeats, acknowledgements).
+    Every,
+}
+
+/// How many messages a topic carries over a run.
+#[derive(Debug, Clone, Copy)]
+pub enum Count {
+    /// A stream the sensor produces; the scenario says how many.
+    Stream(fn(&Scenario) -> u64),
+    /// One message per message of `input` its producer processed (a dropped input makes none).
+    PerInput(TopicId),
+    /// One per message of every stream that carries truth ([`TopicSpec::truth`]).
+    Truth,
+    /// Housekeeping and calls: as many as the run needs; not held to a count.
+    Open,
+}
+
+/// How a topic's messages reach a consumer that restarted (docs/adr/0032).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Replay {
+    /// The producer makes them again, byte for byte, from the scenario and the seed.
+    Remade,
+    /// The producer keeps every message it sent and sends them again.
+    Logged,
+    /// Not replayed: read only by the orchestrator, which is never restarted.
+    OrchestratorOnly,
+    /// Not replayed: housekeeping (a restarted service joins at the current seq) or a call
+    /// (its client sends it again).
+    Never,
+}
+
+/// One topic.
+#[derive(Debug, Clone, Copy)]
+pub struct TopicSpec {
+    pub id: TopicId,
+    /// Short name: `topics.<name>` in reports, `glint/<name>` in iceoryx2.
+    pub name: &'static str,
+    pub pattern: Pattern,
+    /// The section it exists with.
+    pub section: Section,
+    pub from: From,
+    pub count: Count,
+    pub replay: Replay,
+    /// The sensor publishes one truth message with each of its messages (scoring).
+    pub truth: bool,
+    /// What it carries, for people.
+    pub about: &'static str,
+}
+
+/// One service (a process of the deployment).
+#[derive(Debug, Clone, Copy)]
+pub struct ServiceSpec {
+    pub id: ServiceId,
+    /// `glint service <name>`, `[supervision.services.<name>]`, `--fault <name>:…`.
+    pub name: &'static str,
+    /// The section that deploys it.
+    pub section: Section,
+    /// Data topics it consumes and acknowledges (replayed to it after a restart), main first:
+    /// an `at_seq` fault fires on the first.
+    pub inputs: &'static [TopicId],
+    /// Topics it publishes or serves, main first: in-band drops and corruptions hit the first
+    /// present; a source's `at_seq` fault fires on it.
+    pub outputs: &'static [TopicId],
+    /// Calls it makes.
+    pub calls: &'static [TopicId],
+    /// The crate of its pure core and node.
+    pub code: &'static str,
+    /// What it does, for people.
+    pub about: &'static str,
+}
+
+const DATA_PUBLISHERS: usize = 2;
+/// Subscribers per data topic: orchestrator, one consumer service, one restart replacement, one tool.
+const DATA_SUBSCRIBERS: usize = 4;
+/// Publishers per many-to-one topic, subscribers per one-to-many topic: every service, plus restarts.
+const PEERS: usize = 16;
+
+const fn data(buffer: usize, history: bool) -> Pattern {
+    Pattern::Messages {
+        publishers: DATA_PUBLISHERS,
+        subscribers: DATA_SUBSCRIBERS,
+        buffer,
+        history,
+    }
+}
+
+/// Every topic, in [`TopicId`] order.
+pub const TOPICS: [TopicSpec; 12] = [
+    TopicSpec {
+        id: TopicId::Frame,
+        name: "frame",
+        pattern: Pattern::Frames {
+            pixels: Scenario::frame_px,
+        },
+        section: Section::Camera,
+        from: From::One(ServiceId::Sensor),
+        count: Count::Stream(|sc| sc.camera.as_ref().map_or(0, |c| c.frames)),
+        replay: Replay::Remade,
+        truth: true,
+        about: "debris camera frames ([u16] in place)",
+    },
+    TopicSpec {
+        id: TopicId::Spectrum,
+        name: "spectrum",
+        pattern: data(32, true),
+        section: Section::Spectra,
+        from: From::One(ServiceId::Sensor),
+        count: Count::Stream(|sc| {
+            (sc.spectra.as_ref()).map_or(0, |s| s.stable_samples + s.motion_frames)
+        }),
+        replay: Replay::Remade,
+        truth: true,
+        about: "the satellite's spectrum, one per sample of the stable and motion windows",
+    },
+    TopicSpec {
+        id: TopicId::Truth,
+        name: "truth",
+        pattern: data(32, false),
+        section: Section::Always,
+        from: From::One(ServiceId::Sensor),
+        count: Count::Truth,
+        replay: Replay::OrchestratorOnly,
+        truth: false,
+        about: "what the sensor rendered, for scoring (never read by a service)",
+    },
+    TopicSpec {
+        id: TopicId::Heartbeat,
+        name: "heartbeat",
+        pattern: Pattern::Messages {
+            publishers: PEERS,
+            subscribers: 4,
+            buffer: 64,
+            history: false,
+        },
+        section: Section::Always,
+        from: From::Every,
+        count: Count::Open,
+        replay: Replay::Never,
+        truth: false,
+        about: "each service's state and counters",
+    },
+    TopicSpec {
+        id: TopicId::Control,
+        name: "control",
+        pattern: Pattern::Messages {
+            publishers: DATA_PUBLISHERS,
+            subscribers: PEERS,
+            buffer: 16,
+            history: false,
+        },
+        section: Section::Always,
+        from: From::One(ServiceId::Orchestrator),
+        count: Count::Open,
+        replay: Replay::Never,
+        truth: false,
+        about: "start, pause, shutdown, replay orders, in-band faults",
+    },
+    TopicSpec {
+        id: TopicId::Ack,
+        name: "ack",
+        pattern: Pattern::Messages {
+            publishers: PEERS,
+            subscribers: 4,
+            buffer: 256,
+            history: false,
+        },
+        section: Section::Always,
+        from: From::Every,
+        count: Count::Open,
+        replay: Replay::Never,
+        truth: false,
+        about: "what each consumer has taken: the producers' sim-clock credit",
+    },
+    TopicSpec {
+        id: TopicId::Range,
+        name: "range",
+        pattern: Pattern::Calls {
+            clients: 4,
+            in_flight: 8,
+            responses: 4,
+        },
+        section: Section::Camera,
+        from: From::One(ServiceId::Sensor),
+        count: Count::Open,
+        replay: Replay::Never,
+        truth: false,
+        about: "the laser rangefinder: a shot and its echo",
+    },
+    TopicSpec {
+        id: TopicId::Detections,
+        name: "detections",
+        pattern: data(16, true),
+        section: Section::Camera,
+        from: From::One(ServiceId::Detector),
+        count: Count::PerInput(TopicId::Frame),
+        replay: Replay::Logged,
+        truth: false,
+        about: "each frame's detections: ellipse features, matched ids, angles",
+    },
+    TopicSpec {
+        id: TopicId::Tracks,
+        name: "tracks",
+        pattern: data(16, false),
+        section: Section::Camera,
+        from: From::One(ServiceId::Tracker),
+        count: Count::PerInput(TopicId::Detections),
+        replay: Replay::OrchestratorOnly,
+        truth: false,
+        about: "each frame's tracks: angle filter and CW EKF states",
+    },
+    TopicSpec {
+        id: TopicId::Solve,
+        name: "solve",
+        pattern: Pattern::Calls {
+            clients: 2,
+            in_flight: 2,
+            responses: 2,
+        },
+        section: Section::Spectra,
+        from: From::One(ServiceId::Inversion),
+        count: Count::Open,
+        replay: Replay::Never,
+        truth: false,
+        about: "the three-stage attitude solve, one call per stage",
+    },
+    TopicSpec {
+        id: TopicId::EarthFrame,
+        name: "earth_frame",
+        pattern: Pattern::Frames {
+            pixels: Scenario::earth_px,
+        },
+        section: Section::Earth,
+        from: From::One(ServiceId::Sensor),
+        count: Count::Stream(|sc| sc.earth.as_ref().map_or(0, |e| e.frames())),
+        replay: Replay::Remade,
+        truth: true,
+        about: "fisheye infrared Earth frames ([u16] in place)",
+    },
+    TopicSpec {
+        id: TopicId::EarthAttitude,
+        name: "earth_attitude",
+        pattern: data(16, true),
+        section: Section::Earth,
+        from: From::One(ServiceId::Earth),
+        count: Count::PerInput(TopicId::EarthFrame),
+        replay: Replay::Logged,
+        truth: false,
+        about: "each Earth frame's attitude angle β and tilt, per method",
+    },
+];
+
+/// Every service, in [`ServiceId`] order (also the order they are started in).
+pub const SERVICES: [ServiceSpec; 6] = [
+    ServiceSpec {
+        id: ServiceId::Orchestrator,
+        name: "orchestrator",
+        section: Section::Always,
+        // It reads every data topic: accounting, digests, and what the report scores.
+        inputs: &[
+            TopicId::Frame,
+            TopicId::Spectrum,
+            TopicId::Truth,
+            TopicId::Detections,
+            TopicId::Tracks,
+            TopicId::EarthFrame,
+            TopicId::EarthAttitude,
+        ],
+        outputs: &[TopicId::Control],
+        calls: &[TopicId::Solve],
+        code: "glint (orchestrator/)",
+        about: "deploys, supervises, sequences the solve, injects faults, reports",
+    },
+    ServiceSpec {
+        id: ServiceId::Sensor,
+        name: "sensor",
+        section: Section::Always,
+        inputs: &[],
+        outputs: &[
+            TopicId::Frame,
+            TopicId::Spectrum,
+            TopicId::EarthFrame,
+            TopicId::Truth,
+            TopicId::Range,
+        ],
+        calls: &[],
+        code: "glint-sensor",
+        about: "renders every stream of the scenario into shared memory; the laser",
+    },
+    ServiceSpec {
+        id: ServiceId::Detector,
+        name: "detector",
+        section: Section::Camera,
+        inputs: &[TopicId::Frame],
+        outputs: &[TopicId::Detections],
+        calls: &[],
+        code: "glint-detector",
+        about: "[002] streak detection, second-moment features, inter-frame matching",
+    },
+    ServiceSpec {
+        id: ServiceId::Tracker,
+        name: "tracker",
+        section: Section::Camera,
+        inputs: &[TopicId::Detections],
+        outputs: &[TopicId::Tracks],
+        calls: &[TopicId::Range],
+        code: "glint-tracker",
+        about: "[002] angle filter, laser pointing, CW EKF",
+    },
+    ServiceSpec {
+        id: ServiceId::Inversion,
+        name: "inversion",
+        section: Section::Spectra,
+        inputs: &[TopicId::Spectrum],
+        outputs: &[TopicId::Solve],
+        calls: &[],
+        code: "glint-inversion",
+        about: "[000] three-stage attitude solve from spectra",
+    },
+    ServiceSpec {
+        id: ServiceId::Earth,
+        name: "earth",
+        section: Section::Earth,
+        inputs: &[TopicId::EarthFrame],
+        outputs: &[TopicId::EarthAttitude],
+        calls: &[],
+        code: "glint-earth",
+        about: "[003] attitude angle from infrared Earth frames",
+    },
+];
+
+impl ServiceId {
+    pub const ALL: [ServiceId; 6] = {
+        let mut all = [ServiceId::Orchestrator; 6];
+        let mut i = 0;
+        while i < SERVICES.len() {
+            all[i] = SERVICES[i].id;
+            i += 1;
+        }
+        all
+    };
+
+    /// The services `glint run` spawns (every one but the orchestrator).
+    pub fn spawnable() -> impl Iterator<Item = ServiceId> {
+        Self::ALL
+            .into_iter()
+            .filter(|s| *s != ServiceId::Orchestrator)
+    }
+
+    pub fn spec(self) -> &'static ServiceSpec {
+        &SERVICES[self as usize]
+    }
+
+    pub fn name(self) -> &'static str {
+        self.spec().name
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        SERVICES.iter().find(|s| s.name == name).map(|s| s.id)
+    }
+
+    pub fn from_u32(v: u32) -> Option<Self> {
+        Self::ALL.get(v as usize).copied()
+    }
+
+    /// The spawnable services' names, `a, b, c`, for messages.
+    pub fn names() -> String {
+        Self::spawnable()
+            .map(|s| s.name())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+impl TopicId {
+    pub const ALL: [TopicId; 12] = {
+        let mut all = [TopicId::Frame; 12];
+        let mut i = 0;
+        while i < TOPICS.len() {
+            all[i] = TOPICS[i].id;
+            i += 1;
+        }
+        all
+    };
+
+    pub fn spec(self) -> &'static TopicSpec {
+        &TOPICS[self as usize]
+    }
+
+    /// Short name used in reports (`topics.<name>`).
+    pub fn name(self) -> &'static str {
+        self.spec().name
+    }
+
+    /// iceoryx2 service name (the run prefix lives in the iceoryx2 config, not here).
+    pub fn service_name(self) -> String {
+        format!("glint/{}", self.name())
+    }
+
+    pub fn from_u32(v: u32) -> Option<Self> {
+        Self::ALL.get(v as usize).copied()
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        TOPICS.iter().find(|t| t.name == name).map(|t| t.id)
+    }
+}
+
+impl TopicSpec {
+    /// The service that publishes or serves it, if one does.
+    pub fn producer(&self) -> Option<ServiceId> {
+        match self.from {
+            From::One(s) => Some(s),
+            From::Every => None,
+        }
+    }
+
+    /// Whether it carries data the run accounts for (a count the scenario fixes).
+    pub fn is_data(&self) -> bool {
+        !matches!(self.count, Count::Open)
+    }
+}
+
+/// Code that handles every topic generically, given its payload type.
+pub trait PayloadVisitor {
+    type Out;
+    /// `[u16]` pixels with a [`FrameHeader`].
+    fn frames(self, spec: &'static TopicSpec) -> Self::Out;
+    /// Messages of type `T`.
+    fn messages<T: Message>(self, spec: &'static TopicSpec) -> Self::Out;
+    /// Requests of type `Req` answered by `Resp`.
+    fn calls<Req: Message, Resp: Message>(self, spec: &'static TopicSpec) -> Self::Out;
+}
+
+/// Calls `v` with `topic`'s payload type: the one place a topic is bound to its Rust type.
+pub fn visit<V: PayloadVisitor>(topic: TopicId, v: V) -> V::Out {
+    let spec = topic.spec();
+    match topic {
+        TopicId::Frame | TopicId::EarthFrame => v.frames(spec),
+        TopicId::Spectrum => v.messages::<Spectrum>(spec),
+        TopicId::Truth => v.messages::<Truth>(spec),
+        TopicId::Heartbeat => v.messages::<Heartbeat>(spec),
+        TopicId::Control => v.messages::<Control>(spec),
+        TopicId::Ack => v.messages::<Ack>(spec),
+        TopicId::Detections => v.messages::<Detections>(spec),
+        TopicId::Tracks => v.messages::<Tracks>(spec),
+        TopicId::EarthAttitude => v.messages::<EarthAttitude>(spec),
+        TopicId::Range => v.calls::<RangeRequest, RangeResponse>(spec),
+        TopicId::Solve => v.calls::<SolveRequest, SolveResponse>(spec),
+    }
+}
+
+/// The contract type name of a topic's payload (a call's request).
+pub fn payload_type_name(topic: TopicId) -> &'static str {
+    struct Name;
+    impl PayloadVisitor for Name {
+        type Out = &'static str;
+        fn frames(self, _: &'static TopicSpec) -> &'static str {
+            // SAFETY: `type_name` only returns the `#[type_name]` string.
+            unsafe { <FrameHeader as iceoryx2::prelude::ZeroCopySend>::type_name() }
+        }
+        fn messages<T: Message>(self, _: &'static TopicSpec) -> &'static str {
+            // SAFETY: as above.
+            unsafe { <T as iceoryx2::prelude::ZeroCopySend>::type_name() }
+        }
+        fn calls<Req: Message, Resp: Message>(self, _: &'static TopicSpec) -> &'static str {
+            // SAFETY: as above.
+            unsafe { <Req as iceoryx2::prelude::ZeroCopySend>::type_name() }
+        }
+    }
+    visit(topic, Name)
+}
+
+/// The table's own consistency, checked by a test and by `glint run` before it deploys: ids
+/// in order, names unique, every data topic a restartable service consumes has a replay
+/// source, every producer declares its topics, the visitor and the pattern agree.
+pub fn check() -> Result<(), String> {
+    check_rows(&TOPICS, &SERVICES)
+}
+
+fn check_rows(topics: &[TopicSpec], services: &[ServiceSpec]) -> Result<(), String> {
+    let service = |id: ServiceId| services.iter().find(|s| s.id == id);
+    let topic = |id: TopicId| topics.iter().find(|t| t.id == id);
+    for (i, s) in services.iter().enumerate() {
+        if s.id as usize != i {
+            return Err(format!("service row {i} holds {:?}", s.id));
+        }
+        for input in s.inputs {
+            let Some(t) = topic(*input) else {
+                return Err(format!(
+                    "service {} consumes {input:?}, which has no row",
+                    s.name
+                ));
+            };
+            let restartable = s.id != ServiceId::Orchestrator;
+            let replayed = matches!(t.replay, Replay::Remade | Replay::Logged);
+            if restartable && !replayed {
+                return Err(format!(
+                    "service {} consumes `{}`, which has no replay source ({:?})",
+                    s.name, t.name, t.replay
+                ));
+            }
+            if !t.is_data() {
+                return Err(format!(
+                    "service {} lists `{}` as a data input",
+                    s.name, t.name
+                ));
+            }
+        }
+        for output in s.outputs {
+            if !topic(*output).is_some_and(|t| t.from == From::One(s.id)) {
+                return Err(format!(
+                    "service {} lists {output:?} as an output, which it does not produce",
+                    s.name
+                ));
+            }
+        }
+    }
+    for (i, t) in topics.iter().enumerate() {
+        if t.id as usize != i {
+            return Err(format!("topic row {i} holds {:?}", t.id));
+        }
+        if topics.iter().filter(|u| u.name == t.name).count() != 1 {
+            return Err(format!("topic name `{}` is not unique", t.name));
+        }
+        if let From::One(p) = t.from {
+            if !service(p).is_some_and(|s| s.outputs.contains(&t.id)) {
+                return Err(format!(
+                    "topic `{}` is produced by {p:?}, which does not list it among its outputs",
+                    t.name
+                ));
+            }
+        }
+        if let Count::PerInput(input) = t.count {
+            let declared =
+                (t.producer().and_then(service)).is_some_and(|s| s.inputs.contains(&input));
+            if !declared {
+                return Err(format!(
+                    "topic `{}` counts one per {input:?}, which its producer does not consume",
+                    t.name
+                ));
+            }
+        }
+        let frames = matches!(t.pattern, Pattern::Frames { .. });
+        if frames != visit(t.id, IsFrames) {
+            return Err(format!(
+                "topic `{}`: its pattern and its payload type disagree",
+                t.name
+            ));
+        }
+    }
+    Ok(())
+}
+
+struct IsFrames;
+
+impl PayloadVisitor for IsFrames {
+    type Out = bool;
+    fn frames(self, _: &'static TopicSpec) -> bool {
+        true
+    }
+    fn messages<T: Message>(self, _: &'static TopicSpec) -> bool {
+        false
+    }
+    fn calls<Req: Message, Resp: Message>(self, _: &'static TopicSpec) -> bool {
+        false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_table_is_consistent() {
+        check().unwrap();
+        assert_eq!(TopicId::from_name("earth_frame"), Some(TopicId::EarthFrame));
+        assert_eq!(ServiceId::from_name("tracker"), Some(ServiceId::Tracker));
+        assert_eq!(ServiceId::from_u32(5), Some(ServiceId::Earth));
+        assert_eq!(ServiceId::from_u32(6), None);
+        assert_eq!(TopicId::from_u32(11), Some(TopicId::EarthAttitude));
+        assert_eq!(payload_type_name(TopicId::Tracks), "glint.v4.Tracks");
+        assert_eq!(
+            payload_type_name(TopicId::EarthFrame),
+            "glint.v4.FrameHeader"
+        );
+        assert_eq!(
+            ServiceId::names(),
+            "sensor, detector, tracker, inversion, earth"
+        );
+    }
+
+    #[test]
+    fn rows_that_break_the_rules_are_refused() {
+        // A restartable service consuming a topic nobody can replay to it.
+        let mut services = SERVICES;
+        services[ServiceId::Earth as usize].inputs = &[TopicId::Tracks];
+        let e = check_rows(&TOPICS, &services).unwrap_err();
+        assert!(e.contains("no replay source"), "{e}");
+        // A producer that does not declare its topic.
+        let mut services = SERVICES;
+        services[ServiceId::Detector as usize].outputs = &[];
+        let e = check_rows(&TOPICS, &services).unwrap_err();
+        assert!(e.contains("does not list it among its outputs"), "{e}");
+        // Rows out of order.
+        let mut topics = TOPICS;
+        topics.swap(0, 1);
+        let e = check_rows(&topics, &SERVICES).unwrap_err();
+        assert!(e.contains("topic row 0"), "{e}");
+        // A count per input its producer does not consume.
+        let mut topics = TOPICS;
+        topics[TopicId::Tracks as usize].count = Count::PerInput(TopicId::Frame);
+        let e = check_rows(&topics, &SERVICES).unwrap_err();
+        assert!(e.contains("does not consume"), "{e}");
+    }
+}
