@@ -8,7 +8,8 @@
 mod common;
 
 use glint_detector::service_core::DetectorCore;
-use glint_sensor::service_core::{Emission, SensorCore};
+use glint_sensor::service_core::SensorCore;
+use glint_sensor::streams::{FrameStream, Stream};
 use glint_tracker::service_core::{Laser, TrackerCore};
 use shared_types::{
     FrameHeader, Message, Meta, RangeRequest, RangeResponse, Scenario, ServiceId, Truth,
@@ -74,15 +75,16 @@ fn run_in_process(scenario: &Scenario) -> Chain {
         end_points: vec![],
     };
     let mut pixels = vec![0u16; cam.pixels()];
-    let mut k = 0;
     // Frames only: the spectra of a combined scenario do not touch this chain.
-    while let Some(Emission::Frame { k: frame, t_ns }) = sensor.frame(k) {
+    let frames = sensor.debris_stream().expect("a camera");
+    for frame in 0..frames.messages() {
+        let t_ns = frames.t_ns(frame);
         let mut header = FrameHeader {
             meta: Meta::new(frame, t_ns, 0, ServiceId::Sensor),
             ..Default::default()
         };
-        sensor.render_frame(frame, &mut header, &mut pixels);
-        chain.truths.push(sensor.frame_truth(frame).expect("truth"));
+        frames.render(frame, &mut header, &mut pixels);
+        chain.truths.push(frames.truth(frame));
         let d = detector
             .process(&header, &pixels)
             .expect("a readable frame");
@@ -96,7 +98,6 @@ fn run_in_process(scenario: &Scenario) -> Chain {
         fold(&mut det_digest, d, frame, t_ns, ServiceId::Detector);
         fold(&mut trk_digest, tracks, frame, t_ns, ServiceId::Tracker);
         chain.frames += 1;
-        k += 1;
     }
     chain.detections_digest = det_digest.digest();
     chain.tracks_digest = trk_digest.digest();

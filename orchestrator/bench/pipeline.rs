@@ -12,7 +12,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use glint_detector::service_core::DetectorCore;
-use glint_sensor::service_core::{Emission, SensorCore};
+use glint_sensor::service_core::SensorCore;
+use glint_sensor::streams::{FrameStream, Stream};
 use glint_tracker::service_core::{Laser, TrackerCore};
 use serde_json::{json, Value};
 use shared_types::scenario::{Clock, Debris};
@@ -96,6 +97,7 @@ pub struct InProcess {
 pub fn in_process(sc: &Scenario, bar: &indicatif::ProgressBar) -> Result<InProcess> {
     let cam = sc.camera.as_ref().context("a [camera] scenario")?;
     let sensor = SensorCore::new(sc)?;
+    let frames = sensor.debris_stream().context("a [camera] scenario")?;
     let mut detector = DetectorCore::new(cam).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut tracker = TrackerCore::new(cam).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut laser = DirectLaser {
@@ -107,14 +109,14 @@ pub fn in_process(sc: &Scenario, bar: &indicatif::ProgressBar) -> Result<InProce
     let (mut render, mut checksum, mut detect, mut track, mut ranging) =
         (vec![], vec![], vec![], vec![], vec![]);
     let wall = Instant::now();
-    let mut k = 0;
-    while let Some(Emission::Frame { k: frame, t_ns }) = sensor.frame(k) {
+    for frame in 0..frames.messages() {
+        let t_ns = frames.t_ns(frame);
         let mut header = FrameHeader {
             meta: Meta::new(frame, t_ns, 0, ServiceId::Sensor),
             ..Default::default()
         };
         let t0 = Instant::now();
-        sensor.render_frame(frame, &mut header, &mut pixels);
+        frames.render(frame, &mut header, &mut pixels);
         let t1 = Instant::now();
         header.pixels_xxh3 = shared_types::pixels_xxh3(&pixels);
         let t2 = Instant::now();
@@ -132,11 +134,10 @@ pub fn in_process(sc: &Scenario, bar: &indicatif::ProgressBar) -> Result<InProce
         detect.push((t3 - t2).as_nanos() as u64);
         track.push(((t4 - t3).as_nanos() as u64).saturating_sub(laser_ns));
         ranging.push(laser_ns);
-        k += 1;
         bar.inc(1);
     }
     Ok(InProcess {
-        frames: k,
+        frames: frames.messages(),
         wall_s: wall.elapsed().as_secs_f64(),
         stages: vec![
             ("render", render),

@@ -3,8 +3,8 @@
 //! publishes truth for scoring; renders fisheye infrared Earth frames ([003], `earth_render`).
 //!
 //! Pure cores (`render`, `laser`, `debris_scene`, `spectra_scene`, `earth_render`,
-//! `earth_scene`) beside one
-//! node loop (`node`).
+//! `earth_scene`; `streams`: each stream the sensor produces, behind one trait) beside one node
+//! loop (`node`).
 
 pub mod debris_scene;
 pub mod earth_hazards;
@@ -16,3 +16,4 @@ pub mod node;
 pub mod render;
 pub mod service_core;
 pub mod spectra_scene;
+pub mod streams;

@@ -1,8 +1,8 @@
-//! The sensor on the service skeleton: after `Start` it produces camera frames, spectra, Earth
-//! frames and truth — in
-//! sim-clock mode as fast as the consumers' acknowledgements allow (lockstep, nothing dropped),
-//! in realtime mode frames paced by the wall clock — while answering laser-range requests.
-//! A restarted sensor produces everything again from the start (rendering is stateless), and
+//! The sensor on the service skeleton: after `Start` it emits every stream of the scenario
+//! ([`crate::streams`]) — in sim-clock mode as fast as the consumers' acknowledgements allow
+//! (lockstep, nothing dropped), in strict simulated-time order over the streams; in realtime
+//! mode paced by the wall clock — while answering laser-range requests. A restarted sensor
+//! produces everything again from the start (every message is a function of its index), and
 //! its consumers skip what they already have as duplicates.
 
 use std::time::Duration;
@@ -12,23 +12,135 @@ use glint_runtime::ports::{FrameOutbox, Outbox};
 use glint_runtime::rpc::RangeServer;
 use glint_runtime::waitloop::{Step, Wake};
 use glint_runtime::{Io, NoInput, Output, Service, Setup, TopicStats};
-use shared_types::{Command, DropReason, ServiceId, Spectrum, TopicId, Truth};
+use shared_types::{Command, DropReason, Scenario, ServiceId, TopicId, Truth};
 
-use crate::service_core::{Emission, SensorCore};
+use crate::service_core::SensorCore;
+use crate::streams::{
+    next_in_time, EarthStream, FrameStream, MessageStream, SpectraStream, Stream,
+};
 
 /// Messages produced per wake-up before the loop checks control and acks again.
 const BATCH: usize = 8;
 
+/// A stream with the port it publishes on.
+trait Emitter {
+    fn topic(&self) -> TopicId;
+    fn output(&mut self) -> &mut dyn Output;
+    fn stats(&self) -> &TopicStats;
+    /// Index of the next message to emit.
+    fn next_seq(&self) -> u64;
+    /// The simulated time of the next message, if the stream has one left.
+    fn next_t_ns(&self) -> Option<u64>;
+    /// Realtime: when the next message is due after `Start` [ns].
+    fn due_ns(&self) -> Option<u64>;
+    /// Whether the next message is a replay (a consumer restarted).
+    fn replaying(&self) -> bool;
+    /// Publishes the next message (rendered into the loan, or made whole); its truth.
+    fn emit(&mut self) -> Result<Truth>;
+}
+
+struct Frames<S: FrameStream> {
+    stream: S,
+    out: FrameOutbox,
+}
+
+impl<S: FrameStream> Emitter for Frames<S> {
+    fn topic(&self) -> TopicId {
+        self.stream.topic()
+    }
+    fn output(&mut self) -> &mut dyn Output {
+        &mut self.out
+    }
+    fn stats(&self) -> &TopicStats {
+        &self.out.stats
+    }
+    fn next_seq(&self) -> u64 {
+        self.out.next_seq()
+    }
+    fn next_t_ns(&self) -> Option<u64> {
+        let k = self.out.next_seq();
+        (k < self.stream.messages()).then(|| self.stream.t_ns(k))
+    }
+    fn due_ns(&self) -> Option<u64> {
+        self.stream.due_ns(self.out.next_seq())
+    }
+    fn replaying(&self) -> bool {
+        self.out.replaying()
+    }
+    fn emit(&mut self) -> Result<Truth> {
+        let k = self.out.next_seq();
+        let stream = &self.stream;
+        self.out
+            .publish(stream.t_ns(k), |h, px| stream.render(k, h, px))?;
+        Ok(stream.truth(k))
+    }
+}
+
+struct Messages<S: MessageStream> {
+    stream: S,
+    out: Outbox<S::Msg>,
+}
+
+impl<S: MessageStream> Emitter for Messages<S> {
+    fn topic(&self) -> TopicId {
+        self.stream.topic()
+    }
+    fn output(&mut self) -> &mut dyn Output {
+        &mut self.out
+    }
+    fn stats(&self) -> &TopicStats {
+        &self.out.stats
+    }
+    fn next_seq(&self) -> u64 {
+        self.out.next_seq()
+    }
+    fn next_t_ns(&self) -> Option<u64> {
+        let k = self.out.next_seq();
+        (k < self.stream.messages()).then(|| self.stream.t_ns(k))
+    }
+    fn due_ns(&self) -> Option<u64> {
+        self.stream.due_ns(self.out.next_seq())
+    }
+    fn replaying(&self) -> bool {
+        self.out.replaying()
+    }
+    fn emit(&mut self) -> Result<Truth> {
+        let k = self.out.next_seq();
+        let (msg, truth) = self.stream.make(k)?;
+        self.out.send(msg, self.stream.t_ns(k))?;
+        Ok(truth)
+    }
+}
+
+/// Every stream of `sc` with its port, in table order (the tie-break of the emission order):
+/// the one list a new sensor mode joins.
+fn emitters(setup: &Setup<'_>, core: &SensorCore) -> Result<Vec<Box<dyn Emitter>>> {
+    let (node, sc): (_, &Scenario) = (setup.node, setup.scenario);
+    let id = ServiceId::Sensor;
+    let mut all: Vec<Box<dyn Emitter>> = vec![];
+    if let Some(stream) = core.debris_stream() {
+        let out = FrameOutbox::open(node, stream.topic(), sc)?;
+        all.push(Box::new(Frames { stream, out }));
+    }
+    if let Some(sp) = &sc.spectra {
+        let stream = SpectraStream::new(sp, sc.seed)?;
+        let out = Outbox::open(node, stream.topic(), id)?;
+        all.push(Box::new(Messages { stream, out }));
+    }
+    if let Some(e) = &sc.earth {
+        let stream = EarthStream::new(e, sc.seed);
+        let out = FrameOutbox::open(node, stream.topic(), sc)?;
+        all.push(Box::new(Frames { stream, out }));
+    }
+    all.sort_by_key(|e| e.topic());
+    Ok(all)
+}
+
 pub struct SensorNode {
     core: SensorCore,
-    frames: Option<FrameOutbox>,
-    spectra: Option<Outbox<Spectrum>>,
-    earth: Option<FrameOutbox>,
+    streams: Vec<Box<dyn Emitter>>,
     truth: Outbox<Truth>,
     range: RangeServer,
-    /// Realtime: frame `k` is due `k` frame periods after `Start`.
-    frame_period_ns: u64,
-    earth_period_ns: u64,
     started_ns: Option<u64>,
     paused: bool,
 }
@@ -38,70 +150,39 @@ impl Service for SensorNode {
     type Input = NoInput;
 
     fn open(setup: &mut Setup<'_>) -> Result<(Self, NoInput)> {
-        let (node, sc) = (setup.node, setup.scenario);
-        let (range, listener) = RangeServer::open(node, Self::ID)?;
+        let (range, listener) = RangeServer::open(setup.node, Self::ID)?;
         setup.listen(listener);
-        let truth = Outbox::open(node, TopicId::Truth, Self::ID)?;
-        let frames = match &sc.camera {
-            Some(_) => Some(FrameOutbox::open(node, TopicId::Frame, sc)?),
-            None => None,
-        };
-        let spectra = match &sc.spectra {
-            Some(_) => Some(Outbox::open(node, TopicId::Spectrum, Self::ID)?),
-            None => None,
-        };
-        let earth = match &sc.earth {
-            Some(_) => Some(FrameOutbox::open(node, TopicId::EarthFrame, sc)?),
-            None => None,
-        };
-        let core = SensorCore::new(sc)?;
+        let truth = Outbox::open(setup.node, TopicId::Truth, Self::ID)?;
+        let core = SensorCore::new(setup.scenario)?;
+        let streams = emitters(setup, &core)?;
         tracing::info!(
-            core.n_frames,
-            core.n_spectra,
-            core.n_earth,
-            ?sc.clock,
+            streams = ?streams.iter().map(|s| s.topic().name()).collect::<Vec<_>>(),
+            clock = ?setup.scenario.clock,
             "sensor scenes built"
         );
         let sensor = SensorNode {
             core,
-            frames,
-            spectra,
-            earth,
+            streams,
             truth,
             range,
-            frame_period_ns: sc.camera.as_ref().map_or(0, |c| c.frame_period_ns()),
-            earth_period_ns: (sc.earth.as_ref()).map_or(0, |e| e.exposure_end_ns(0)),
             started_ns: None,
             paused: false,
         };
         Ok((sensor, NoInput))
     }
 
-    /// Camera frames first (the main output: in-band drops and corruptions hit it), then
-    /// spectra, then Earth frames.
+    /// The streams in table order (the first is the main output: in-band drops and
+    /// corruptions hit it), then the truth.
     fn outputs(&mut self) -> Vec<&mut dyn Output> {
-        let mut all: Vec<&mut dyn Output> = vec![];
-        if let Some(f) = self.frames.as_mut() {
-            all.push(f);
-        }
-        if let Some(s) = self.spectra.as_mut() {
-            all.push(s);
-        }
-        if let Some(e) = self.earth.as_mut() {
-            all.push(e);
-        }
+        let mut all: Vec<&mut dyn Output> = self.streams.iter_mut().map(|s| s.output()).collect();
         all.push(&mut self.truth);
         all
     }
 
     fn stats(&self) -> Vec<&TopicStats> {
-        let f = self.frames.as_ref().map(|f| &f.stats);
-        let s = self.spectra.as_ref().map(|s| &s.stats);
-        let e = self.earth.as_ref().map(|e| &e.stats);
-        [f, s, e, Some(&self.truth.stats), Some(&self.range.stats)]
-            .into_iter()
-            .flatten()
-            .collect()
+        let mut all: Vec<&TopicStats> = self.streams.iter().map(|s| s.stats()).collect();
+        all.extend([&self.truth.stats, &self.range.stats]);
+        all
     }
 
     fn on_command(&mut self, io: &mut Io<'_>, cmd: Command) -> Result<()> {
@@ -127,92 +208,51 @@ impl Service for SensorNode {
         let mut next_wake_ns: Option<u64> = None;
         let mut produced = 0;
         for _ in 0..BATCH {
-            let nf = self.frames.as_ref().map_or(u64::MAX, |f| f.next_seq());
-            let ns = self.spectra.as_ref().map_or(u64::MAX, |s| s.next_seq());
-            let ne = self.earth.as_ref().map_or(u64::MAX, |e| e.next_seq());
-            let next = self.core.next(nf, ns, ne);
-            let frame_first = matches!(next, Some(Emission::Frame { .. }));
-            let spectrum_first = matches!(next, Some(Emission::Spectrum { .. }));
-            let earth_first = matches!(next, Some(Emission::Earth { .. }));
+            let in_turn = next_in_time(self.streams.iter().map(|s| s.next_t_ns()));
             let mut progressed = false;
-            if let (Some(Emission::Frame { k, t_ns }), Some(out)) =
-                (self.core.frame(nf), self.frames.as_mut())
-            {
-                let turn = Turn {
-                    k,
-                    t_ns,
-                    in_turn: frame_first,
-                    topic: TopicId::Frame,
-                    period_ns: self.frame_period_ns,
-                    t0_ns,
-                };
-                let core = &self.core;
-                progressed |= emit_frame(
-                    io,
-                    out,
-                    &mut self.truth,
-                    &turn,
-                    &mut next_wake_ns,
-                    |h, px| core.render_frame(k, h, px),
-                    || core.frame_truth(k),
-                )?;
-            }
-            if let (Some(Emission::Spectrum { k, .. }), Some(out)) =
-                (self.core.spectrum_at(ns), self.spectra.as_mut())
-            {
-                let replay = out.replaying();
-                let truth_ok = io.allows(TopicId::Truth, self.truth.stats.published);
-                let due = io.realtime
-                    || (spectrum_first && io.allows(TopicId::Spectrum, k) && (replay || truth_ok));
-                if due {
-                    io.pace()?;
-                    let (sp, truth, t_ns) = self.core.spectrum(k)?;
-                    out.send(sp, t_ns)?;
-                    if !replay {
-                        self.truth.send(truth, t_ns)?;
-                    }
-                    progressed = true;
+            for (i, stream) in self.streams.iter_mut().enumerate() {
+                if stream.next_t_ns().is_none() {
+                    continue;
                 }
-            }
-            if let (Some(Emission::Earth { k, t_ns }), Some(out)) =
-                (self.core.earth_at(ne), self.earth.as_mut())
-            {
-                let turn = Turn {
-                    k,
-                    t_ns,
-                    in_turn: earth_first,
-                    topic: TopicId::EarthFrame,
-                    period_ns: self.earth_period_ns,
-                    t0_ns,
+                let replay = stream.replaying();
+                let due = if io.realtime {
+                    match stream.due_ns() {
+                        Some(at) => {
+                            let now = io.now_ns() - t0_ns;
+                            if now < at {
+                                let wait = at - now;
+                                next_wake_ns = Some(next_wake_ns.map_or(wait, |w| w.min(wait)));
+                            }
+                            now >= at
+                        }
+                        None => true,
+                    }
+                } else {
+                    // Its turn, credit for it, and credit for its truth (a replay sends none).
+                    let truth_ok = io.allows(TopicId::Truth, self.truth.stats.published);
+                    in_turn == Some(i)
+                        && io.allows(stream.topic(), stream.next_seq())
+                        && (truth_ok || replay)
                 };
-                let core = &self.core;
-                progressed |= emit_frame(
-                    io,
-                    out,
-                    &mut self.truth,
-                    &turn,
-                    &mut next_wake_ns,
-                    |h, px| core.render_earth(k, h, px),
-                    || core.earth_truth(k),
-                )?;
+                if !due {
+                    continue;
+                }
+                io.pace()?;
+                let t_ns = stream.next_t_ns().unwrap_or(0);
+                let truth = stream.emit()?;
+                // The truth was sent with the message's first emission.
+                if !replay {
+                    self.truth.send(truth, t_ns)?;
+                }
+                progressed = true;
             }
             if !progressed {
                 break;
             }
             produced += 1;
         }
-        let frames_done = self
-            .frames
-            .as_ref()
-            .is_none_or(|f| f.next_seq() >= self.core.n_frames);
-        let spectra_done =
-            (self.spectra.as_ref()).is_none_or(|s| s.next_seq() >= self.core.n_spectra);
-        let earth_done = (self.earth.as_ref()).is_none_or(|e| e.next_seq() >= self.core.n_earth);
-        if frames_done
-            && spectra_done
-            && earth_done
-            && io.state() == shared_types::Heartbeat::RUNNING
-        {
+        let done = self.streams.iter().all(|s| s.next_t_ns().is_none());
+        if done && io.state() == shared_types::Heartbeat::RUNNING {
             io.finish();
             tracing::info!("sensor finished producing");
         }
@@ -224,51 +264,4 @@ impl Service for SensorNode {
             _ => Step::Wait,
         })
     }
-}
-
-/// Frame `k` of one frame stream (the camera's or the Earth sensor's), at `t_ns`.
-struct Turn {
-    k: u64,
-    t_ns: u64,
-    /// Whether it is next in simulated-time order of all the sensor's streams.
-    in_turn: bool,
-    topic: TopicId,
-    /// Realtime: frame `k` is due `k` periods after `Start` (`t0_ns`).
-    period_ns: u64,
-    t0_ns: u64,
-}
-
-/// Publishes the frame of `turn` when it is due — in realtime by the wall clock, in sim-clock
-/// mode when it is in turn and its topic and the truth have credit — rendered in place, and
-/// its truth unless it is a replay (a restarted consumer; the truth was sent once). Whether it
-/// was published.
-fn emit_frame(
-    io: &mut Io<'_>,
-    out: &mut FrameOutbox,
-    truth: &mut Outbox<Truth>,
-    turn: &Turn,
-    next_wake_ns: &mut Option<u64>,
-    render: impl FnOnce(&mut shared_types::FrameHeader, &mut [u16]),
-    truth_of: impl FnOnce() -> Option<Truth>,
-) -> Result<bool> {
-    let replay = out.replaying();
-    let due = if io.realtime {
-        let (at, now) = (turn.period_ns * turn.k, io.now_ns() - turn.t0_ns);
-        if now < at {
-            *next_wake_ns = Some(next_wake_ns.map_or(at - now, |w| w.min(at - now)));
-        }
-        now >= at
-    } else {
-        let truth_ok = io.allows(TopicId::Truth, truth.stats.published);
-        turn.in_turn && io.allows(turn.topic, turn.k) && (truth_ok || replay)
-    };
-    if !due {
-        return Ok(false);
-    }
-    io.pace()?;
-    out.publish(turn.t_ns, render)?;
-    if let (false, Some(t)) = (replay, truth_of()) {
-        truth.send(t, turn.t_ns)?;
-    }
-    Ok(true)
 }
