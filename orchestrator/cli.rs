@@ -49,6 +49,12 @@ pub(crate) enum Cmd {
     },
     /// Check a scenario file; report every problem with its field and allowed range.
     Validate { scenario: PathBuf },
+    /// About `report.json`: `--schema` prints its JSON Schema (docs/report.schema.json).
+    Report {
+        /// Print the JSON Schema of report.json.
+        #[arg(long)]
+        schema: bool,
+    },
     /// The three-stage attitude solve on an observation file (format: docs/observations.md).
     Invert {
         observations: PathBuf,

@@ -4,7 +4,6 @@
 //! state machine per fault, driven by the run loop; it decides, the loop signals.
 
 use rustix::process::Signal;
-use serde_json::{json, Value};
 use shared_types::scenario::{FaultKind, FaultSpec};
 use shared_types::{deployment, InBandFault, Scenario, ServiceId, TopicId};
 
@@ -252,24 +251,26 @@ impl Fault {
 
     /// The report's entry; `lost` is what the service's inputs carried and it never
     /// processed, `invariant_held` the run's accounting.
-    pub fn json(&self, lost: Option<u64>, invariant_held: bool) -> Value {
-        json!({
-            "service": self.service.name(),
-            "kind": self.spec.kind.name(),
-            "at_seq": self.spec.at_seq,
-            "at_s": self.spec.at_s,
-            "duration_s": self.spec.duration_s,
-            "injected_s": self.injected_s,
-            "ended_s": self.ended_s,
-            "detected_s": self.detected_s,
-            "detected_by": self.detected_by,
-            "recovered_s": self.recovered_s,
-            "restarts": self.restarts,
-            "lost": lost,
-            "invariant_held": invariant_held,
+    pub fn report(&self, lost: Option<u64>, invariant_held: bool) -> crate::report::FaultReport {
+        crate::report::FaultReport {
+            service: self.service.name().to_string(),
+            kind: self.spec.kind.name().to_string(),
+            at_seq: self.spec.at_seq,
+            at_s: self.spec.at_s,
+            duration_s: self.spec.duration_s,
+            injected_s: self.injected_s,
+            ended_s: self.ended_s,
+            detected_s: self.detected_s,
+            detected_by: self.detected_by.map(str::to_string),
+            recovered_s: self.recovered_s,
+            restarts: self.restarts,
+            lost,
+            invariant_held,
             // Against a fault-free run of the same seed: a campaign's comparison.
-            "science_equal": Value::Null,
-        })
+            science_equal: None,
+            injected: None,
+            counted: None,
+        }
     }
 }
 

@@ -8,11 +8,56 @@ use std::fmt::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use serde_json::{json, Value};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 use shared_types::scenario::FaultKind;
 use shared_types::{deployment, Scenario, ServiceId};
 
+use crate::report::{FaultReport, Report, Science};
 use crate::run::{self, RunOptions};
+
+/// The matrix's `report.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct MatrixReport {
+    pub scenario: String,
+    /// Every case held every invariant, and the baseline passed.
+    pub success: bool,
+    pub baseline: MatrixBaseline,
+    pub cases: Vec<CaseReport>,
+    /// Each case's fault entry, with its case name and science compared to the baseline's.
+    pub faults: Vec<CaseFault>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct MatrixBaseline {
+    pub success: bool,
+    pub science: Science,
+}
+
+/// One case's verdict.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct CaseReport {
+    /// `<service>-<kind>`.
+    pub case: String,
+    /// Its run succeeded.
+    pub success: bool,
+    pub science_equal: Option<bool>,
+    /// Every invariant held.
+    pub passed: bool,
+    /// The invariants it broke.
+    pub misses: Vec<String>,
+    /// Within the time targets on this machine (a figure, not an invariant).
+    pub within_targets: bool,
+    pub late: Vec<String>,
+}
+
+/// A case's fault entry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct CaseFault {
+    pub case: String,
+    #[serde(flatten)]
+    pub fault: FaultReport,
+}
 
 /// Detection within this long of the injection (a stop: the heartbeat deadline and this).
 const DETECT_S: f64 = 0.5;
@@ -26,7 +71,7 @@ struct Case {
     service: ServiceId,
     kind: FaultKind,
     success: bool,
-    fault: Value,
+    fault: Option<FaultReport>,
     science_equal: Option<bool>,
     /// Invariants it broke (empty: held): not detected, not recovered, lost, science unequal,
     /// counts unequal, the run failed.
@@ -45,7 +90,7 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let mut base = scenario.clone();
     base.matrix = None;
 
-    let deploy = |sc: Scenario, case: &str| -> Result<Value> {
+    let deploy = |sc: Scenario, case: &str| -> Result<Report> {
         let (sub, _) = run::run(RunOptions {
             scenario: sc,
             scenario_file: opts.scenario_file.clone(),
@@ -54,9 +99,7 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
             progress: false,
         })?;
         run::bail_if_interrupted("the fault matrix")?;
-        let text = std::fs::read_to_string(sub.join("report.json"))
-            .with_context(|| format!("reading {case}'s report"))?;
-        Ok(serde_json::from_str(&text)?)
+        Report::read(&sub.join("report.json")).with_context(|| format!("{case}'s report"))
     };
     eprintln!("fault matrix: baseline");
     let baseline = deploy(base.clone(), "baseline")?;
@@ -76,31 +119,37 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
             cases.push(judge(&name, service, kind, &report, &baseline, deadline_s));
         }
     }
-    let baseline_ok = baseline["success"] == true;
+    let baseline_ok = baseline.results.success;
     let passed = baseline_ok && cases.iter().all(|c| c.misses.is_empty());
-    let report = json!({
-        "scenario": scenario.name,
-        "success": passed,
-        "baseline": {
-            "success": baseline["success"],
-            "science": baseline["science"],
+    let report = MatrixReport {
+        scenario: scenario.name.clone(),
+        success: passed,
+        baseline: MatrixBaseline {
+            success: baseline.results.success,
+            science: baseline.results.science.clone(),
         },
-        "cases": cases.iter().map(|c| json!({
-            "case": c.name,
-            "success": c.success,
-            "science_equal": c.science_equal,
-            "passed": c.misses.is_empty(),
-            "misses": c.misses,
-            "within_targets": c.late.is_empty(),
-            "late": c.late,
-        })).collect::<Vec<_>>(),
-        "faults": cases.iter().map(|c| {
-            let mut f = c.fault.clone();
-            f["case"] = c.name.clone().into();
-            f["science_equal"] = c.science_equal.map_or(Value::Null, Value::from);
-            f
-        }).collect::<Vec<_>>(),
-    });
+        cases: (cases.iter())
+            .map(|c| CaseReport {
+                case: c.name.clone(),
+                success: c.success,
+                science_equal: c.science_equal,
+                passed: c.misses.is_empty(),
+                misses: c.misses.clone(),
+                within_targets: c.late.is_empty(),
+                late: c.late.clone(),
+            })
+            .collect(),
+        faults: (cases.iter())
+            .filter_map(|c| {
+                let mut fault = c.fault.clone()?;
+                fault.science_equal = c.science_equal;
+                Some(CaseFault {
+                    case: c.name.clone(),
+                    fault,
+                })
+            })
+            .collect(),
+    };
     std::fs::write(
         root.join("report.json"),
         serde_json::to_string_pretty(&report)? + "\n",
@@ -113,41 +162,38 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
     Ok((root, passed))
 }
 
-fn secs(v: &Value, key: &str) -> Option<f64> {
-    v[key].as_f64()
-}
-
 /// A case against the targets: detected in time, recovered in time, nothing lost and the
 /// science equal (kill, stop, panic, delay), or exact counts (drop, corrupt).
 fn judge(
     name: &str,
     service: ServiceId,
     kind: FaultKind,
-    report: &Value,
-    baseline: &Value,
+    report: &Report,
+    baseline: &Report,
     deadline_s: f64,
 ) -> Case {
-    let fault = report["faults"]
-        .as_array()
-        .and_then(|a| a.first())
-        .cloned()
-        .unwrap_or(Value::Null);
-    let success = report["success"] == true;
+    let fault = report.faults.first().cloned();
+    let success = report.results.success;
     let mut misses = vec![];
     let mut late = vec![];
     if !success {
         misses.push(format!(
             "the run failed: {}",
-            report["failure"].as_str().unwrap_or("invariant")
+            report.results.failure.as_deref().unwrap_or("invariant")
         ));
     }
-    let injected = secs(&fault, "injected_s");
-    let detected = secs(&fault, "detected_s");
-    let ended = secs(&fault, "ended_s");
-    let recovered = secs(&fault, "recovered_s");
+    let f = fault.as_ref();
+    let injected = f.and_then(|f| f.injected_s);
+    let detected = f.and_then(|f| f.detected_s);
+    let ended = f.and_then(|f| f.ended_s);
+    let recovered = f.and_then(|f| f.recovered_s);
     let detect_limit = match kind {
         FaultKind::Stop => deadline_s + STOP_MARGIN_S,
-        _ => DETECT_S,
+        FaultKind::Kill
+        | FaultKind::Panic
+        | FaultKind::Delay
+        | FaultKind::Drop
+        | FaultKind::Corrupt => DETECT_S,
     };
     // A delay is not a failure: nothing to detect, only to recover from.
     if kind != FaultKind::Delay {
@@ -168,27 +214,29 @@ fn judge(
         )),
         _ => misses.push("not recovered".into()),
     }
-    if fault["invariant_held"] != true {
+    if !f.is_some_and(|f| f.invariant_held) {
         misses.push("accounting invariant broken".into());
     }
     let science_equal = match kind {
         FaultKind::Drop | FaultKind::Corrupt => {
-            if fault["injected"] != fault["counted"] || fault["injected"] == 0 {
-                misses.push(format!(
-                    "{} injected, {} counted",
-                    fault["injected"], fault["counted"]
-                ));
+            let (made, counted) = (f.and_then(|f| f.injected), f.and_then(|f| f.counted));
+            if made != counted || made.unwrap_or(0) == 0 {
+                let n = |v: Option<u64>| v.map_or("none".to_string(), |v| v.to_string());
+                misses.push(format!("{} injected, {} counted", n(made), n(counted)));
             }
             None
         }
-        _ => {
-            let equal = report["science"] == baseline["science"]
-                && report["science"]["digest_xxh3"].is_string();
+        FaultKind::Kill | FaultKind::Stop | FaultKind::Panic | FaultKind::Delay => {
+            let equal = report.results.science == baseline.results.science;
             if !equal {
                 misses.push("science differs from the baseline".into());
             }
-            if fault["lost"] != 0 {
-                misses.push(format!("lost {}", fault["lost"]));
+            let lost = f.and_then(|f| f.lost);
+            if lost != Some(0) {
+                misses.push(format!(
+                    "lost {}",
+                    lost.map_or("unknown".to_string(), |n| n.to_string())
+                ));
             }
             Some(equal)
         }
@@ -269,30 +317,29 @@ fn summary(scenario: &Scenario, cases: &[Case], baseline_ok: bool, passed: bool)
          |---|---|---|---|---|---|---|---|"
     );
     for c in cases {
-        let f = &c.fault;
+        let f = c.fault.as_ref();
         let after = |a: Option<f64>, b: Option<f64>| match (a, b) {
             (Some(a), Some(b)) => format!("{:.3}", a - b),
             _ => "—".into(),
         };
-        let detected = match f["detected_by"].as_str() {
+        let detected = match f.and_then(|f| f.detected_by.as_deref()) {
             Some(by) => format!(
                 "{} ({by})",
-                after(secs(f, "detected_s"), secs(f, "injected_s"))
+                after(f.and_then(|f| f.detected_s), f.and_then(|f| f.injected_s))
             ),
             None => "—".into(),
         };
-        let counted = if f["injected"].is_null() {
-            "—".into()
-        } else {
-            format!("{} of {}", f["counted"], f["injected"])
+        let counted = match f.and_then(|f| f.injected.zip(f.counted)) {
+            Some((made, counted)) => format!("{counted} of {made}"),
+            None => "—".into(),
         };
         let _ = writeln!(
             s,
             "| {} | {detected} | {} | {} | {} | {counted} | {} | {} |",
             c.name,
-            after(secs(f, "recovered_s"), secs(f, "ended_s")),
-            f["restarts"],
-            f["lost"],
+            after(f.and_then(|f| f.recovered_s), f.and_then(|f| f.ended_s)),
+            f.map_or("—".into(), |f| f.restarts.to_string()),
+            f.and_then(|f| f.lost).map_or("—".into(), |n| n.to_string()),
             c.science_equal
                 .map_or("—", |e| if e { "yes" } else { "no" }),
             if c.misses.is_empty() && c.late.is_empty() {

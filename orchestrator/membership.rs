@@ -7,7 +7,6 @@
 
 use std::collections::BTreeMap;
 
-use serde_json::{json, Value};
 use shared_types::ServiceId;
 
 /// A node under the prefix that is not the deployment's.
@@ -63,14 +62,16 @@ impl Membership {
         failure
     }
 
-    pub fn json(&self) -> Value {
-        json!({
-            "strangers": self.strangers.values().map(|s| json!({
-                "name": s.name,
-                "pid": s.pid,
-                "role": if s.impostor { "impostor" } else { "observer" },
-                "seen_s": s.seen_s,
-            })).collect::<Vec<_>>(),
-        })
+    pub fn report(&self) -> crate::report::MembershipReport {
+        crate::report::MembershipReport {
+            strangers: (self.strangers.values())
+                .map(|s| crate::report::StrangerReport {
+                    name: s.name.clone(),
+                    pid: s.pid,
+                    role: if s.impostor { "impostor" } else { "observer" }.to_string(),
+                    seen_s: s.seen_s,
+                })
+                .collect(),
+        }
     }
 }

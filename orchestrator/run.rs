@@ -89,7 +89,7 @@ pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
         (facts.orchestrator_cpu_s.zip(cpu0_s)).map(|(c, c0)| (c - c0).max(0.0));
     facts.prefix = prefix;
     facts.scenario_file = opts.scenario_file.clone();
-    let ok = report::write(&out_dir, scenario, &facts)?;
+    let ok = report::write(&out_dir, scenario, &facts)?.results.success;
     drop(dir);
     Ok((out_dir, ok))
 }
@@ -413,7 +413,7 @@ fn deploy_and_run(
         },
     );
     facts.solve_tampered = solve_tampered;
-    facts.membership = membership.json();
+    facts.membership = membership.report();
     if children.iter().any(|c| c.ending == Ending::Running) {
         bail!("a child survived the stop ladder");
     }

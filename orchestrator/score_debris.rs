@@ -11,16 +11,20 @@ use std::collections::BTreeMap;
 use glint_physics::camera::{angles_from_position, PinholeCamera};
 use glint_physics::cw::propagate_lvlhn;
 use nalgebra::{Matrix6, Vector3, Vector6};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use shared_types::{Detections, Tracks, Truth};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Detection gate against truth [px].
 pub const GATE_PX: f64 = 3.0;
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, Deserialize, schemars::JsonSchema, PartialEq)]
 pub struct DetectionScore {
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub precision: f64,
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub recall: f64,
     pub true_positives: u64,
     pub false_positives: u64,
@@ -32,27 +36,49 @@ pub struct DetectionScore {
     pub false_targets_rejected: u64,
 }
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, Deserialize, schemars::JsonSchema, PartialEq)]
 pub struct TargetScore {
     /// Debris number as in the scenario (1-based).
     pub id: u32,
     pub track_id: Option<u32>,
     pub frames_tracked: u64,
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub azimuth_err_deg_rms_measured: f64,
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub azimuth_err_deg_rms_filtered: f64,
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub elevation_err_deg_rms_measured: f64,
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub elevation_err_deg_rms_filtered: f64,
     /// "Before filtering": the per-frame direct fix from (α, β, r) [m RMS].
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub pos_err_m_rms_direct: f64,
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub pos_err_m_final: f64,
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub vel_err_mps_final: f64,
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub nees_mean: f64,
     /// NEES at the last frame (for a Monte-Carlo check at a fixed time across seeds).
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub nees_final: f64,
     /// RMS over frames of (measured angle − truth) / (the detection's claimed 1σ), azimuth and
     /// elevation together: ≈ 1 when the detector's uncertainty is honest.
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub angle_err_normalized_rms: f64,
     /// 95 % bounds of the mean NEES of this many 6-dof samples.
+    #[serde(deserialize_with = "crate::report::model::pair_or_nan")]
+    #[schemars(with = "[Option<f64>; 2]")]
     pub nees_bounds: [f64; 2],
     pub laser_shots: u64,
     pub laser_hits: u64,

@@ -15,39 +15,34 @@ fn default_run_accounts_for_every_message_across_processes() {
         String::from_utf8_lossy(&r.output.stderr),
         std::fs::read_to_string(dir.join("summary.md")).unwrap_or_default()
     );
-    let rep = &r.report;
-    assert_eq!(rep["success"], true);
-    assert_eq!(rep["accounting"]["invariant_held"], true);
+    let rep = &r.typed;
+    assert!(rep.results.success);
+    assert!(rep.results.accounting.invariant_held);
 
     // Distinct OS processes: the sensor is neither this test nor the orchestrator.
-    let services = rep["services"].as_array().unwrap();
+    let services = &rep.results.services;
     assert!(!services.is_empty());
     for s in services {
-        let pid = s["pid"].as_u64().unwrap() as u32;
+        let pid = rep.run.pids[&s.name];
         assert_ne!(pid, std::process::id());
         assert_ne!(pid, 0);
-        assert_eq!(s["ending"], "shutdown", "{s}");
+        assert_eq!(s.ending, "shutdown", "{s:?}");
     }
 
     // Every published frame and spectrum received intact (checksums verified on receipt).
     for (topic, expected) in [("frame", 50), ("spectrum", 480), ("truth", 530)] {
-        let t = &rep["topics"][topic];
-        assert_eq!(t["published"], expected, "{topic}");
-        assert_eq!(
-            t["consumers"]["orchestrator"]["received"], expected,
-            "{topic}"
-        );
-        assert_eq!(t["consumers"]["orchestrator"]["dropped"], 0, "{topic}");
+        let t = &rep.results.topics[topic];
+        assert_eq!(t.published, Some(expected), "{topic}");
+        let orchestrator = &t.consumers["orchestrator"];
+        assert_eq!(orchestrator.received, Some(expected), "{topic}");
+        assert_eq!(orchestrator.dropped, Some(0), "{topic}");
     }
 
     // Nothing left in shared memory.
-    let prefix = rep["run"]["prefix"].as_str().unwrap();
+    let prefix = &rep.run.prefix;
     assert!(prefix.starts_with("glint_"));
     assert!(shm_left(prefix).is_empty(), "{:?}", shm_left(prefix));
-    assert!(rep["shared_memory"]["leftover"]
-        .as_array()
-        .unwrap()
-        .is_empty());
+    assert!(rep.results.shared_memory.leftover.is_empty());
     assert!(dir.join("summary.md").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -65,9 +60,9 @@ fn same_seed_gives_identical_results_and_another_seed_differs() {
             String::from_utf8_lossy(&r.output.stderr)
         );
     }
-    assert_eq!(deterministic_part(&a.report), deterministic_part(&b.report));
-    let ja = serde_json::to_string_pretty(&deterministic_part(&a.report)).unwrap();
-    let jb = serde_json::to_string_pretty(&deterministic_part(&b.report)).unwrap();
+    assert_eq!(deterministic_part(&a.typed), deterministic_part(&b.typed));
+    let ja = serde_json::to_string_pretty(deterministic_part(&a.typed)).unwrap();
+    let jb = serde_json::to_string_pretty(deterministic_part(&b.typed)).unwrap();
     assert_eq!(ja.as_bytes(), jb.as_bytes());
     let digest = |r: &RunResult, t: &str| {
         r.report["topics"][t]["digest_xxh3"]

@@ -78,7 +78,7 @@ pub fn run_value(
     if let Some(x) = reference.spectra.as_mut() {
         x.snr = None;
     }
-    let deploy = |scenario: Scenario, sub: &Path| -> Result<(Value, bool)> {
+    let deploy = |scenario: Scenario, sub: &Path| -> Result<(crate::report::Report, bool)> {
         if rescore {
             let path = sub.join("report.json");
             let text = std::fs::read_to_string(&path).with_context(|| {
@@ -87,8 +87,9 @@ pub fn run_value(
                     path.display()
                 )
             })?;
-            let report: Value = serde_json::from_str(&text)?;
-            let ok = report["success"].as_bool().unwrap_or(false);
+            let report: crate::report::Report = serde_json::from_str(&text)
+                .with_context(|| format!("{}: not a glint report", path.display()))?;
+            let ok = report.results.success;
             return Ok((report, ok));
         }
         let (run_dir, ok) = run::run(RunOptions {
@@ -100,8 +101,10 @@ pub fn run_value(
             progress,
         })?;
         run::bail_if_interrupted("campaign")?;
-        let report = std::fs::read_to_string(run_dir.join("report.json"))?;
-        Ok((serde_json::from_str(&report)?, ok))
+        Ok((
+            crate::report::Report::read(&run_dir.join("report.json"))?,
+            ok,
+        ))
     };
     let ref_dir = dir.join("reference");
     let (_, mut all_ok) = deploy(reference, &ref_dir)?;
@@ -111,7 +114,9 @@ pub fn run_value(
         noisy.seed = variant.seed + k as u64;
         let (report, ok) = deploy(noisy, &dir.join(format!("s{k:03}")))?;
         all_ok &= ok;
-        runs.push(report["inversion"]["stage3"].clone());
+        // The estimator reads each answer's fits as JSON (the stage-3 report and its λ* fit).
+        let stage3 = (report.results.inversion).and_then(|i| i.stage3);
+        runs.push(serde_json::to_value(stage3)?);
     }
     let stable_noisy = sp.noise_windows == NoiseWindows::Both;
     let reference = Reference::solve(

@@ -77,24 +77,23 @@ pub fn run(
         })?;
         run::bail_if_interrupted("campaign")?;
         all_ok &= ok;
-        let report: Value =
-            serde_json::from_str(&std::fs::read_to_string(run_dir.join("report.json"))?)?;
-        let s3 = &report["inversion"]["stage3"];
+        let report = crate::report::Report::read(&run_dir.join("report.json"))?;
+        let s3 = (report.results.inversion.as_ref()).and_then(|i| i.stage3.as_ref());
         rows.push(json!({
             "value": value.to_string().trim_matches('"'),
             "run": sub.file_name().map(|n| n.to_string_lossy().to_string()),
-            "success": report["success"],
-            "status": match s3["unobservable_reason"].as_str() {
-                Some(why) => json!(format!("{}: {why}", s3["status"].as_str().unwrap_or("?"))),
-                None => s3["status"].clone(),
-            },
-            "band_nm": s3["lambda_star"]["band_nm"],
-            "p_deg_per_frame": s3["p_deg_per_frame"],
-            "err_paper_metric": s3["lambda_star"]["err_paper_metric"],
-            "err_paper_metric_mirror": s3["err_paper_metric_mirror"],
-            "joint_err_paper_metric": s3["err_paper_metric"],
-            "bound_1sigma_deg_per_frame": s3["directions"].as_array().map(|d| d.iter().map(|d| d["sigma_deg_per_frame"].clone()).collect::<Vec<_>>()),
-            "observable": s3["directions"].as_array().map(|d| d.iter().map(|d| d["determined"].clone()).collect::<Vec<_>>()),
+            "success": report.results.success,
+            "status": s3.map(|s3| match &s3.unobservable_reason {
+                Some(why) => format!("{}: {why}", s3.status),
+                None => s3.status.clone(),
+            }),
+            "band_nm": s3.map(|s3| s3.lambda_star.band_nm),
+            "p_deg_per_frame": s3.and_then(|s3| s3.p_deg_per_frame),
+            "err_paper_metric": s3.and_then(|s3| s3.lambda_star.err_paper_metric),
+            "err_paper_metric_mirror": s3.and_then(|s3| s3.err_paper_metric_mirror),
+            "joint_err_paper_metric": s3.and_then(|s3| s3.err_paper_metric),
+            "bound_1sigma_deg_per_frame": s3.map(|s3| s3.directions.iter().map(|d| d.sigma_deg_per_frame).collect::<Vec<_>>()),
+            "observable": s3.map(|s3| s3.directions.iter().map(|d| d.determined).collect::<Vec<_>>()),
             "paper": camp.paper.get(i),
         }));
     }

@@ -8,17 +8,10 @@ use std::path::Path;
 use anyhow::Result;
 use glint_physics::camera::PinholeCamera;
 use nalgebra::Vector3;
-use serde_json::{json, Value};
 use shared_types::{Detections, Truth};
 
 use crate::plots::{line_chart, Series, BLUE, GREEN, RED};
 use crate::score_debris::DebrisScore;
-
-pub fn json(score: &DebrisScore) -> (Value, Value) {
-    let detection = serde_json::to_value(&score.detection).unwrap_or(Value::Null);
-    let tracking = json!({ "targets": score.targets });
-    (detection, tracking)
-}
 
 pub fn markdown(score: &DebrisScore) -> String {
     let d = &score.detection;

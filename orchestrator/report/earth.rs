@@ -12,7 +12,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::Result;
-use serde_json::{json, Value};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 use shared_types::scenario::EarthScenario;
 use shared_types::{EarthAttitude, Truth};
 
@@ -161,41 +162,43 @@ impl EarthScore {
         (h > 0.0).then(|| l / h)
     }
 
-    /// `earth` in report.json.
-    pub fn json(&self) -> Value {
-        let methods: serde_json::Map<String, Value> = self
-            .methods
-            .iter()
+    /// `earth` in report.json (each method's time per frame goes to the timing part:
+    /// [`EarthScore::times`]).
+    pub fn report(&self) -> EarthReport {
+        let interval = |s: &IntervalScore| IntervalReport {
+            frames: s.frames,
+            err_mean_deg: (s.frames > 0).then_some(s.err_mean_deg),
+            err_sigma_deg: (s.frames > 0).then_some(s.err_sigma_deg),
+            err_max_deg: (s.frames > 0).then_some(s.err_max_deg),
+        };
+        let methods = (self.methods.iter())
             .map(|m| {
-                let mut o = serde_json::Map::new();
-                for ((name, _, _), s) in INTERVALS.iter().zip(&m.intervals) {
-                    let v = if s.frames == 0 {
-                        json!({ "frames": 0, "err_mean_deg": null, "err_sigma_deg": null, "err_max_deg": null })
-                    } else {
-                        json!({
-                            "frames": s.frames,
-                            "err_mean_deg": s.err_mean_deg,
-                            "err_sigma_deg": s.err_sigma_deg,
-                            "err_max_deg": s.err_max_deg,
-                        })
-                    };
-                    o.insert(name.to_string(), v);
-                }
-                o.insert("missed".into(), json!(m.missed));
-                o.insert("outside_intervals".into(), json!(m.outside));
-                o.insert("time_us_per_frame".into(), json!(m.time_us_per_frame));
-                (m.name.to_string(), Value::Object(o))
+                let r = MethodReport {
+                    within_10: interval(&m.intervals[0]),
+                    from_10_to_40: interval(&m.intervals[1]),
+                    from_40_to_50: interval(&m.intervals[2]),
+                    missed: m.missed,
+                    outside_intervals: m.outside,
+                };
+                (m.name.to_string(), r)
             })
             .collect();
-        json!({
-            "frames": self.frames,
-            "methods": methods,
-            "paper": {
-                "cross_product_sigma_within_10_deg": PAPER_SIGMA_CROSS_DEG,
-                "hough_sigma_within_10_deg": PAPER_SIGMA_HOUGH_DEG,
-                "lookup_time_over_hough": PAPER_LOOKUP_TIME_RATIO,
+        EarthReport {
+            frames: self.frames,
+            methods,
+            paper: EarthPaper {
+                cross_product_sigma_within_10_deg: PAPER_SIGMA_CROSS_DEG,
+                hough_sigma_within_10_deg: PAPER_SIGMA_HOUGH_DEG,
+                lookup_time_over_hough: PAPER_LOOKUP_TIME_RATIO,
             },
-        })
+        }
+    }
+
+    /// Each method's mean compute time per answered frame [µs] (`timing.earth_us_per_frame`).
+    pub fn times(&self) -> BTreeMap<String, Option<f64>> {
+        (self.methods.iter())
+            .map(|m| (m.name.to_string(), m.time_us_per_frame))
+            .collect()
     }
 
     /// The summary's section: the answer first, then the table beside the paper.
@@ -400,12 +403,15 @@ pub fn samples_plot(dir: &Path, figures: &[SampleFigure]) -> Result<()> {
 }
 
 /// What `glint run` prints of the Earth sensor (to stderr, the summary's path staying alone on
-/// stdout): the figures beside the paper's and a line per method, from `report.json`.
-pub fn console(report: &Value) -> Option<String> {
-    let methods = report.get("earth")?.get("methods")?;
-    let num = |m: &str, i: &str, k: &str| methods[m][i][k].as_f64();
+/// stdout): the figures beside the paper's and a line per method, from the report.
+pub fn console(report: &super::Report) -> Option<String> {
+    let methods = &report.results.earth.as_ref()?.methods;
+    let times = &report.timing.earth_us_per_frame;
+    let sigma = |m: &str, pick: fn(&MethodReport) -> &IntervalReport| {
+        methods.get(m).and_then(|r| pick(r).err_sigma_deg)
+    };
     let deg = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.4}°"));
-    let time = |m: &str| methods[m]["time_us_per_frame"].as_f64();
+    let time = |m: &str| times.get(m).copied().flatten();
     let ratio = match (time("lookup"), time("hough")) {
         (Some(l), Some(h)) if h > 0.0 => format!("{:.2}×", l / h),
         _ => "—".into(),
@@ -414,8 +420,8 @@ pub fn console(report: &Value) -> Option<String> {
         "Earth sensor [003]: β error σ within ±10°: cross product {} (paper {PAPER_SIGMA_CROSS_DEG}°), \
          Hough baseline {} (paper {PAPER_SIGMA_HOUGH_DEG}°); lookup time {ratio} the baseline's \
          (paper {PAPER_LOOKUP_TIME_RATIO}×)\n",
-        deg(num("cross_product", "within_10", "err_sigma_deg")),
-        deg(num("hough", "within_10", "err_sigma_deg")),
+        deg(sigma("cross_product", |r| &r.within_10)),
+        deg(sigma("hough", |r| &r.within_10)),
     );
     let _ = writeln!(
         s,
@@ -427,12 +433,55 @@ pub fn console(report: &Value) -> Option<String> {
             s,
             "  {:<14} {:>10} {:>10} {:>10} {:>12} {:>14}",
             m,
-            deg(num(m, "within_10", "err_sigma_deg")),
-            deg(num(m, "10_to_40", "err_sigma_deg")),
-            deg(num(m, "40_to_50", "err_sigma_deg")),
-            deg(num(m, "40_to_50", "err_max_deg")),
+            deg(sigma(m, |r| &r.within_10)),
+            deg(sigma(m, |r| &r.from_10_to_40)),
+            deg(sigma(m, |r| &r.from_40_to_50)),
+            deg(methods.get(m).and_then(|r| r.from_40_to_50.err_max_deg)),
             time(m).map_or("—".into(), |t| format!("{t:.0} µs")),
         );
     }
     Some(s)
+}
+
+/// `earth` in report.json: each method's error per interval of the paper.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct EarthReport {
+    /// Frames with both an answer and a truth.
+    pub frames: u64,
+    /// By method: cross_product, lookup, hough.
+    pub methods: BTreeMap<String, MethodReport>,
+    pub paper: EarthPaper,
+}
+
+/// One method's error per interval of |angle|.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct MethodReport {
+    pub within_10: IntervalReport,
+    #[serde(rename = "10_to_40")]
+    pub from_10_to_40: IntervalReport,
+    #[serde(rename = "40_to_50")]
+    pub from_40_to_50: IntervalReport,
+    /// Frames with truth the method gave no answer on.
+    pub missed: u64,
+    /// Frames outside the paper's intervals (|angle| > 50°).
+    pub outside_intervals: u64,
+}
+
+/// Error statistics over one interval [deg] (absent without frames there).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct IntervalReport {
+    pub frames: u64,
+    pub err_mean_deg: Option<f64>,
+    /// Sample standard deviation about the mean (n − 1).
+    pub err_sigma_deg: Option<f64>,
+    /// Largest |error|.
+    pub err_max_deg: Option<f64>,
+}
+
+/// The paper's figures (math.md §4.8).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct EarthPaper {
+    pub cross_product_sigma_within_10_deg: f64,
+    pub hough_sigma_within_10_deg: f64,
+    pub lookup_time_over_hough: f64,
 }

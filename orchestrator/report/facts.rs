@@ -3,7 +3,6 @@
 
 use std::collections::BTreeMap;
 
-use serde_json::Value;
 use shared_types::{deployment, Scenario, ServiceId, TopicCounters, TopicId};
 
 use super::{earth, science};
@@ -98,7 +97,7 @@ pub struct RunFacts {
     /// sequencer noticed as unanswered and rejected as malformed.
     pub solve_tampered: [u64; 4],
     /// Nodes under the prefix that were not the deployment's ([`crate::membership`]).
-    pub membership: Value,
+    pub membership: super::MembershipReport,
 }
 
 fn consumer_fact(c: TopicCounters) -> ConsumerFact {
@@ -245,7 +244,7 @@ impl RunFacts {
             shm_held_by: vec![],
             faults,
             solve_tampered: [0; 4],
-            membership: Value::Null,
+            membership: Default::default(),
         }
     }
 

@@ -6,11 +6,10 @@ use std::path::Path;
 
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
-use serde_json::Value;
 use shared_types::scenario::FaultKind;
 use shared_types::{deployment, DropReason, ServiceId, TopicId};
 
-use super::{RunFacts, TopicFact};
+use super::{FaultReport, RunFacts, TopicFact};
 use crate::plots::{BLUE, GREEN, ORANGE, RED};
 
 /// What the fault cost: for a consumer, the messages published on its inputs that it never
@@ -69,19 +68,20 @@ fn tampered(f: &RunFacts, fault: &crate::faults::Fault) -> (u64, u64) {
     (injected, counted)
 }
 
-pub fn json(f: &RunFacts) -> Vec<Value> {
+/// The report's entry per injected fault.
+pub fn reports(f: &RunFacts) -> Vec<FaultReport> {
     f.faults
         .iter()
         .map(|fault| match fault.spec.kind {
             FaultKind::Drop | FaultKind::Corrupt => {
                 // Lost by design; the invariant is that every one of them was counted.
                 let (injected, counted) = tampered(f, fault);
-                let mut v = fault.json(Some(injected), f.invariant_held() && injected == counted);
-                v["injected"] = injected.into();
-                v["counted"] = counted.into();
-                v
+                let mut r = fault.report(Some(injected), f.invariant_held() && injected == counted);
+                r.injected = Some(injected);
+                r.counted = Some(counted);
+                r
             }
-            _ => fault.json(lost(f, fault.service), f.invariant_held()),
+            _ => fault.report(lost(f, fault.service), f.invariant_held()),
         })
         .collect()
 }

@@ -19,7 +19,7 @@ use shared_types::{SolveResponse, SolveStatus};
 use crate::plots::{line_chart, Series, BLUE, RED};
 
 /// `report.json` → `inversion`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct InversionReport {
     /// The windows every figure depends on.
     pub windows: Windows,
@@ -32,7 +32,7 @@ pub struct InversionReport {
 }
 
 /// The scenario's windows and target.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Windows {
     pub stable_samples: u64,
     pub stable_start_phase_deg: f64,
@@ -46,21 +46,21 @@ pub struct Windows {
 }
 
 /// Stage 1: the reconstruction error per band.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Stage1Report {
     pub status: String,
     pub bands: Vec<ReconBand>,
 }
 
 /// ε_rec of one band.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ReconBand {
     pub wavelength_nm: f64,
     pub recon_err: Option<f64>,
 }
 
 /// Stage 2: σ(λ) per band and λ*.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Stage2Report {
     pub status: String,
     pub sigma: Vec<SigmaBand>,
@@ -69,14 +69,14 @@ pub struct Stage2Report {
 }
 
 /// σ of one band.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct SigmaBand {
     pub wavelength_nm: f64,
     pub sigma: Option<f64>,
 }
 
 /// One Fisher direction of the answer.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct DirectionReport {
     /// Unit vector in (w_x, w_y, w_z).
     pub axis: [f64; 3],
@@ -86,7 +86,7 @@ pub struct DirectionReport {
 }
 
 /// Stage 3 at λ*: the paper's answer, beside glint's.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct LambdaStarReport {
     pub band_nm: f64,
     pub status: String,
@@ -96,7 +96,7 @@ pub struct LambdaStarReport {
 }
 
 /// Stage 3: glint's answer.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct Stage3Report {
     /// "ok", "unobservable", "not_ready", "failed".
     pub status: String,

@@ -1,14 +1,16 @@
-//! The run report: `report.json` (machine-readable) and `summary.md` (what a person reads).
+//! The run report: `report.json` (machine-readable, the types of [`model`]) and `summary.md`
+//! (what a person reads), both made from one [`Report`] value; the pictures from the run's
+//! facts.
 //!
-//! Everything outside the `run` and `timing` objects, the `pid` fields and the Earth methods'
-//! `time_us_per_frame` is a function of the scenario and the seed alone, so two runs of the same scenario and seed give byte-identical
-//! reports once those are removed (keys are sorted; serde_json's map is a BTreeMap).
+//! [`Results`] is a function of the scenario and the seed alone, so two runs of the same
+//! scenario and seed give equal results; the run's identity, its timings, its faults and the
+//! strangers it saw are beside them.
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use serde_json::{json, Value};
 use shared_types::{DropReason, Scenario, TopicId};
 
 pub mod debris;
@@ -18,52 +20,51 @@ mod facts;
 pub mod faults;
 pub mod fit;
 pub mod inversion;
+pub mod model;
 mod science;
 
 pub use facts::*;
+pub use model::*;
 
-/// Percentiles of a latency sample [µs].
-fn percentiles_us(ns: &[u64]) -> Value {
-    if ns.is_empty() {
-        return Value::Null;
-    }
-    let mut v = ns.to_vec();
-    v.sort_unstable();
-    let p = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize] as f64 / 1e3;
-    json!({ "count": v.len(), "p50": p(0.5), "p90": p(0.9), "p99": p(0.99), "max": p(1.0) })
-}
-
-fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
-    let mut topics = serde_json::Map::new();
+/// The report of a finished run.
+pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
+    let mut topics = BTreeMap::new();
     for (t, tf) in &f.topics {
-        let mut consumers = serde_json::Map::new();
+        let mut consumers = BTreeMap::new();
         for (name, c) in &tf.consumers {
             let v = match c {
                 Some(c) => {
-                    let by_reason: serde_json::Map<String, Value> = DropReason::ALL
-                        .iter()
-                        .map(|r| (r.name().to_string(), json!(c.dropped[*r as usize])))
-                        .collect();
-                    json!({
-                        "received": c.received,
-                        "duplicates": c.duplicates,
-                        "dropped": c.dropped.iter().sum::<u64>(),
-                        "dropped_by_reason": by_reason,
-                        "accounted": c.received + c.dropped.iter().sum::<u64>() == tf.expected,
-                    })
+                    let dropped: u64 = c.dropped.iter().sum();
+                    ConsumerReport {
+                        received: Some(c.received),
+                        duplicates: Some(c.duplicates),
+                        dropped: Some(dropped),
+                        dropped_by_reason: Some(
+                            (DropReason::ALL.iter())
+                                .map(|r| (r.name().to_string(), c.dropped[*r as usize]))
+                                .collect(),
+                        ),
+                        accounted: c.received + dropped == tf.expected,
+                    }
                 }
-                None => json!({ "received": null, "dropped": null, "accounted": false }),
+                None => ConsumerReport {
+                    received: None,
+                    duplicates: None,
+                    dropped: None,
+                    dropped_by_reason: None,
+                    accounted: false,
+                },
             };
             consumers.insert(name.clone(), v);
         }
         topics.insert(
             t.name().to_string(),
-            json!({
-                "expected": tf.expected,
-                "published": tf.published,
-                "digest_xxh3": tf.digest.map(|d| format!("{d:016x}")),
-                "consumers": consumers,
-            }),
+            TopicReport {
+                expected: tf.expected,
+                published: tf.published,
+                digest_xxh3: tf.digest.map(|d| format!("{d:016x}")),
+                consumers,
+            },
         );
     }
     // What was produced: the expected count on a complete run, fewer on a failed one.
@@ -81,68 +82,86 @@ fn report_json(scenario: &Scenario, f: &RunFacts) -> Value {
             0.0
         }
     };
-    let (detection, tracking) = match &f.debris {
-        Some(d) => debris::json(&d.score),
-        None => (Value::Null, Value::Null),
+    let results = Results {
+        glint_version: env!("CARGO_PKG_VERSION").to_string(),
+        contract_version: shared_types::CONTRACT_VERSION,
+        scenario: ScenarioInfo {
+            name: scenario.name.clone(),
+            clock: format!("{:?}", scenario.clock).to_lowercase(),
+            frames,
+            spectra,
+            earth_frames,
+        },
+        seed: scenario.seed,
+        success: f.success(),
+        failure: f.failure.clone(),
+        accounting: Accounting {
+            invariant_held: f.invariant_held(),
+        },
+        services: (f.services.iter())
+            .map(|s| ServiceReport {
+                name: s.name.clone(),
+                restarts: s.restarts,
+                ending: s.ending.label(),
+            })
+            .collect(),
+        topics,
+        science: Science {
+            digest_xxh3: format!("{:016x}", f.science_digest),
+        },
+        laser: LaserReport {
+            shots: f.laser_shots,
+            served: f.range_requests,
+        },
+        shared_memory: SharedMemory {
+            leftover: f.shm_leftover.clone(),
+            held_by: f.shm_held_by.clone(),
+        },
+        inversion: (scenario.spectra.as_ref())
+            .map(|sp| inversion::InversionReport::new(sp, &f.solve)),
+        earth: f.earth.as_ref().map(|e| e.score.report()),
+        detection: f.debris.as_ref().map(|d| d.score.detection.clone()),
+        tracking: f.debris.as_ref().map(|d| TrackingReport {
+            targets: d.score.targets.clone(),
+        }),
     };
-    let inversion = match &scenario.spectra {
-        Some(sp) => serde_json::to_value(inversion::InversionReport::new(sp, &f.solve))
-            .unwrap_or(Value::Null),
-        None => Value::Null,
-    };
-    let earth = f.earth.as_ref().map_or(Value::Null, |e| e.score.json());
-    json!({
-        "inversion": inversion,
-        "earth": earth,
-        "detection": detection,
-        "tracking": tracking,
-        "glint_version": env!("CARGO_PKG_VERSION"),
-        "contract_version": shared_types::CONTRACT_VERSION,
-        "scenario": {
-            "name": scenario.name,
-            "clock": format!("{:?}", scenario.clock).to_lowercase(),
-            "frames": frames,
-            "spectra": spectra,
-            "earth_frames": earth_frames,
+    Report {
+        results,
+        faults: faults::reports(f),
+        membership: f.membership.clone(),
+        run: RunInfo {
+            prefix: f.prefix.clone(),
+            scenario_file: f.scenario_file.clone(),
+            shm_entries_removed: f.shm_removed,
+            pids: (f.services.iter())
+                .map(|s| (s.name.clone(), s.pid))
+                .collect(),
         },
-        "seed": scenario.seed,
-        "success": f.success(),
-        "failure": f.failure,
-        "accounting": { "invariant_held": f.invariant_held() },
-        "faults": faults::json(f),
-        "services": f.services.iter().map(|s| json!({
-            "name": s.name, "pid": s.pid, "restarts": s.restarts, "ending": s.ending.label(),
-        })).collect::<Vec<_>>(),
-        "topics": topics,
-        "science": { "digest_xxh3": format!("{:016x}", f.science_digest) },
-        "membership": f.membership,
-        "laser": { "shots": f.laser_shots, "served": f.range_requests },
-        "shared_memory": { "leftover": f.shm_leftover, "held_by": f.shm_held_by },
-        "run": {
-            "prefix": f.prefix,
-            "scenario_file": f.scenario_file,
-            "shm_entries_removed": f.shm_removed,
+        timing: Timing {
+            wall_s: f.wall_s,
+            startup_s: f.outcome.startup_s,
+            production_s: f.outcome.production_s,
+            frames_per_s: rate(frames),
+            spectra_per_s: rate(spectra),
+            earth_frames_per_s: rate(earth_frames),
+            frame_latency_us: Percentiles::of_ns(&f.frame_latency_ns),
+            spectrum_latency_us: Percentiles::of_ns(&f.spectrum_latency_ns),
+            stage_latency_us: (f.stage_latency_ns.iter())
+                .map(|(name, ns)| (name.to_string(), Percentiles::of_ns(ns)))
+                .collect(),
+            cpu_s: (f.services.iter())
+                .map(|s| (s.name.clone(), s.cpu_s))
+                .chain([("orchestrator".to_string(), f.orchestrator_cpu_s)])
+                .collect(),
+            time_s: (f.services.iter())
+                .filter_map(|s| Some((s.name.clone(), service_timing(&s.time?))))
+                .collect(),
+            earth_us_per_frame: f
+                .earth
+                .as_ref()
+                .map_or(BTreeMap::new(), |e| e.score.times()),
         },
-        "timing": {
-            "wall_s": f.wall_s,
-            "startup_s": f.outcome.startup_s,
-            "production_s": f.outcome.production_s,
-            "frames_per_s": rate(frames),
-            "spectra_per_s": rate(spectra),
-            "earth_frames_per_s": rate(earth_frames),
-            "frame_latency_us": percentiles_us(&f.frame_latency_ns),
-            "spectrum_latency_us": percentiles_us(&f.spectrum_latency_ns),
-            "stage_latency_us": f.stage_latency_ns.iter()
-                .map(|(name, ns)| (name.to_string(), percentiles_us(ns)))
-                .collect::<serde_json::Map<_, _>>(),
-            "cpu_s": f.services.iter().map(|s| (s.name.clone(), json!(s.cpu_s)))
-                .chain([("orchestrator".to_string(), json!(f.orchestrator_cpu_s))])
-                .collect::<serde_json::Map<_, _>>(),
-            "time_s": f.services.iter()
-                .filter_map(|s| Some((s.name.clone(), time_json(&s.time?))))
-                .collect::<serde_json::Map<_, _>>(),
-        },
-    })
+    }
 }
 
 /// The share of a service's time it was working [%]: awake and not waiting for an RPC answer.
@@ -153,18 +172,18 @@ pub fn busy_percent(t: &shared_types::ServiceTime) -> f64 {
 
 /// Where a service's time went [s]: asleep (`credit_wait`, `idle`) or `busy`, and busy's
 /// parts (`work` is the rest: its own computation and housekeeping).
-fn time_json(t: &shared_types::ServiceTime) -> Value {
+fn service_timing(t: &shared_types::ServiceTime) -> ServiceTiming {
     let s = |ns: u64| ns as f64 * 1e-9;
     let parts = t.publish_ns + t.checksum_ns + t.rpc_wait_ns;
-    json!({
-        "busy_s": s(t.busy_ns),
-        "credit_wait_s": s(t.credit_wait_ns),
-        "idle_s": s(t.idle_ns),
-        "work_s": s(t.busy_ns.saturating_sub(parts)),
-        "checksum_s": s(t.checksum_ns),
-        "publish_s": s(t.publish_ns),
-        "rpc_wait_s": s(t.rpc_wait_ns),
-    })
+    ServiceTiming {
+        busy_s: s(t.busy_ns),
+        credit_wait_s: s(t.credit_wait_ns),
+        idle_s: s(t.idle_ns),
+        work_s: s(t.busy_ns.saturating_sub(parts)),
+        checksum_s: s(t.checksum_ns),
+        publish_s: s(t.publish_ns),
+        rpc_wait_s: s(t.rpc_wait_ns),
+    }
 }
 
 /// A text histogram of latencies (log-spaced bins) for the summary.
@@ -211,7 +230,7 @@ fn latency_histogram(ns: &[u64]) -> String {
     s
 }
 
-fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
+fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
     let mut s = String::new();
     let verdict = if f.success() { "PASS" } else { "FAIL" };
     let _ = writeln!(s, "# glint run: {} — {verdict}\n", scenario.name);
@@ -221,9 +240,7 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     let _ = writeln!(
         s,
         "Seed {}, clock `{}`, scenario file `{}`.\n",
-        scenario.seed,
-        j["scenario"]["clock"].as_str().unwrap_or("?"),
-        f.scenario_file
+        scenario.seed, r.results.scenario.clock, f.scenario_file
     );
     if let Some(fail) = &f.failure {
         let _ = writeln!(s, "**Failure:** {fail}\n");
@@ -286,16 +303,16 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
             );
         }
     }
-    let tm = &j["timing"];
+    let tm = &r.timing;
     let _ = writeln!(
         s,
         "\n## Timing (this machine; not part of the deterministic results)\n\n- wall time {:.3} s (startup {:.3} s, production {:.3} s)\n- frames/s {:.1}, spectra/s {:.1}, Earth frames/s {:.1}\n- laser requests served: {}\n- shared memory: {} entries removed, {} left over",
         f.wall_s,
         f.outcome.startup_s,
         f.outcome.production_s,
-        tm["frames_per_s"].as_f64().unwrap_or(0.0),
-        tm["spectra_per_s"].as_f64().unwrap_or(0.0),
-        tm["earth_frames_per_s"].as_f64().unwrap_or(0.0),
+        tm.frames_per_s,
+        tm.spectra_per_s,
+        tm.earth_frames_per_s,
         f.range_requests,
         f.shm_removed,
         f.shm_leftover.len()
@@ -306,22 +323,21 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     if !f.spectra.is_empty() {
         let _ = writeln!(s, "\n## Light curve\n\n![light curve](light-curve.svg)");
     }
-    for (label, ns) in [
-        ("Frame", &f.frame_latency_ns),
-        ("Spectrum", &f.spectrum_latency_ns),
+    for (label, ns, p) in [
+        ("Frame", &f.frame_latency_ns, &tm.frame_latency_us),
+        ("Spectrum", &f.spectrum_latency_ns, &tm.spectrum_latency_us),
     ] {
-        if ns.is_empty() {
+        let Some(p) = p else {
             continue;
-        }
-        let p = percentiles_us(ns);
+        };
         let _ = writeln!(
             s,
             "\n### {label} latency, sensor send → orchestrator receive\n\np50 {:.1} µs, p90 {:.1} µs, p99 {:.1} µs, max {:.1} µs over {} messages.\n",
-            p["p50"].as_f64().unwrap_or(0.0),
-            p["p90"].as_f64().unwrap_or(0.0),
-            p["p99"].as_f64().unwrap_or(0.0),
-            p["max"].as_f64().unwrap_or(0.0),
-            ns.len()
+            p.p50,
+            p.p90,
+            p.p99,
+            p.max,
+            p.count
         );
         s.push_str(&latency_histogram(ns));
         let _ = writeln!(
@@ -333,12 +349,12 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, j: &Value) -> String {
     s
 }
 
-/// Writes `report.json` and `summary.md`; returns whether the run succeeded.
-pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> {
-    let j = report_json(scenario, facts);
-    let text = serde_json::to_string_pretty(&j)? + "\n";
+/// Writes `report.json`, `summary.md` and the pictures; returns the report.
+pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<Report> {
+    let report = build(scenario, facts);
+    let text = serde_json::to_string_pretty(&report)? + "\n";
     std::fs::write(dir.join("report.json"), text).context("writing report.json")?;
-    std::fs::write(dir.join("summary.md"), summary_md(scenario, facts, &j))
+    std::fs::write(dir.join("summary.md"), summary_md(scenario, facts, &report))
         .context("writing summary.md")?;
     for (name, ns) in [
         ("frame", &facts.frame_latency_ns),
@@ -408,7 +424,7 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<bool> 
             &series,
         )?;
     }
-    Ok(facts.success())
+    Ok(report)
 }
 
 /// The Earth sensor's pictures: error against angle, the β_k samples at the paper's three

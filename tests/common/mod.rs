@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use glint::report::{Report, Results};
 use serde_json::Value;
 
 pub mod procs;
@@ -32,7 +33,10 @@ pub fn temp_dir(tag: &str) -> PathBuf {
 pub struct RunResult {
     pub output: Output,
     pub dir: PathBuf,
+    /// `report.json` as JSON (what a script without glint's types sees).
     pub report: Value,
+    /// `report.json` read through glint's types.
+    pub typed: Report,
 }
 
 /// `glint run [scenario] --out dir [--seed N]`, and the parsed report.
@@ -54,6 +58,8 @@ pub fn run(scenario: Option<&Path>, dir: &Path, extra: &[&str]) -> RunResult {
         output,
         dir: dir.to_path_buf(),
         report: serde_json::from_str(&text).unwrap(),
+        typed: serde_json::from_str(&text)
+            .unwrap_or_else(|e| panic!("report.json does not read as glint's Report: {e}")),
     }
 }
 
@@ -135,31 +141,10 @@ pub fn scenario_variant(name: &str, replacements: &[(&str, &str)], dir: &Path) -
     file
 }
 
-/// The report without what legitimately differs between two runs: the run identity, timings,
-/// process ids.
-pub fn deterministic_part(report: &Value) -> Value {
-    let mut r = report.clone();
-    let obj = r.as_object_mut().unwrap();
-    obj.remove("run");
-    obj.remove("timing");
-    // Compute times per method of the Earth sensor.
-    if let Some(methods) = obj
-        .get_mut("earth")
-        .and_then(|e| e.get_mut("methods"))
-        .and_then(|m| m.as_object_mut())
-    {
-        for m in methods.values_mut() {
-            if let Some(m) = m.as_object_mut() {
-                m.remove("time_us_per_frame");
-            }
-        }
-    }
-    if let Some(services) = obj.get_mut("services").and_then(|s| s.as_array_mut()) {
-        for s in services {
-            s.as_object_mut().unwrap().remove("pid");
-        }
-    }
-    r
+/// The deterministic part of a report: its [`Results`] (the run's identity, timings, faults
+/// and strangers are beside them).
+pub fn deterministic_part(report: &Report) -> &Results {
+    &report.results
 }
 
 /// What a prefix left behind, in `/dev/shm` and in iceoryx2's node and service directories.
