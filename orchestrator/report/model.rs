@@ -286,3 +286,32 @@ pub fn pair_or_nan<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error
     let v = <[Option<f64>; 2]>::deserialize(d)?;
     Ok(v.map(|x| x.unwrap_or(f64::NAN)))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_published_schema_is_the_types_schema() {
+        let published: serde_json::Value =
+            serde_json::from_str(include_str!("../../docs/report.schema.json")).unwrap();
+        assert_eq!(
+            published,
+            Report::schema(),
+            "docs/report.schema.json is stale: `glint report --schema > docs/report.schema.json`"
+        );
+    }
+
+    #[test]
+    fn a_non_finite_score_reads_back_as_nan() {
+        #[derive(Deserialize)]
+        struct S {
+            #[serde(deserialize_with = "f64_or_nan")]
+            x: f64,
+            #[serde(deserialize_with = "pair_or_nan")]
+            p: [f64; 2],
+        }
+        let s: S = serde_json::from_str(r#"{"x": null, "p": [1.5, null]}"#).unwrap();
+        assert!(s.x.is_nan() && s.p[0] == 1.5 && s.p[1].is_nan());
+    }
+}
