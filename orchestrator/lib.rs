@@ -16,7 +16,7 @@ mod faults;
 mod invert;
 #[cfg(feature = "lab")]
 mod lab;
-mod matrix;
+pub mod matrix;
 mod membership;
 mod observations;
 mod plots;
