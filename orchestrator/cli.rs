@@ -1,5 +1,5 @@
 //! The `glint` command line: every command, its arguments and their parsers (clap derive).
-//! `main.rs` dispatches them.
+//! `lib.rs` dispatches them, one function per command.
 
 use std::path::PathBuf;
 
@@ -21,25 +21,7 @@ pub(crate) struct Cli {
 #[derive(Subcommand)]
 pub(crate) enum Cmd {
     /// Deploy the chain for a scenario, run it to the end, write the report.
-    Run {
-        /// Scenario file (TOML); the built-in default when absent.
-        scenario: Option<PathBuf>,
-        /// Run directory (default: runs/<name>-<UTC timestamp>-<run id>); refused when it
-        /// already holds files, unless --force.
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Replace the previous run in --out (a glint run directory not in use).
-        #[arg(long)]
-        force: bool,
-        /// Override the scenario's seed.
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Inject a fault, as `SERVICE:KIND@AT[,duration_s=S]`: `detector:kill@20` (once the
-        /// detector's input has carried message 20), `tracker:stop@1.5s,duration_s=0.3`
-        /// (1.5 s after the start, for 0.3 s). Repeatable; added to the scenario's [[fault]].
-        #[arg(long = "fault", value_name = "SERVICE:KIND@AT")]
-        faults: Vec<String>,
-    },
+    Run(RunArgs),
     /// Remove what crashed deployments left in shared memory (/dev/shm and iceoryx2's node
     /// directory); a deployment still running is left alone.
     Clean {
@@ -56,25 +38,7 @@ pub(crate) enum Cmd {
         schema: bool,
     },
     /// The three-stage attitude solve on an observation file (format: docs/observations.md).
-    Invert {
-        observations: PathBuf,
-        /// Also print how the three stages got there.
-        #[arg(long, short)]
-        verbose: bool,
-        /// Write `inversion.json` here (default: print only).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Skip the joint multi-band fit.
-        #[arg(long)]
-        no_joint: bool,
-        /// Solver settings (TOML, the fields of `InversionConfig`: `[stage3.start]`,
-        /// `[stage3.lm]`, `[stage3.observability]`, `[model]`, …); unset fields keep defaults.
-        #[arg(long)]
-        config: Option<PathBuf>,
-        /// Also fit stage 3 at every band and rank the chosen band against them.
-        #[arg(long)]
-        band_sweep: bool,
-    },
+    Invert(InvertArgs),
     /// Estimator analysis beside the product: campaigns over a parameter and Monte-Carlo
     /// scoring against the Cramér–Rao bound.
     #[cfg(feature = "lab")]
@@ -89,33 +53,14 @@ pub(crate) enum Cmd {
     },
     /// The receiving process of `glint bench ipc` (started by it).
     #[command(hide = true)]
-    BenchPeer {
-        #[arg(long, value_enum)]
-        transport: bench::ipc::Transport,
-        #[arg(long)]
-        count: u64,
-        #[arg(long)]
-        address: String,
-    },
+    BenchPeer(PeerArgs),
     /// Offline tools: algorithm stages on files, no IPC.
     Tool {
         #[command(subcommand)]
         tool: ToolCmd,
     },
     /// Run one service in this process (the orchestrator spawns these).
-    Service {
-        /// sensor | detector | tracker | inversion
-        name: String,
-        /// Shared-memory prefix of the deployment.
-        #[arg(long)]
-        prefix: String,
-        /// The resolved scenario file of the run.
-        #[arg(long)]
-        scenario: PathBuf,
-        /// Started again by supervision after a failure: recover from the producers' replay.
-        #[arg(long)]
-        restarted: bool,
-    },
+    Service(ServiceArgs),
 }
 
 #[cfg(feature = "lab")]
@@ -341,4 +286,71 @@ pub(crate) enum ToolCmd {
         #[arg(long)]
         earth: bool,
     },
+}
+
+#[derive(clap::Args)]
+pub(crate) struct RunArgs {
+    /// Scenario file (TOML); the built-in default when absent.
+    pub scenario: Option<PathBuf>,
+    /// Run directory (default: runs/<name>-<UTC timestamp>-<run id>); refused when it
+    /// already holds files, unless --force.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Replace the previous run in --out (a glint run directory not in use).
+    #[arg(long)]
+    pub force: bool,
+    /// Override the scenario's seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Inject a fault, as `SERVICE:KIND@AT[,duration_s=S]`: `detector:kill@20` (once the
+    /// detector's input has carried message 20), `tracker:stop@1.5s,duration_s=0.3`
+    /// (1.5 s after the start, for 0.3 s). Repeatable; added to the scenario's [[fault]].
+    #[arg(long = "fault", value_name = "SERVICE:KIND@AT")]
+    pub faults: Vec<String>,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct InvertArgs {
+    pub observations: PathBuf,
+    /// Also print how the three stages got there.
+    #[arg(long, short)]
+    pub verbose: bool,
+    /// Write `inversion.json` here (default: print only).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Skip the joint multi-band fit.
+    #[arg(long)]
+    pub no_joint: bool,
+    /// Solver settings (TOML, the fields of `InversionConfig`: `[stage3.start]`,
+    /// `[stage3.lm]`, `[stage3.observability]`, `[model]`, …); unset fields keep defaults.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Also fit stage 3 at every band and rank the chosen band against them.
+    #[arg(long)]
+    pub band_sweep: bool,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct PeerArgs {
+    #[arg(long, value_enum)]
+    pub transport: bench::ipc::Transport,
+    #[arg(long)]
+    pub count: u64,
+    #[arg(long)]
+    pub address: String,
+}
+
+#[derive(clap::Args)]
+pub(crate) struct ServiceArgs {
+    /// sensor | detector | tracker | inversion
+    pub name: String,
+    /// Shared-memory prefix of the deployment.
+    #[arg(long)]
+    pub prefix: String,
+    /// The resolved scenario file of the run.
+    #[arg(long)]
+    pub scenario: PathBuf,
+    /// Started again by supervision after a failure: recover from the producers' replay.
+    #[arg(long)]
+    pub restarted: bool,
 }

@@ -16,3 +16,45 @@ pub fn run(id: ServiceId, args: ServiceArgs<'_>) -> Result<()> {
         ServiceId::Orchestrator => bail!("the orchestrator is `glint run`, not a service"),
     }
 }
+
+/// `glint service NAME --prefix P --scenario FILE [--restarted]`.
+pub(crate) fn command(args: crate::cli::ServiceArgs) -> std::process::ExitCode {
+    use std::process::ExitCode;
+    let crate::cli::ServiceArgs {
+        name,
+        prefix,
+        scenario,
+        restarted,
+    } = args;
+    glint_runtime::init_tracing(&name);
+    // A service ends with the process that started it (see glint_runtime::lifeline).
+    glint_runtime::lifeline::watch_parent();
+    let sc = match shared_types::Scenario::from_file(&scenario) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let args = glint_runtime::ServiceArgs {
+        prefix: &prefix,
+        scenario: &sc,
+        restarted,
+    };
+    let Some(id) = ServiceId::from_name(&name) else {
+        eprintln!(
+            "error: unknown service '{name}' (available: {})",
+            ServiceId::names()
+        );
+        return ExitCode::from(2);
+    };
+    let result = run(id, args);
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!("{e:#}");
+            eprintln!("error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}

@@ -538,3 +538,26 @@ pub fn peer(args: PeerArgs) -> Result<()> {
         }
     }
 }
+
+/// `glint bench-peer` (started by `glint bench ipc`).
+pub(crate) fn peer_command(args: crate::cli::PeerArgs) -> std::process::ExitCode {
+    use std::process::ExitCode;
+    let crate::cli::PeerArgs {
+        transport,
+        count,
+        address,
+    } = args;
+    glint_runtime::lifeline::watch_parent();
+    let args = PeerArgs {
+        transport,
+        count,
+        address,
+    };
+    match peer(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: bench receiver: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}

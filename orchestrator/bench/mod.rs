@@ -305,3 +305,118 @@ pub fn run_pipeline(o: &pipeline::PipelineOptions, sc: shared_types::Scenario) -
     );
     Ok(())
 }
+
+/// `glint bench ipc|pipeline|scaling`.
+pub(crate) fn command(bench: crate::cli::BenchCmd) -> std::process::ExitCode {
+    use crate::cli::{BenchClock, BenchCmd, OnOff};
+    use std::path::PathBuf;
+    use std::process::ExitCode;
+    match bench {
+        BenchCmd::Pipeline {
+            out,
+            frames,
+            size,
+            targets,
+            clock,
+            laser,
+        } => {
+            glint_runtime::init_tracing("orchestrator");
+            let opts = crate::bench::pipeline::PipelineOptions {
+                out: out.unwrap_or_else(|| {
+                    PathBuf::from("runs")
+                        .join(format!("bench-pipeline-{}", crate::run::utc_stamp()))
+                }),
+                frames,
+                width_px: size.0,
+                height_px: size.1,
+                targets: targets as usize,
+                clock: match clock {
+                    BenchClock::Sim => shared_types::scenario::Clock::Sim,
+                    BenchClock::Realtime => shared_types::scenario::Clock::Realtime,
+                },
+                laser: matches!(laser, OnOff::On),
+            };
+            let sc = match crate::bench::pipeline::scenario(&opts) {
+                Ok(sc) => sc,
+                Err(e) => {
+                    eprintln!("error: the bench's scenario: {e}");
+                    return ExitCode::from(2);
+                }
+            };
+            match crate::bench::run_pipeline(&opts, sc) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: {e:#}");
+                    ExitCode::from(1)
+                }
+            }
+        }
+        BenchCmd::Scaling {
+            out,
+            frames,
+            sizes,
+            targets,
+            laser,
+        } => {
+            glint_runtime::init_tracing("orchestrator");
+            let sides = [256, 512, 1024, 2048, 4096];
+            let opts = crate::bench::scaling::ScalingOptions {
+                out: out.unwrap_or_else(|| {
+                    PathBuf::from("runs").join(format!("bench-scaling-{}", crate::run::utc_stamp()))
+                }),
+                frames,
+                sizes: if sizes.is_empty() {
+                    sides.iter().map(|&s| (s, s)).collect()
+                } else {
+                    sizes
+                },
+                targets: if targets.is_empty() {
+                    vec![1, 2, 4, 8, 16]
+                } else {
+                    targets.into_iter().map(|k| k as usize).collect()
+                },
+                laser: matches!(laser, OnOff::On),
+            };
+            match crate::bench::scaling::run(&opts) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: {e:#}");
+                    ExitCode::from(1)
+                }
+            }
+        }
+        BenchCmd::Ipc {
+            out,
+            transports,
+            sizes,
+            scale,
+        } => {
+            if !(scale.is_finite() && (0.001..=100.0).contains(&scale)) {
+                eprintln!("error: --scale {scale} is out of range: allowed 0.001 to 100");
+                return ExitCode::from(2);
+            }
+            glint_runtime::lifeline::handle_hangup();
+            let opts = crate::bench::IpcOptions {
+                out: out.unwrap_or_else(|| {
+                    PathBuf::from("runs").join(format!("bench-ipc-{}", crate::run::utc_stamp()))
+                }),
+                transports: match transports.is_empty() {
+                    true => crate::bench::ipc::Transport::ALL.to_vec(),
+                    false => transports,
+                },
+                sizes: match sizes.is_empty() {
+                    true => crate::bench::ipc::SIZES.to_vec(),
+                    false => sizes.into_iter().map(|s| s as usize).collect(),
+                },
+                scale,
+            };
+            match crate::bench::run_ipc(&opts) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: {e:#}");
+                    ExitCode::from(1)
+                }
+            }
+        }
+    }
+}

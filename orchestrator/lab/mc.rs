@@ -264,7 +264,7 @@ impl Reference {
         stable_noisy: bool,
         stage3: glint_inversion::stage3::Stage3Config,
     ) -> Result<Reference> {
-        let mut file = crate::observations::read(observations)?;
+        let mut file = crate::tools::observations::read(observations)?;
         let mut config = InversionConfig {
             joint_fit: true,
             stage3,

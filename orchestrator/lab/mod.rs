@@ -236,3 +236,34 @@ fn plot(dir: &Path, parameter: &str, rows: &[Value]) -> Result<()> {
         ],
     )
 }
+
+/// `glint lab campaign …`.
+pub(crate) fn command(lab: crate::cli::LabCmd) -> std::process::ExitCode {
+    use crate::cli::LabCmd;
+    use crate::run::command::{finish, load_with_seed};
+    use std::process::ExitCode;
+    match lab {
+        LabCmd::Campaign {
+            scenario,
+            out,
+            seed,
+            rescore,
+        } => {
+            glint_runtime::init_tracing("orchestrator");
+            let (sc, file) = match load_with_seed(Some(&scenario), seed) {
+                Ok(x) => x,
+                Err(code) => return code,
+            };
+            let Some(campaign) = &sc.campaign else {
+                eprintln!("error: {file}: no [campaign] section (run it with `glint run {file}`)");
+                return ExitCode::from(2);
+            };
+            if rescore && campaign.seeds <= 1 {
+                eprintln!("error: {file}: --rescore needs a [campaign] with seeds > 1");
+                return ExitCode::from(2);
+            }
+            let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
+            finish(run(&sc, &file, out, progress, rescore))
+        }
+    }
+}

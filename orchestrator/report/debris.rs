@@ -11,7 +11,7 @@ use nalgebra::Vector3;
 use shared_types::{Detections, Truth};
 
 use crate::plots::{line_chart, Series, BLUE, GREEN, RED};
-use crate::score_debris::DebrisScore;
+use crate::report::score_debris::DebrisScore;
 
 pub fn markdown(score: &DebrisScore) -> String {
     let d = &score.detection;
@@ -19,7 +19,7 @@ pub fn markdown(score: &DebrisScore) -> String {
     let _ = writeln!(
         s,
         "\n## Debris detection and tracking ([002])\n\nDetections vs truth (gate {} px, frames after the first): precision {:.3}, recall {:.3} ({} true, {} false, {} missed over {} frames); false targets rejected: {} of {}.\n",
-        crate::score_debris::GATE_PX,
+        crate::report::score_debris::GATE_PX,
         d.precision,
         d.recall,
         d.true_positives,
@@ -63,7 +63,7 @@ pub fn plots(
     dir: &Path,
     score: &DebrisScore,
     camera: &PinholeCamera,
-    snapshot: Option<&crate::taps::Snapshot>,
+    snapshot: Option<&crate::run::taps::Snapshot>,
     detections: &[Detections],
     truths: &[Truth],
 ) -> Result<()> {

@@ -69,7 +69,7 @@ fn cross_mark(svg: &mut String, (x, y): (f64, f64), color: &str) {
 pub fn annotated(
     dir: &Path,
     e: &EarthScenario,
-    snap: &crate::taps::Snapshot,
+    snap: &crate::run::taps::Snapshot,
     answers: &[EarthAttitude],
     truths: &[Truth],
 ) -> Result<()> {

@@ -6,9 +6,9 @@ use std::collections::BTreeMap;
 use shared_types::{deployment, Scenario, ServiceId, TopicCounters, TopicId};
 
 use super::{earth, science};
-use crate::consume::Consumer;
-use crate::deploy::{Ending, ServiceProcess};
-use crate::taps::Snapshot;
+use crate::run::consume::Consumer;
+use crate::run::deploy::{Ending, ServiceProcess};
+use crate::run::taps::Snapshot;
 
 pub struct Outcome {
     pub startup_s: f64,
@@ -47,7 +47,7 @@ pub struct TopicFact {
 
 /// What the debris pictures need besides the score.
 pub struct DebrisFacts {
-    pub score: crate::score_debris::DebrisScore,
+    pub score: crate::report::score_debris::DebrisScore,
     pub camera: glint_physics::camera::PinholeCamera,
     pub snapshot: Option<Snapshot>,
     pub detections: Vec<shared_types::Detections>,
@@ -92,11 +92,11 @@ pub struct RunFacts {
     /// Live nodes under the prefix once the deployment ended (processes outside it).
     pub shm_held_by: Vec<String>,
     /// The injected faults and what supervision saw of them.
-    pub faults: Vec<crate::faults::Fault>,
+    pub faults: Vec<crate::run::faults::Fault>,
     /// Solve answers the inversion dropped and sent invalid on purpose, and those the
     /// sequencer noticed as unanswered and rejected as malformed.
     pub solve_tampered: [u64; 4],
-    /// Nodes under the prefix that were not the deployment's ([`crate::membership`]).
+    /// Nodes under the prefix that were not the deployment's ([`crate::run::membership`]).
     pub membership: super::MembershipReport,
 }
 
@@ -115,7 +115,7 @@ impl RunFacts {
         scenario: &Scenario,
         solve: Vec<shared_types::SolveResponse>,
         failure: Option<String>,
-        faults: Vec<crate::faults::Fault>,
+        faults: Vec<crate::run::faults::Fault>,
         outcome: Outcome,
     ) -> Self {
         let services = children
@@ -187,7 +187,7 @@ impl RunFacts {
                     .copied()
                     .collect();
             DebrisFacts {
-                score: crate::score_debris::score(
+                score: crate::report::score_debris::score(
                     &camera,
                     n_rad_s,
                     &frame_truths,
@@ -224,7 +224,7 @@ impl RunFacts {
             outcome,
             frame_latency_ns: taps.latency_ns(TopicId::Frame).to_vec(),
             stage_latency_ns: stages(taps),
-            orchestrator_cpu_s: crate::deploy::cpu_seconds("self"),
+            orchestrator_cpu_s: crate::run::deploy::cpu_seconds("self"),
             spectrum_latency_ns: taps.latency_ns(TopicId::Spectrum).to_vec(),
             range_requests: deployment::producer(TopicId::Range)
                 .and_then(|p| consumer.reported(p, TopicId::Range))
@@ -271,7 +271,7 @@ impl RunFacts {
 /// (one CLOCK_MONOTONIC on this host): `detect` = frame sent → its detections sent (the hop,
 /// the checksum and the detection), `track` = detections sent → tracks sent (the hop, the
 /// filters and the laser round trip), `end_to_end` = frame sent → tracks sent.
-fn stages(taps: &crate::taps::Taps) -> Vec<(&'static str, Vec<u64>)> {
+fn stages(taps: &crate::run::taps::Taps) -> Vec<(&'static str, Vec<u64>)> {
     let sent = |t: TopicId| -> BTreeMap<u64, u64> {
         taps.get(t).map_or(BTreeMap::new(), |tap| {
             tap.send_ns().iter().copied().collect()

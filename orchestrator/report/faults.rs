@@ -43,7 +43,7 @@ fn lost(f: &RunFacts, service: ServiceId) -> Option<u64> {
 
 /// A drop or corrupt fault's accounting: (outputs the service dropped or sent invalid on
 /// purpose, the fewest of them any consumer counted as a gap or as malformed).
-fn tampered(f: &RunFacts, fault: &crate::faults::Fault) -> (u64, u64) {
+fn tampered(f: &RunFacts, fault: &crate::run::faults::Fault) -> (u64, u64) {
     let drop = fault.spec.kind == FaultKind::Drop;
     if fault.output == Some(TopicId::Solve) {
         // The answers' one client is the orchestrator's sequencer.

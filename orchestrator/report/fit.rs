@@ -27,7 +27,7 @@ pub fn plots(dir: &Path, sp: &SpectraScenario, responses: &[SolveResponse]) -> R
         return Ok(false);
     };
     let path = dir.join("observations.csv");
-    let file = crate::observations::read(&path)?;
+    let file = crate::tools::observations::read(&path)?;
     let model = glint_inversion::service_core::model_config(sp);
     // Stage 1 again (a few NNLS fits, deterministic: the service's coefficients to the bit).
     let body_normal = Vector3::from(model.body_normal);

@@ -22,6 +22,7 @@ pub mod fit;
 pub mod inversion;
 pub mod model;
 mod science;
+pub mod score_debris;
 
 pub use facts::*;
 pub use model::*;
@@ -373,7 +374,7 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<Report
     }
     if let Some(sp) = &scenario.spectra {
         inversion::InversionReport::new(sp, &facts.solve).plots(dir)?;
-        crate::observations::write(
+        crate::tools::observations::write(
             &dir.join("observations.csv"),
             &facts.spectra,
             Some(sp.rate_deg_per_frame),
@@ -479,4 +480,16 @@ pub fn snapshots(scenario: &Scenario) -> Vec<(TopicId, u64)> {
         v.push((TopicId::EarthFrame, best as u64 * e.images_per_angle as u64));
     }
     v
+}
+
+/// `glint report --schema`.
+pub fn command(schema: bool) -> std::process::ExitCode {
+    use std::process::ExitCode;
+    if !schema {
+        eprintln!("error: `glint report` needs --schema");
+        return ExitCode::from(2);
+    }
+    let text = serde_json::to_string_pretty(&Report::schema()).unwrap_or_default();
+    println!("{text}");
+    ExitCode::SUCCESS
 }

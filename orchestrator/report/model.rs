@@ -17,7 +17,7 @@ use serde::{Deserialize, Deserializer, Serialize};
 
 use super::earth::EarthReport;
 use super::inversion::InversionReport;
-use crate::score_debris::{DetectionScore, TargetScore};
+use crate::report::score_debris::{DetectionScore, TargetScore};
 
 /// `report.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

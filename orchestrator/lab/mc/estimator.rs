@@ -3,7 +3,7 @@
 //! two-stage bound, NEES, and the runs counted apart (other sense, no rate).
 
 use super::{distance, finite, has_sense, mat3, mirror, observable_bound, vec3, Bound};
-use crate::score_debris::chi2_mean_bounds;
+use crate::report::score_debris::chi2_mean_bounds;
 use glint_inversion::observability::symmetric_eigen;
 use serde_json::{json, Value};
 

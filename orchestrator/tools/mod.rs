@@ -7,6 +7,9 @@
 //! - `glint tool earth FRAME.pgm --f-px F --center X,Y`: β from a fisheye Earth image by every
 //!   [003] method, as JSON.
 
+pub mod invert;
+pub mod observations;
+
 use std::path::Path;
 
 use anyhow::{anyhow, Context, Result};
@@ -274,4 +277,77 @@ pub fn earth_calibrate(
         "angles": table.points.len(),
         "frames": rows,
     }))?)
+}
+
+/// `glint tool …`.
+pub(crate) fn command(tool: crate::cli::ToolCmd) -> std::process::ExitCode {
+    use crate::cli::ToolCmd;
+    use std::process::ExitCode;
+    let result = match tool {
+        ToolCmd::Detect { frame, threshold } => {
+            detect(&frame, threshold).map(|json| println!("{json}"))
+        }
+        ToolCmd::Earth {
+            frame,
+            f_px,
+            center,
+            altitude_km,
+            sigma_table,
+        } => {
+            let tool = EarthTool {
+                f_px,
+                center_px: center,
+                altitude_km,
+            };
+            earth(&frame, &tool, sigma_table.as_deref()).map(|j| println!("{j}"))
+        }
+        ToolCmd::EarthCalibrate {
+            frames,
+            scenario,
+            images,
+            f_px,
+            center,
+            altitude_km,
+            out,
+        } => match (scenario, f_px, center) {
+            (Some(file), _, _) => match Scenario::from_file(&file) {
+                Ok(sc) => earth_calibrate_scenario(&sc, images, &out).map(|j| println!("{j}")),
+                Err(e) => Err(anyhow::anyhow!("{e}")),
+            },
+            (None, Some(f_px), Some(center)) => {
+                let tool = EarthTool {
+                    f_px,
+                    center_px: center,
+                    altitude_km,
+                };
+                earth_calibrate(&frames, &tool, &out).map(|j| println!("{j}"))
+            }
+            _ => Err(anyhow::anyhow!(
+                "give calibration frames with --f-px and --center, or --scenario"
+            )),
+        },
+        ToolCmd::Tfit { samples } => tfit(&samples).map(|json| println!("{json}")),
+        ToolCmd::Render {
+            scenario,
+            frame,
+            out,
+            seed,
+            earth,
+        } => match Scenario::from_file(&scenario) {
+            Ok(mut sc) => {
+                if let Some(s) = seed {
+                    sc.seed = s;
+                }
+                render(&sc, frame, &out, earth)
+            }
+            Err(e) => Err(anyhow::anyhow!("{e}")),
+        },
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
 }

@@ -28,7 +28,7 @@ pub fn invert(path: &Path, options: &InvertOptions) -> Result<(serde_json::Value
         Some(p) => read_inversion_config(p)?,
         None => InversionConfig::default(),
     };
-    let file = crate::observations::read(path)?;
+    let file = crate::tools::observations::read(path)?;
     config.joint_fit = options.joint;
     let result = glint_inversion::solve_three_stage(&file.set, &config)
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
@@ -228,7 +228,7 @@ fn stage_lines(result: &InversionResult, truth: Option<[f64; 3]>) -> String {
 
 /// Stage 3 at every band (the stage-2 check: is λ* the band with the lowest error?).
 fn sweep_bands(
-    file: &crate::observations::ObservationFile,
+    file: &crate::tools::observations::ObservationFile,
     result: &InversionResult,
     config: &InversionConfig,
 ) -> Result<(Vec<serde_json::Value>, String)> {
@@ -329,6 +329,49 @@ fn read_inversion_config(path: &Path) -> Result<InversionConfig> {
         .validate()
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     Ok(config)
+}
+
+/// `glint invert OBS.csv …`.
+pub fn command(args: crate::cli::InvertArgs) -> std::process::ExitCode {
+    use std::process::ExitCode;
+    let crate::cli::InvertArgs {
+        observations,
+        out,
+        no_joint,
+        config,
+        band_sweep,
+        verbose,
+    } = args;
+    match invert(
+        &observations,
+        &InvertOptions {
+            joint: !no_joint,
+            config: config.as_deref(),
+            band_sweep,
+            verbose,
+        },
+    ) {
+        Ok((json, text)) => {
+            print!("{text}");
+            if let Some(dir) = out {
+                let written = std::fs::create_dir_all(&dir).and_then(|_| {
+                    std::fs::write(
+                        dir.join("inversion.json"),
+                        serde_json::to_string_pretty(&json).unwrap_or_default() + "\n",
+                    )
+                });
+                if let Err(e) = written {
+                    eprintln!("error: {}: {e}", dir.display());
+                    return ExitCode::from(1);
+                }
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
 }
 
 #[cfg(test)]

@@ -13,7 +13,7 @@ use shared_types::scenario::FaultKind;
 use shared_types::topics::IpcNode;
 use shared_types::{Scenario, ServiceId, SolveRequest, SolveResponse, SolveStatus, TopicId};
 
-use crate::consume::Consumer;
+use crate::run::consume::Consumer;
 
 /// `NotReady` answers per stage before the run is declared failed.
 const MAX_ATTEMPTS: u32 = 200;

@@ -280,7 +280,7 @@ mod tests {
 
     fn injector(specs: &[&str]) -> Injector {
         let mut sc = Scenario::from_toml_str(
-            include_str!("../scenarios/debris-geo.toml"),
+            include_str!("../../scenarios/debris-geo.toml"),
             "debris-geo.toml",
         )
         .unwrap();

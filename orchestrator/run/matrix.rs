@@ -84,7 +84,8 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let scenario = opts.scenario.clone();
     let matrix = scenario.matrix.clone().context("no [matrix] section")?;
     let id = format!("{:08x}", std::process::id());
-    let dir = crate::run_dir::prepare(opts.out_dir.as_deref(), &scenario.name, &id, opts.replace)?;
+    let dir =
+        crate::run::run_dir::prepare(opts.out_dir.as_deref(), &scenario.name, &id, opts.replace)?;
     let root = dir.path.clone();
     std::fs::write(root.join("scenario.toml"), scenario.to_toml())?;
     let mut base = scenario.clone();

@@ -1,5 +1,5 @@
 //! The orchestrator as a consumer: it reads the heartbeats of every service and taps every
-//! data topic its row of the table lists ([`crate::taps`]): accounting, digests, and what the
+//! data topic its row of the table lists ([`crate::run::taps`]): accounting, digests, and what the
 //! report scores. It acknowledges what it took (the producers' sim-clock credit) and sends the
 //! control messages.
 
@@ -18,7 +18,7 @@ use shared_types::{
     ServiceId, TopicCounters, TopicId,
 };
 
-use crate::taps::Taps;
+use crate::run::taps::Taps;
 
 /// The last heartbeat of a service and when it arrived.
 pub struct Seen {
@@ -55,7 +55,7 @@ impl Consumer {
         let mut expected = BTreeMap::new();
         for t in deployment::inputs(scenario, me) {
             let want = snapshots.iter().find(|(s, _)| *s == t).map(|(_, k)| *k);
-            let (tap, l) = crate::taps::open(node, scenario, t, want)?;
+            let (tap, l) = crate::run::taps::open(node, scenario, t, want)?;
             taps.insert(t, tap);
             listeners.push(l);
             expected.insert(t, deployment::expected_messages(scenario, t));

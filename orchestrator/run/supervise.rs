@@ -20,11 +20,33 @@ pub struct Observation {
     pub heartbeat: Option<(Instant, u32)>,
 }
 
+/// How supervision noticed a failure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Noticed {
+    /// The process exited.
+    Exit,
+    /// No heartbeat within `run.heartbeat_deadline_ms`.
+    HeartbeatDeadline,
+    /// A restarted incarnation was not ready within `run.startup_timeout_ms`.
+    RestartTimeout,
+}
+
+impl Noticed {
+    /// As the report names it (`faults[].detected_by`).
+    pub fn label(self) -> &'static str {
+        match self {
+            Noticed::Exit => "exit",
+            Noticed::HeartbeatDeadline => "heartbeat deadline",
+            Noticed::RestartTimeout => "restart timeout",
+        }
+    }
+}
+
 /// What the run loop must do.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Action {
-    /// Supervision noticed a failure of `id` (`how`: "exit", "heartbeat deadline").
-    Noticed { id: ServiceId, how: &'static str },
+    /// Supervision noticed a failure of `id`.
+    Noticed { id: ServiceId, how: Noticed },
     /// SIGKILL the process group of `id` (hung: it is restarted once it has exited).
     Kill(ServiceId),
     /// Spawn a new incarnation of `id`.
@@ -34,7 +56,7 @@ pub enum Action {
     /// The run fails: `id` failed and may not be restarted (`why` says which rule).
     GiveUp {
         id: ServiceId,
-        how: &'static str,
+        how: Noticed,
         why: String,
     },
 }
@@ -135,11 +157,11 @@ impl Supervisor {
             let life = self.services[i].life;
             let next = match life {
                 Life::Up(since) => match o.exited {
-                    Some(clean) => self.failed(i, now, "exit", clean, &mut actions),
+                    Some(clean) => self.failed(i, now, Noticed::Exit, clean, &mut actions),
                     None => {
                         let last = o.heartbeat.map_or(since, |(at, _)| at.max(since));
                         if now.saturating_duration_since(last) > self.deadline {
-                            self.hung(i, now, "heartbeat deadline", &mut actions)
+                            self.hung(i, now, Noticed::HeartbeatDeadline, &mut actions)
                         } else {
                             life
                         }
@@ -156,13 +178,13 @@ impl Supervisor {
                 }
                 Life::Down(_) => life,
                 Life::Starting(since) => match (o.exited, o.heartbeat) {
-                    (Some(clean), _) => self.failed(i, now, "exit", clean, &mut actions),
+                    (Some(clean), _) => self.failed(i, now, Noticed::Exit, clean, &mut actions),
                     (None, Some((_, state))) if state >= Heartbeat::READY => {
                         actions.push(Action::Resume(o.id));
                         Life::Up(now)
                     }
                     _ if now.saturating_duration_since(since) > self.startup => {
-                        self.hung(i, now, "restart timeout", &mut actions)
+                        self.hung(i, now, Noticed::RestartTimeout, &mut actions)
                     }
                     _ => life,
                 },
@@ -209,7 +231,7 @@ impl Supervisor {
         &mut self,
         i: usize,
         now: Instant,
-        how: &'static str,
+        how: Noticed,
         clean_exit: bool,
         actions: &mut Vec<Action>,
     ) -> Life {
@@ -225,13 +247,7 @@ impl Supervisor {
     }
 
     /// Service `i` is alive but silent (`how`): killed, then restarted once it has exited.
-    fn hung(
-        &mut self,
-        i: usize,
-        now: Instant,
-        how: &'static str,
-        actions: &mut Vec<Action>,
-    ) -> Life {
+    fn hung(&mut self, i: usize, now: Instant, how: Noticed, actions: &mut Vec<Action>) -> Life {
         match self.failed(i, now, how, false, actions) {
             Life::Failed => Life::Failed,
             _ => {
@@ -285,7 +301,13 @@ mod tests {
         let ms = |n| t0 + Duration::from_millis(n);
         assert!(s.step(ms(10), &[obs(None, Some((ms(5), 2)))]).is_empty());
         let a = s.step(ms(20), &[obs(Some(false), None)]);
-        assert_eq!(a, [Action::Noticed { id: D, how: "exit" }]);
+        assert_eq!(
+            a,
+            [Action::Noticed {
+                id: D,
+                how: Noticed::Exit
+            }]
+        );
         assert!(!s.is_up(D));
         assert!(
             s.step(ms(119), &[obs(Some(false), None)]).is_empty(),
@@ -323,7 +345,7 @@ mod tests {
             [
                 Action::Noticed {
                     id: D,
-                    how: "heartbeat deadline"
+                    how: Noticed::HeartbeatDeadline
                 },
                 Action::Kill(D)
             ]

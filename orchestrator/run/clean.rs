@@ -44,3 +44,19 @@ pub fn clean(prefix: Option<&str>) -> Vec<String> {
     );
     lines
 }
+
+/// `glint clean [--prefix P]`.
+pub fn command(prefix: Option<String>) -> std::process::ExitCode {
+    use std::process::ExitCode;
+    if let Some(p) = prefix
+        .as_deref()
+        .filter(|p| !glint_runtime::is_deployment_prefix(p))
+    {
+        eprintln!("error: --prefix {p:?}: a deployment prefix is glint_<hex digits>_ (report.json, run.prefix)");
+        return ExitCode::from(2);
+    }
+    for line in clean(prefix.as_deref()) {
+        println!("{line}");
+    }
+    ExitCode::SUCCESS
+}

@@ -1,6 +1,18 @@
 //! `glint run`: create the services, spawn the children, wait for readiness, start, supervise,
 //! account for every message, stop with the ladder, remove the shared memory, write the report.
 
+pub mod clean;
+pub mod command;
+pub mod consume;
+pub mod deploy;
+pub mod faults;
+pub mod matrix;
+pub mod membership;
+pub mod run_dir;
+pub mod sequence;
+pub mod supervise;
+pub mod taps;
+
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -9,12 +21,12 @@ use glint_runtime::{open_node, remove_shm, run_loop, shm_entries, Step, Wake};
 use shared_types::scenario::Clock;
 use shared_types::{deployment, Command, Control, Heartbeat, Replay, Scenario, ServiceId, TopicId};
 
-use crate::consume::Consumer;
-use crate::deploy::{stop_ladder, Ending, ServiceProcess};
-use crate::faults::{Act, Injector};
-use crate::membership::Membership;
 use crate::report::{self, Outcome, RunFacts};
-use crate::supervise::{Action, Observation, Supervisor};
+use crate::run::consume::Consumer;
+use crate::run::deploy::{stop_ladder, Ending, ServiceProcess};
+use crate::run::faults::{Act, Injector};
+use crate::run::membership::Membership;
+use crate::run::supervise::{Action, Noticed, Observation, Supervisor};
 
 /// Orchestrator tick: supervision and progress cadence.
 const TICK: Duration = Duration::from_millis(20);
@@ -25,7 +37,7 @@ pub struct RunOptions {
     pub scenario: Scenario,
     pub scenario_file: String,
     pub out_dir: Option<PathBuf>,
-    /// Replace a previous run in `out_dir` (`--force`; see [`crate::run_dir`]).
+    /// Replace a previous run in `out_dir` (`--force`; see [`crate::run::run_dir`]).
     pub replace: bool,
     pub progress: bool,
 }
@@ -55,7 +67,8 @@ pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let prefix = run_prefix();
     let id = prefix.trim_start_matches("glint_").trim_end_matches('_');
     // Held (locked) until the report is written: no other run can use this directory.
-    let dir = crate::run_dir::prepare(opts.out_dir.as_deref(), &scenario.name, id, opts.replace)?;
+    let dir =
+        crate::run::run_dir::prepare(opts.out_dir.as_deref(), &scenario.name, id, opts.replace)?;
     let out_dir = dir.path.clone();
     let resolved = out_dir.join("scenario.toml");
     std::fs::write(&resolved, scenario.to_toml())
@@ -63,7 +76,7 @@ pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let exe = std::env::current_exe().context("locating the glint executable")?;
 
     let wall0 = Instant::now();
-    let cpu0_s = crate::deploy::cpu_seconds("self");
+    let cpu0_s = crate::run::deploy::cpu_seconds("self");
     let result = deploy_and_run(scenario, &prefix, &exe, &resolved, &out_dir, opts.progress);
     // Everything iceoryx2 is dropped inside deploy_and_run; now nothing of the prefix may remain.
     let (removed, held_by) = remove_shm(&prefix);
@@ -106,7 +119,7 @@ fn deploy_and_run(
     let _services = shared_types::topics::create_all(&node, scenario)?;
     let snapshots = report::snapshots(scenario);
     let (mut consumer, listeners) = Consumer::open(&node, scenario, &snapshots)?;
-    let mut sequencer = crate::sequence::Sequencer::open(&node, scenario)?;
+    let mut sequencer = crate::run::sequence::Sequencer::open(&node, scenario)?;
 
     let log_dir = out_dir.join("logs");
     let mut children: Vec<ServiceProcess> = vec![];
@@ -265,8 +278,12 @@ fn deploy_and_run(
                     };
                     match action {
                         Action::Noticed { id, how } => {
-                            tracing::warn!(service = id.name(), how, "service failed");
-                            injector.detected(id, how, now_s);
+                            tracing::warn!(
+                                service = id.name(),
+                                how = how.label(),
+                                "service failed"
+                            );
+                            injector.detected(id, how.label(), now_s);
                         }
                         Action::Kill(_) => c.signal(rustix::process::Signal::KILL),
                         Action::Respawn(id) => {
@@ -298,18 +315,18 @@ fn deploy_and_run(
                             tracing::info!(service = id.name(), "restarted service resumed");
                         }
                         Action::GiveUp { id, how, why } => {
-                            let what = if how == "exit" {
-                                format!("exited unexpectedly: {}", c.ending.label())
-                            } else if how == "heartbeat deadline" {
-                                format!(
+                            let what = match how {
+                                Noticed::Exit => {
+                                    format!("exited unexpectedly: {}", c.ending.label())
+                                }
+                                Noticed::HeartbeatDeadline => format!(
                                     "sent no heartbeat for run.heartbeat_deadline_ms = {} ms",
                                     limits.heartbeat_deadline_ms
-                                )
-                            } else {
-                                format!(
+                                ),
+                                Noticed::RestartTimeout => format!(
                                     "was not ready again within run.startup_timeout_ms = {} ms",
                                     limits.startup_timeout_ms
-                                )
+                                ),
                             };
                             failure = Some(format!(
                                 "service {} {what}{}; not restarted: {why}\n{}",
