@@ -5,10 +5,9 @@ use std::collections::BTreeMap;
 
 use shared_types::{deployment, Scenario, ServiceId, TopicCounters, TopicId};
 
-use super::{earth, science};
+use super::science;
 use crate::run::consume::Consumer;
 use crate::run::deploy::{Ending, ServiceProcess};
-use crate::run::taps::Snapshot;
 
 pub struct Outcome {
     pub startup_s: f64,
@@ -45,28 +44,9 @@ pub struct TopicFact {
     pub consumers: BTreeMap<String, Option<ConsumerFact>>,
 }
 
-/// What the debris pictures need besides the score.
-pub struct DebrisFacts {
-    pub score: crate::report::score_debris::DebrisScore,
-    pub camera: glint_physics::camera::PinholeCamera,
-    pub snapshot: Option<Snapshot>,
-    pub detections: Vec<shared_types::Detections>,
-    pub truths: Vec<shared_types::Truth>,
-}
-
-/// What the Earth sensor's section and pictures need.
-pub struct EarthFacts {
-    pub score: earth::EarthScore,
-    pub snapshot: Option<Snapshot>,
-    pub answers: Vec<shared_types::EarthAttitude>,
-    pub truths: Vec<shared_types::Truth>,
-}
-
 pub struct RunFacts {
-    pub debris: Option<DebrisFacts>,
-    pub earth: Option<EarthFacts>,
-    pub solve: Vec<shared_types::SolveResponse>,
-    pub spectra: Vec<shared_types::Spectrum>,
+    /// The mission sections of the report ([`super::sections`]).
+    pub sections: Vec<Box<dyn super::sections::Section>>,
     pub services: Vec<ServiceFact>,
     pub topics: BTreeMap<TopicId, TopicFact>,
     pub failure: Option<String>,
@@ -177,47 +157,14 @@ impl RunFacts {
                 },
             );
         }
-        let debris = scenario.camera.as_ref().map(|cam| {
-            let camera = glint_detector::service_core::camera(cam);
-            let a_m = cam.orbit_semi_major_axis_km * 1e3;
-            let n_rad_s = (glint_physics::orbit::MU_EARTH_M3_S2 / (a_m * a_m * a_m)).sqrt();
-            let frame_truths: Vec<shared_types::Truth> =
-                (taps.messages::<shared_types::Truth>(TopicId::Truth).iter())
-                    .filter(|t| t.kind == shared_types::Truth::KIND_FRAME)
-                    .copied()
-                    .collect();
-            DebrisFacts {
-                score: crate::report::score_debris::score(
-                    &camera,
-                    n_rad_s,
-                    &frame_truths,
-                    taps.messages(TopicId::Detections),
-                    taps.messages(TopicId::Tracks),
-                ),
-                camera,
-                snapshot: taps.snapshot(TopicId::Frame).cloned(),
-                detections: taps.messages(TopicId::Detections).to_vec(),
-                truths: frame_truths,
-            }
-        });
-        let earth = scenario.earth.as_ref().map(|_| {
-            let truths: Vec<shared_types::Truth> =
-                (taps.messages::<shared_types::Truth>(TopicId::Truth).iter())
-                    .filter(|t| t.kind == shared_types::Truth::KIND_EARTH)
-                    .copied()
-                    .collect();
-            EarthFacts {
-                score: earth::score(&truths, taps.messages(TopicId::EarthAttitude)),
-                snapshot: taps.snapshot(TopicId::EarthFrame).cloned(),
-                answers: taps.messages(TopicId::EarthAttitude).to_vec(),
-                truths,
-            }
-        });
+        let material = super::sections::Material {
+            scenario,
+            taps,
+            solve: &solve,
+        };
+        let sections = super::sections::collect(&material);
         RunFacts {
-            debris,
-            earth,
-            solve,
-            spectra: taps.messages(TopicId::Spectrum).to_vec(),
+            sections,
             services,
             topics,
             failure,

@@ -23,9 +23,11 @@ pub mod inversion;
 pub mod model;
 mod science;
 pub mod score_debris;
+pub mod sections;
 
 pub use facts::*;
 pub use model::*;
+pub use sections::snapshots;
 
 /// The report of a finished run.
 pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
@@ -118,15 +120,12 @@ pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
             leftover: f.shm_leftover.clone(),
             held_by: f.shm_held_by.clone(),
         },
-        inversion: (scenario.spectra.as_ref())
-            .map(|sp| inversion::InversionReport::new(sp, &f.solve)),
-        earth: f.earth.as_ref().map(|e| e.score.report()),
-        detection: f.debris.as_ref().map(|d| d.score.detection.clone()),
-        tracking: f.debris.as_ref().map(|d| TrackingReport {
-            targets: d.score.targets.clone(),
-        }),
+        inversion: None,
+        earth: None,
+        detection: None,
+        tracking: None,
     };
-    Report {
+    let mut report = Report {
         results,
         faults: faults::reports(f),
         membership: f.membership.clone(),
@@ -157,12 +156,13 @@ pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
             time_s: (f.services.iter())
                 .filter_map(|s| Some((s.name.clone(), service_timing(&s.time?))))
                 .collect(),
-            earth_us_per_frame: f
-                .earth
-                .as_ref()
-                .map_or(BTreeMap::new(), |e| e.score.times()),
+            earth_us_per_frame: BTreeMap::new(),
         },
+    };
+    for section in &f.sections {
+        section.report(&mut report.results, &mut report.timing);
     }
+    report
 }
 
 /// The share of a service's time it was working [%]: awake and not waiting for an RPC answer.
@@ -246,13 +246,9 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
     if let Some(fail) = &f.failure {
         let _ = writeln!(s, "**Failure:** {fail}\n");
     }
-    // The answer first: the attitude solve's rate and its uncertainty, then the run's record.
-    if let Some(sp) = &scenario.spectra {
-        let report = inversion::InversionReport::new(sp, &f.solve);
-        s.push_str(&report.markdown(sp.wavelengths_nm().len()));
-    }
-    if let Some(e) = &f.earth {
-        s.push_str(&e.score.markdown());
+    // The answers first (each mission's result and its uncertainty), then the run's record.
+    for section in &f.sections {
+        s.push_str(&section.markdown());
     }
     let _ = writeln!(
         s,
@@ -318,12 +314,6 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
         f.shm_removed,
         f.shm_leftover.len()
     );
-    if let Some(d) = &f.debris {
-        s.push_str(&debris::markdown(&d.score));
-    }
-    if !f.spectra.is_empty() {
-        let _ = writeln!(s, "\n## Light curve\n\n![light curve](light-curve.svg)");
-    }
     for (label, ns, p) in [
         ("Frame", &f.frame_latency_ns, &tm.frame_latency_us),
         ("Spectrum", &f.spectrum_latency_ns, &tm.spectrum_latency_us),
@@ -372,77 +362,42 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<Report
             &us,
         )?;
     }
-    if let Some(sp) = &scenario.spectra {
-        inversion::InversionReport::new(sp, &facts.solve).plots(dir)?;
-        crate::tools::observations::write(
-            &dir.join("observations.csv"),
-            &facts.spectra,
-            Some(sp.rate_deg_per_frame),
-        )?;
-        // Fit plots need complete windows (a run cut short has none to solve).
-        if facts.solve.iter().any(|r| r.stage == 3) {
-            if let Err(e) = fit::plots(dir, sp, &facts.solve) {
-                tracing::warn!(error = %e, "fit plots skipped");
-            }
-        }
-    }
     if !facts.faults.is_empty() {
         faults::timeline(&dir.join("faults.svg"), facts)?;
     }
-    if let Some(d) = &facts.debris {
-        debris::plots(
-            dir,
-            &d.score,
-            &d.camera,
-            d.snapshot.as_ref(),
-            &d.detections,
-            &d.truths,
-        )?;
-    }
-    if let (Some(e), Some(section)) = (&facts.earth, &scenario.earth) {
-        earth_plots(dir, scenario.seed, section, e)?;
-    }
-    let light_curve = light_curve(&facts.spectra);
-    if let Some((_, bands, _)) = light_curve.first() {
-        let colors = [crate::plots::BLUE, crate::plots::GREEN, crate::plots::RED];
-        let labels: Vec<String> = bands.iter().map(|b| format!("{b:.0} nm")).collect();
-        let series: Vec<crate::plots::Series> = (0..3)
-            .map(|i| crate::plots::Series {
-                label: &labels[i],
-                points: light_curve
-                    .iter()
-                    .map(|(k, _, f)| (*k as f64, f[i]))
-                    .collect(),
-                color: colors[i],
-                markers: false,
-            })
-            .collect();
-        crate::plots::line_chart(
-            &dir.join("light-curve.svg"),
-            "Received spectra: band-integrated flux (stable window, then motion)",
-            "sample (stream order)",
-            "flux [W]",
-            &series,
-        )?;
+    for section in &facts.sections {
+        section.plots(dir)?;
     }
     Ok(report)
 }
 
-/// The Earth sensor's pictures: error against angle, the β_k samples at the paper's three
-/// angles, one annotated frame.
-fn earth_plots(
-    dir: &Path,
-    seed: u64,
-    section: &shared_types::scenario::EarthScenario,
-    e: &EarthFacts,
-) -> Result<()> {
-    earth::error_plot(dir, &e.score)?;
-    let figures = earth::sample_figures(section, seed, &[5.0, 30.0, 60.0])?;
-    earth::samples_plot(dir, &figures)?;
-    if let Some(snap) = &e.snapshot {
-        earth_frame::annotated(dir, section, snap, &e.answers, &e.truths)?;
-    }
-    Ok(())
+/// `light-curve.svg`: the band-integrated flux of the first, middle and last band of every
+/// received spectrum.
+fn light_curve_plot(dir: &Path, spectra: &[shared_types::Spectrum]) -> Result<()> {
+    let light_curve = light_curve(spectra);
+    let Some((_, bands, _)) = light_curve.first() else {
+        return Ok(());
+    };
+    let colors = [crate::plots::BLUE, crate::plots::GREEN, crate::plots::RED];
+    let labels: Vec<String> = bands.iter().map(|b| format!("{b:.0} nm")).collect();
+    let series: Vec<crate::plots::Series> = (0..3)
+        .map(|i| crate::plots::Series {
+            label: &labels[i],
+            points: light_curve
+                .iter()
+                .map(|(k, _, f)| (*k as f64, f[i]))
+                .collect(),
+            color: colors[i],
+            markers: false,
+        })
+        .collect();
+    crate::plots::line_chart(
+        &dir.join("light-curve.svg"),
+        "Received spectra: band-integrated flux (stable window, then motion)",
+        "sample (stream order)",
+        "flux [W]",
+        &series,
+    )
 }
 
 /// The received spectra reduced for the light-curve plot: (stream index, the first, middle
@@ -461,25 +416,6 @@ fn light_curve(spectra: &[shared_types::Spectrum]) -> Vec<(u64, [f64; 3], [f64; 
             )
         })
         .collect()
-}
-
-/// The frames whose pixels the report draws, per frame topic: the debris section's frame 1,
-/// the Earth section's first frame at the angle nearest 20° (a ring clear of the blind zone
-/// and of the image circle's edge).
-pub fn snapshots(scenario: &Scenario) -> Vec<(TopicId, u64)> {
-    let mut v = vec![];
-    if scenario.camera.is_some() {
-        v.push((TopicId::Frame, 1));
-    }
-    if let Some(e) = &scenario.earth {
-        let angles = e.angles_deg();
-        let near_20 = |a: f64| (a.abs() - 20.0).abs();
-        let best = (0..angles.len())
-            .min_by(|&a, &b| near_20(angles[a]).total_cmp(&near_20(angles[b])))
-            .unwrap_or(0);
-        v.push((TopicId::EarthFrame, best as u64 * e.images_per_angle as u64));
-    }
-    v
 }
 
 /// `glint report --schema`.
