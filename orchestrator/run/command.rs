@@ -157,14 +157,14 @@ pub(crate) fn command(args: RunArgs) -> ExitCode {
 pub(crate) fn validate(scenario: PathBuf) -> ExitCode {
     match load(Some(&scenario)) {
         Ok((s, _)) => {
-            let yes = |b: bool| if b { "yes" } else { "no" };
+            let services: Vec<&str> = (shared_types::deployment::services(&s).iter())
+                .map(|id| id.name())
+                .collect();
             println!(
-                "{}: ok ({}: camera {}, spectra {}, earth {})",
+                "{}: ok ({}: deploys {})",
                 scenario.display(),
                 s.name,
-                yes(s.camera.is_some()),
-                yes(s.spectra.is_some()),
-                yes(s.earth.is_some())
+                services.join(", ")
             );
             ExitCode::SUCCESS
         }

@@ -1,0 +1,476 @@
+//! A deployment while it runs: a polled state machine, stepped once per wake-up of the run
+//! loop (a message, a solve answer, the tick). Starting → (every service ready) Running →
+//! (every message accounted for, the solve done, every service up) Done; any failure stops it
+//! with its reason. Each step reads what arrived, fires the faults that are due, starts the
+//! services, sequences the solve, and on the tick supervises (typed [`Action`]s), checks the
+//! membership and the run's limits. [`Live::stop`] then runs the stop ladder and
+//! [`Live::facts`] gives what the report needs.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Result};
+use glint_runtime::{Exit, Step, Wake};
+use shared_types::scenario::Clock;
+use shared_types::topics::IpcNode;
+use shared_types::{deployment, Command, Control, Heartbeat, Replay, Scenario, ServiceId, TopicId};
+
+use crate::report::{Outcome, RunFacts};
+use crate::run::consume::Consumer;
+use crate::run::deploy::{stop_ladder, Ending, ServiceProcess};
+use crate::run::faults::{Act, Injector};
+use crate::run::membership::Membership;
+use crate::run::sequence::Sequencer;
+use crate::run::supervise::{Action, Noticed, Observation, Supervisor};
+
+/// How often the live nodes under the prefix are checked against the deployment.
+const MEMBERSHIP_SCAN: Duration = Duration::from_millis(250);
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Spawned; waiting for every service's ready heartbeat.
+    Starting,
+    /// Started; supervised until every message is accounted for.
+    Running,
+    /// Every message accounted for, the solve done, every service up.
+    Done,
+}
+
+/// How a service process is spawned (again, after a failure).
+pub struct Spawner<'a> {
+    pub exe: &'a Path,
+    pub prefix: &'a str,
+    /// The resolved scenario file the services read.
+    pub scenario_file: &'a Path,
+    pub log_dir: PathBuf,
+}
+
+impl Spawner<'_> {
+    pub fn spawn(&self, id: ServiceId, restarts: u32) -> Result<ServiceProcess> {
+        ServiceProcess::spawn(
+            self.exe,
+            id,
+            self.prefix,
+            self.scenario_file,
+            &self.log_dir,
+            restarts,
+        )
+    }
+}
+
+pub struct Live<'a> {
+    scenario: &'a Scenario,
+    node: &'a IpcNode,
+    spawner: Spawner<'a>,
+    pub consumer: Consumer,
+    sequencer: Option<Sequencer>,
+    children: Vec<ServiceProcess>,
+    injector: Injector,
+    supervisor: Supervisor,
+    membership: Membership,
+    phase: Phase,
+    failure: Option<String>,
+    t_start: Instant,
+    t_running: Option<Instant>,
+    t_done: Option<Instant>,
+    t_stopped: Option<Instant>,
+    acks_refreshed: Instant,
+    scanned: Instant,
+    bar: Option<indicatif::ProgressBar>,
+}
+
+impl<'a> Live<'a> {
+    /// Spawns every service of the scenario (the services and ports already exist).
+    pub fn spawn(
+        scenario: &'a Scenario,
+        node: &'a IpcNode,
+        spawner: Spawner<'a>,
+        consumer: Consumer,
+        sequencer: Option<Sequencer>,
+        progress: bool,
+    ) -> Result<Self> {
+        let children = (deployment::services(scenario).into_iter())
+            .map(|id| spawner.spawn(id, 0))
+            .collect::<Result<Vec<_>>>()?;
+        tracing::info!(
+            prefix = spawner.prefix,
+            services = children.len(),
+            "deployed"
+        );
+        let limits = &scenario.run;
+        let ids: Vec<ServiceId> = children.iter().map(|c| c.id).collect();
+        let supervisor = Supervisor::new(
+            &scenario.supervision,
+            &ids,
+            Duration::from_millis(limits.heartbeat_deadline_ms),
+            Duration::from_millis(limits.startup_timeout_ms),
+        );
+        let bar = progress.then(|| crate::progress::bar(consumer.progress().1));
+        let now = Instant::now();
+        Ok(Live {
+            scenario,
+            node,
+            spawner,
+            consumer,
+            sequencer,
+            children,
+            injector: Injector::new(scenario),
+            supervisor,
+            membership: Membership::default(),
+            phase: Phase::Starting,
+            failure: None,
+            t_start: now,
+            t_running: None,
+            t_done: None,
+            t_stopped: None,
+            acks_refreshed: now,
+            scanned: now,
+            bar,
+        })
+    }
+
+    /// Seconds from the start of the services to `t` (0 before they started).
+    fn since_start(&self, t: Instant) -> f64 {
+        self.t_running
+            .map_or(0.0, |t0| t.saturating_duration_since(t0).as_secs_f64())
+    }
+
+    /// Stops the run with `why`.
+    fn fail(&mut self, why: String) -> Step {
+        self.failure = Some(why);
+        Step::Stop
+    }
+
+    /// One step: what arrived, then the phase's work; on the tick, supervision and limits.
+    pub fn step(&mut self, wakes: &[Wake]) -> Result<Step> {
+        self.consumer.poll()?;
+        if self.phase == Phase::Running {
+            self.inject_faults()?;
+        }
+        if let Some(b) = &self.bar {
+            b.set_position(self.consumer.progress().0);
+        }
+        if self.phase == Phase::Starting {
+            if let Some(stop) = self.start_when_ready()? {
+                return Ok(stop);
+            }
+        }
+        if self.phase == Phase::Running {
+            if let Some(stop) = self.sequence()? {
+                return Ok(stop);
+            }
+            let solved = self.sequencer.as_ref().is_none_or(|s| s.done());
+            if self.consumer.complete() && solved && self.supervisor.all_up() {
+                self.t_done = Some(Instant::now());
+                self.phase = Phase::Done;
+                return Ok(Step::Stop);
+            }
+        }
+        if wakes.contains(&Wake::Tick) || wakes.contains(&Wake::Timeout) {
+            if let Some(stop) = self.on_tick()? {
+                return Ok(stop);
+            }
+        }
+        Ok(Step::Wait)
+    }
+
+    /// Fires the faults that are due; notes the drops and corruptions counted downstream and
+    /// the services heard from.
+    fn inject_faults(&mut self) -> Result<()> {
+        let now_s = self.since_start(Instant::now());
+        let consumer = &self.consumer;
+        for a in self.injector.step(now_s, |t| consumer.carried(t)) {
+            tracing::info!(service = a.service.name(), act = ?a.act, "fault injected");
+            match a.act {
+                Act::Signal(sig) => {
+                    if let Some(c) = self.children.iter().find(|c| c.id == a.service) {
+                        c.signal(sig);
+                    }
+                }
+                Act::Order(f) => self.consumer.order_fault(a.service, f)?,
+            }
+        }
+        // Drops and corruptions are noticed where they are counted.
+        for (i, output, kind) in self.injector.awaiting_count() {
+            // The solve answers' one client is the sequencer.
+            let counted = match (output, &self.sequencer) {
+                (Some(TopicId::Solve), Some(seq)) => seq.counted(kind),
+                (Some(topic), _) => self.consumer.counted(topic, kind),
+                (None, _) => false,
+            };
+            if counted {
+                self.injector.counted(i, now_s);
+            }
+        }
+        let heard: Vec<(ServiceId, f64)> = (self.consumer.seen.iter())
+            .map(|(id, seen)| (*id, self.since_start(seen.at)))
+            .collect();
+        for (id, at_s) in heard {
+            self.injector.heard_from(id, at_s);
+        }
+        Ok(())
+    }
+
+    /// Sends `Start` once every service is ready; fails the run past the startup timeout.
+    fn start_when_ready(&mut self) -> Result<Option<Step>> {
+        let seen = &self.consumer.seen;
+        let ready = self.children.iter().all(|c| {
+            seen.get(&c.id)
+                .is_some_and(|s| s.heartbeat.state >= Heartbeat::READY)
+        });
+        let timeout_ms = self.scenario.run.startup_timeout_ms;
+        if ready {
+            self.consumer.command(Command::Start, Control::ALL)?;
+            let now = Instant::now();
+            self.t_running = Some(now);
+            self.supervisor.started(now);
+            self.phase = Phase::Running;
+            tracing::info!(
+                startup_ms = self.t_start.elapsed().as_millis() as u64,
+                "all services ready; started"
+            );
+        } else if self.t_start.elapsed() > Duration::from_millis(timeout_ms) {
+            return Ok(Some(self.fail(format!(
+                "services not ready within run.startup_timeout_ms = {timeout_ms} ms"
+            ))));
+        }
+        Ok(None)
+    }
+
+    /// The solve's next call, once its server is up.
+    fn sequence(&mut self) -> Result<Option<Step>> {
+        let server_up = deployment::producer(TopicId::Solve)
+            .is_some_and(|server| self.supervisor.is_up(server));
+        let Some(seq) = self.sequencer.as_mut() else {
+            return Ok(None);
+        };
+        seq.step(&self.consumer, server_up)?;
+        match seq.failure.clone() {
+            Some(f) => Ok(Some(self.fail(f))),
+            None => Ok(None),
+        }
+    }
+
+    /// The tick: a child lost during startup, supervision, membership, the acks again, the
+    /// run's time limit.
+    fn on_tick(&mut self) -> Result<Option<Step>> {
+        let now = Instant::now();
+        let now_s = self.since_start(now);
+        match self.phase {
+            Phase::Starting => {
+                // A failure during the initial startup fails the run.
+                let exited = self.children.iter_mut().position(|c| c.poll_exit());
+                if let Some(c) = exited.map(|i| &self.children[i]) {
+                    let why = format!(
+                        "service {} exited unexpectedly during startup: {}\n{}",
+                        c.id.name(),
+                        c.ending.label(),
+                        c.log_tail(8)
+                    );
+                    return Ok(Some(self.fail(why)));
+                }
+            }
+            Phase::Running => {
+                if let Some(stop) = self.supervise(now, now_s)? {
+                    return Ok(Some(stop));
+                }
+            }
+            Phase::Done => {}
+        }
+        if now.duration_since(self.scanned) >= MEMBERSHIP_SCAN {
+            self.scanned = now;
+            let mut ours: Vec<u32> = self.children.iter().map(|c| c.pid).collect();
+            ours.push(std::process::id());
+            if let Some(f) = self.membership.scan(self.spawner.prefix, &ours, now_s) {
+                return Ok(Some(self.fail(f)));
+            }
+        }
+        let period = Duration::from_millis(self.scenario.run.heartbeat_period_ms);
+        if now.duration_since(self.acks_refreshed) >= period {
+            self.consumer.refresh_acks()?;
+            self.acks_refreshed = now;
+        }
+        let timeout_s = self.scenario.run.timeout_s;
+        if self.t_start.elapsed().as_secs_f64() > timeout_s {
+            return Ok(Some(
+                self.fail(format!("run exceeded run.timeout_s = {timeout_s} s")),
+            ));
+        }
+        Ok(None)
+    }
+
+    /// One step of supervision, and what its actions ask of the run.
+    fn supervise(&mut self, now: Instant, now_s: f64) -> Result<Option<Step>> {
+        let seen = &self.consumer.seen;
+        let observed: Vec<Observation> = (self.children.iter_mut())
+            .map(|c| Observation {
+                id: c.id,
+                exited: (!c.is_running()).then(|| c.exit_ok.unwrap_or(false)),
+                heartbeat: (seen.get(&c.id))
+                    .filter(|s| s.heartbeat.pid == c.pid)
+                    .map(|s| (s.at, s.heartbeat.state)),
+            })
+            .collect();
+        for action in self.supervisor.step(now, &observed) {
+            if let Some(stop) = self.act(action, now_s)? {
+                return Ok(Some(stop));
+            }
+        }
+        Ok(None)
+    }
+
+    fn act(&mut self, action: Action, now_s: f64) -> Result<Option<Step>> {
+        let Some(i) = self.children.iter().position(|c| c.id == action.service()) else {
+            return Ok(None);
+        };
+        match action {
+            Action::Noticed { id, how } => {
+                tracing::warn!(service = id.name(), how = how.label(), "service failed");
+                self.injector.detected(id, how.label(), now_s);
+            }
+            Action::Kill(_) => self.children[i].signal(rustix::process::Signal::KILL),
+            Action::Respawn(id) => {
+                // The dead process's ports go before the new one opens its own.
+                self.node.try_cleanup_dead_nodes();
+                let n = self.supervisor.restarts(id);
+                tracing::info!(service = id.name(), restart = n, "restarting");
+                self.children[i] = self.spawner.spawn(id, n)?;
+            }
+            Action::Resume(id) => {
+                if self.scenario.clock == Clock::Sim {
+                    for topic in deployment::inputs(self.scenario, id) {
+                        let order = Replay {
+                            consumer: id,
+                            topic,
+                            from_seq: 0,
+                        };
+                        if let Some(producer) = deployment::producer(topic) {
+                            self.consumer.replay(producer, order)?;
+                        }
+                    }
+                }
+                self.consumer.command(Command::Start, id as u32)?;
+                self.injector.restarted(id, now_s);
+                let serves_solve = deployment::producer(TopicId::Solve) == Some(id);
+                if let (true, Some(seq)) = (serves_solve, self.sequencer.as_mut()) {
+                    seq.server_restarted();
+                }
+                tracing::info!(service = id.name(), "restarted service resumed");
+            }
+            Action::GiveUp { id, how, why } => {
+                let limits = &self.scenario.run;
+                let c = &self.children[i];
+                let what = match how {
+                    Noticed::Exit => format!("exited unexpectedly: {}", c.ending.label()),
+                    Noticed::HeartbeatDeadline => format!(
+                        "sent no heartbeat for run.heartbeat_deadline_ms = {} ms",
+                        limits.heartbeat_deadline_ms
+                    ),
+                    Noticed::RestartTimeout => format!(
+                        "was not ready again within run.startup_timeout_ms = {} ms",
+                        limits.startup_timeout_ms
+                    ),
+                };
+                let why = format!(
+                    "service {} {what}{}; not restarted: {why}\n{}",
+                    id.name(),
+                    injected_note(&self.injector, id),
+                    c.log_tail(8)
+                );
+                return Ok(Some(self.fail(why)));
+            }
+        }
+        Ok(None)
+    }
+
+    /// The run loop ended (`exit`): continue what a fault stopped, then the stop ladder,
+    /// draining the final heartbeats so that the last counters are captured.
+    pub fn stop(&mut self, exit: Exit) -> Result<()> {
+        let t_stopped = Instant::now();
+        self.t_stopped = Some(t_stopped);
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
+        }
+        if exit == Exit::Terminated {
+            super::INTERRUPTED.store(true, std::sync::atomic::Ordering::SeqCst);
+            if self.failure.is_none() {
+                self.failure = Some("interrupted by a signal".into());
+            }
+        }
+        // A service still SIGSTOPped by a fault is continued, so that it can obey the ladder.
+        for a in self.injector.release(self.since_start(t_stopped)) {
+            let child = self.children.iter().find(|c| c.id == a.service);
+            if let (Some(c), Act::Signal(sig)) = (child, a.act) {
+                c.signal(sig);
+            }
+        }
+        let grace = Duration::from_millis(self.scenario.run.shutdown_grace_ms);
+        let shutdown_sent = std::cell::Cell::new(Ok(()));
+        let consumer = std::cell::RefCell::new(&mut self.consumer);
+        stop_ladder(
+            &mut self.children,
+            grace,
+            &mut || {
+                shutdown_sent.set((consumer.borrow_mut()).command(Command::Shutdown, Control::ALL))
+            },
+            &mut || {
+                let _ = consumer.borrow_mut().poll();
+            },
+        );
+        shutdown_sent.into_inner()?;
+        self.consumer.poll()?;
+        if self.children.iter().any(|c| c.ending == Ending::Running) {
+            bail!("a child survived the stop ladder");
+        }
+        Ok(())
+    }
+
+    /// What the report needs of the stopped run.
+    pub fn facts(self) -> RunFacts {
+        let t_stopped = self.t_stopped.unwrap_or_else(Instant::now);
+        // A run that failed produced until it stopped: its rates are over that time.
+        let production_s = (self.t_running).map_or(0.0, |a| {
+            (self.t_done.unwrap_or(t_stopped) - a).as_secs_f64()
+        });
+        let consumer = &self.consumer;
+        let server =
+            deployment::producer(TopicId::Solve).and_then(|p| consumer.reported(p, TopicId::Solve));
+        let solve_tampered = match (&self.sequencer, server) {
+            (Some(seq), Some(c)) => [
+                c.dropped[shared_types::DropReason::Injected as usize],
+                c.dropped[shared_types::DropReason::Malformed as usize],
+                seq.unanswered,
+                seq.malformed,
+            ],
+            _ => [0; 4],
+        };
+        let solve = (self.sequencer.as_ref())
+            .map(|s| s.responses.clone())
+            .unwrap_or_default();
+        let mut facts = RunFacts::collect(
+            consumer,
+            &self.children,
+            self.scenario,
+            solve,
+            self.failure,
+            self.injector.faults,
+            Outcome {
+                startup_s: (self.t_running).map_or(0.0, |t| (t - self.t_start).as_secs_f64()),
+                production_s,
+            },
+        );
+        facts.solve_tampered = solve_tampered;
+        facts.membership = self.membership.report();
+        facts
+    }
+}
+
+/// " (injected fault: …)" when faults were injected into `id`.
+fn injected_note(injector: &Injector, id: ServiceId) -> String {
+    let faults = injector.injected_into(id);
+    if faults.is_empty() {
+        String::new()
+    } else {
+        format!(" (injected fault: {})", faults.join(", "))
+    }
+}
