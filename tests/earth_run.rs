@@ -110,7 +110,8 @@ fn the_turntable_sweep_deployed_accounts_for_every_frame_and_ranks_the_methods()
         assert!(errors.has_text(m), "{:?}", errors.texts);
     }
     let samples = Svg::read(&r.dir.join("earth-samples.svg"));
-    for angle in ["5°", "30°", "60°"] {
+    // The answers nearest the paper's 5°, 30° and 60° (the sweep ends at 50°).
+    for angle in ["5°", "30°", "50°"] {
         assert!(
             samples
                 .texts

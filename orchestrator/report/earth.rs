@@ -14,7 +14,6 @@ use std::path::Path;
 use anyhow::Result;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
-use shared_types::scenario::EarthScenario;
 use shared_types::{EarthAttitude, Truth};
 
 use crate::plots::{line_chart, Series, BLUE, GREEN, ORANGE, RED};
@@ -288,49 +287,58 @@ pub fn error_plot(dir: &Path, score: &EarthScore) -> Result<()> {
     )
 }
 
-/// The β_k samples of one frame and their fitted t density, as histogram and curve points.
+/// The β_k samples of one frame and their fitted t density, as the earth service sent them.
 pub struct SampleFigure {
+    /// The frame's turntable angle [deg].
     pub angle_deg: f64,
-    pub samples_deg: Vec<f64>,
-    pub fit: Option<glint_earth::tfit::TFit>,
+    /// β_k samples in all.
+    pub samples: u32,
+    /// Their histogram over μ ± span·σ ([`EarthAttitude::samples_hist`]).
+    pub hist: [u16; EarthAttitude::SAMPLE_BINS],
+    /// The t location-scale fit (μ, σ [deg], ν), when there was one.
+    pub fit: Option<(f64, f64, f64)>,
 }
 
-/// The samples of frames rendered at `angles` by the scenario's own sensor and processed by the
-/// earth service's own code (the paper's Figs. 6, 14 and 15 are at 5°, 30° and 60°).
-pub fn sample_figures(e: &EarthScenario, seed: u64, angles: &[f64]) -> Result<Vec<SampleFigure>> {
-    let mut section = e.clone();
-    section.trajectory_deg = angles.to_vec();
-    section.images_per_angle = 1;
-    let scene = glint_sensor::earth_scene::EarthScene::new(&section, seed);
-    let mut core = glint_earth::pipeline::EarthCore::new(
-        glint_earth::service_core::config(&section).map_err(|e| anyhow::anyhow!("{e}"))?,
-    );
-    let (w, h) = (section.width_px as usize, section.height_px as usize);
-    let mut px = vec![0u16; w * h];
-    let mut header = shared_types::FrameHeader::default();
-    let mut out = vec![];
-    for (k, &angle_deg) in angles.iter().enumerate() {
-        scene.render(k as u64, &mut header, &mut px);
-        let r = core
-            .process(&px, w, h)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+/// The answered frames at the turntable angles nearest `angles` (the paper's Figs. 6, 14 and
+/// 15 are at 5°, 30° and 60°; a sweep that stops short gives its largest), each once: their
+/// β_k histograms and fits, from the answers themselves.
+pub fn sample_figures(
+    answers: &[EarthAttitude],
+    truths: &[Truth],
+    angles: &[f64],
+) -> Vec<SampleFigure> {
+    let truth: BTreeMap<u64, f64> = (truths.iter())
+        .filter(|t| t.kind == Truth::KIND_EARTH)
+        .map(|t| (t.frame_index, t.earth_tilt_deg))
+        .collect();
+    let answered: Vec<(&EarthAttitude, f64)> = (answers.iter())
+        .filter_map(|a| truth.get(&a.frame_index).map(|tilt| (a, *tilt)))
+        .collect();
+    let mut out: Vec<SampleFigure> = vec![];
+    for &want in angles {
+        let nearest = (answered.iter())
+            .min_by(|(_, x), (_, y)| (x.abs() - want).abs().total_cmp(&(y.abs() - want).abs()));
+        let Some((a, tilt)) = nearest else { continue };
+        if out.iter().any(|f| f.angle_deg == tilt.abs()) {
+            continue;
+        }
         out.push(SampleFigure {
-            angle_deg,
-            samples_deg: r.signed_beta_deg,
-            fit: r.fit,
+            angle_deg: tilt.abs(),
+            samples: a.samples,
+            hist: a.samples_hist,
+            fit: (a.fit_sigma_deg > 0.0).then_some((a.fit_mu_deg, a.fit_sigma_deg, a.fit_nu)),
         });
     }
-    Ok(out)
+    out
 }
 
-/// The t location-scale density at `x`.
-fn t_density(f: &glint_earth::tfit::TFit, x: f64) -> f64 {
-    let z = (x - f.mu) / f.sigma;
-    let nu = f.nu;
+/// The t location-scale density at `x` of the fit (μ, σ, ν).
+fn t_density((mu, sigma, nu): (f64, f64, f64), x: f64) -> f64 {
+    let z = (x - mu) / sigma;
     let ln_c = glint_earth::special::ln_gamma((nu + 1.0) / 2.0)
         - glint_earth::special::ln_gamma(nu / 2.0)
         - 0.5 * (nu * std::f64::consts::PI).ln()
-        - f.sigma.ln();
+        - sigma.ln();
     (ln_c - (nu + 1.0) / 2.0 * (z * z / nu).ln_1p()).exp()
 }
 
@@ -340,38 +348,31 @@ pub fn samples_plot(dir: &Path, figures: &[SampleFigure]) -> Result<()> {
     let colors = [BLUE, GREEN, ORANGE];
     let mut labels = vec![];
     for f in figures {
-        let fit = f.fit.as_ref().map_or("no fit".to_string(), |t| {
+        let fit = f.fit.map_or("no fit".to_string(), |(mu, sigma, nu)| {
             // ν at the fit's upper bound: the samples are normal.
-            let nu = if t.nu >= 1e5 {
+            let nu = if nu >= 1e5 {
                 "ν → ∞".to_string()
             } else {
-                format!("ν {:.1}", t.nu)
+                format!("ν {nu:.1}")
             };
-            format!("μ {:.3}°, σ {:.3}°, {nu}", t.mu, t.sigma)
+            format!("μ {mu:.3}°, σ {sigma:.3}°, {nu}")
         });
         labels.push((
-            format!("{}°: β_k ({} samples)", f.angle_deg, f.samples_deg.len()),
+            format!("{}°: β_k ({} samples)", f.angle_deg, f.samples),
             format!("{}°: fitted t ({fit})", f.angle_deg),
         ));
     }
+    let bins = EarthAttitude::SAMPLE_BINS;
     let mut series = vec![];
     for ((f, color), (hist_label, fit_label)) in figures.iter().zip(colors).zip(&labels) {
-        let Some(t) = &f.fit else { continue };
-        let half = 6.0 * t.sigma;
-        let bins = 40;
+        let Some(fit) = f.fit else { continue };
+        let half = EarthAttitude::SAMPLE_SPAN_SIGMA * fit.1;
         let width = 2.0 * half / bins as f64;
-        let mut counts = vec![0usize; bins];
-        for &b in &f.samples_deg {
-            let k = ((b - t.mu + half) / width).floor();
-            if (0.0..bins as f64).contains(&k) {
-                counts[k as usize] += 1;
-            }
-        }
-        let n = f.samples_deg.len().max(1) as f64;
+        let n = f64::from(f.samples.max(1));
         let mut steps = vec![];
-        for (k, c) in counts.iter().enumerate() {
+        for (k, c) in f.hist.iter().enumerate() {
             let (x0, x1) = (-half + k as f64 * width, -half + (k + 1) as f64 * width);
-            let d = *c as f64 / (n * width);
+            let d = f64::from(*c) / (n * width);
             steps.push((x0, d));
             steps.push((x1, d));
         }
@@ -386,7 +387,7 @@ pub fn samples_plot(dir: &Path, figures: &[SampleFigure]) -> Result<()> {
             points: (0..=bins)
                 .map(|k| {
                     let x = -half + k as f64 * width;
-                    (x, t_density(t, t.mu + x))
+                    (x, t_density(fit, fit.0 + x))
                 })
                 .collect(),
             color,

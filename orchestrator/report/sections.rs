@@ -134,7 +134,6 @@ impl Section for InversionSection {
 /// [003] the infrared Earth sensor: each method's error per interval, its pictures.
 struct EarthSection {
     section: EarthScenario,
-    seed: u64,
     score: earth::EarthScore,
     snapshot: Option<Snapshot>,
     answers: Vec<shared_types::EarthAttitude>,
@@ -162,7 +161,6 @@ impl EarthSection {
         let answers = m.taps.messages(TopicId::EarthAttitude).to_vec();
         Some(EarthSection {
             section,
-            seed: m.scenario.seed,
             score: earth::score(&truths, &answers),
             snapshot: m.taps.snapshot(TopicId::EarthFrame).cloned(),
             answers,
@@ -184,7 +182,7 @@ impl Section for EarthSection {
     /// Error against angle, the β_k samples at the paper's three angles, one annotated frame.
     fn plots(&self, dir: &Path) -> Result<()> {
         earth::error_plot(dir, &self.score)?;
-        let figures = earth::sample_figures(&self.section, self.seed, &[5.0, 30.0, 60.0])?;
+        let figures = earth::sample_figures(&self.answers, &self.truths, &[5.0, 30.0, 60.0]);
         earth::samples_plot(dir, &figures)?;
         if let Some(snap) = &self.snapshot {
             earth_frame::annotated(dir, &self.section, snap, &self.answers, &self.truths)?;

@@ -73,13 +73,14 @@ fn earth_attitude_layout() {
     assert_eq!(offset_of!(EarthMethod, valid), 24);
     assert_eq!(
         (size_of::<EarthAttitude>(), align_of::<EarthAttitude>()),
-        (72 + 3 * 32, 8)
+        (72 + 3 * 32 + 2 * 32, 8)
     );
     assert_eq!(offset_of!(EarthAttitude, frame_index), 32);
     assert_eq!(offset_of!(EarthAttitude, edge_points), 40);
     assert_eq!(offset_of!(EarthAttitude, samples), 44);
     assert_eq!(offset_of!(EarthAttitude, fit_mu_deg), 48);
     assert_eq!(offset_of!(EarthAttitude, methods), 72);
+    assert_eq!(offset_of!(EarthAttitude, samples_hist), 72 + 3 * 32);
 }
 
 #[test]

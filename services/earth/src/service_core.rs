@@ -99,6 +99,7 @@ impl EarthServiceCore {
             fit_sigma_deg: fit.1,
             fit_nu: fit.2,
             methods: [method(r.cross_product), method(r.lookup), method(r.hough)],
+            samples_hist: EarthAttitude::histogram(&r.signed_beta_deg, fit.0, fit.1),
             ..Default::default()
         })
     }

@@ -9,7 +9,7 @@ use super::*;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v4.EarthMethod")]
+#[type_name("glint.v5.EarthMethod")]
 #[repr(C)]
 pub struct EarthMethod {
     /// β, the angle between the optical axis and nadir [deg], ≥ 0.
@@ -29,7 +29,7 @@ pub struct EarthMethod {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v4.EarthAttitude")]
+#[type_name("glint.v5.EarthAttitude")]
 #[repr(C)]
 pub struct EarthAttitude {
     pub meta: Meta,
@@ -46,6 +46,10 @@ pub struct EarthAttitude {
     /// Indexed by [`EarthAttitude::CROSS_PRODUCT`], [`EarthAttitude::LOOKUP`],
     /// [`EarthAttitude::HOUGH`].
     pub methods: [EarthMethod; 3],
+    /// The signed β_k samples about the fit: counts in [`EarthAttitude::SAMPLE_BINS`] equal
+    /// bins over μ ± [`EarthAttitude::SAMPLE_SPAN_SIGMA`]·σ (all 0 without a fit). What the
+    /// fit was made from, so a reader can judge it (the report draws it beside the t density).
+    pub samples_hist: [u16; EarthAttitude::SAMPLE_BINS],
 }
 
 impl EarthAttitude {
@@ -57,6 +61,29 @@ impl EarthAttitude {
     pub const HOUGH: usize = 2;
     /// Report names of the methods, in index order.
     pub const METHOD_NAMES: [&'static str; 3] = ["cross_product", "lookup", "hough"];
+    /// Bins of [`EarthAttitude::samples_hist`].
+    pub const SAMPLE_BINS: usize = 32;
+    /// Half the width of the histogram, in units of the fit's σ.
+    pub const SAMPLE_SPAN_SIGMA: f64 = 6.0;
+
+    /// The histogram of `samples_deg` about the fit (μ, σ) [deg]: each sample in its bin,
+    /// those outside μ ± span·σ left out, counts saturating.
+    pub fn histogram(samples_deg: &[f64], mu_deg: f64, sigma_deg: f64) -> [u16; Self::SAMPLE_BINS] {
+        let mut hist = [0u16; Self::SAMPLE_BINS];
+        if !(sigma_deg > 0.0 && sigma_deg.is_finite() && mu_deg.is_finite()) {
+            return hist;
+        }
+        let half = Self::SAMPLE_SPAN_SIGMA * sigma_deg;
+        let width = 2.0 * half / Self::SAMPLE_BINS as f64;
+        for &b in samples_deg {
+            let k = ((b - mu_deg + half) / width).floor();
+            if (0.0..Self::SAMPLE_BINS as f64).contains(&k) {
+                let c = &mut hist[k as usize];
+                *c = c.saturating_add(1);
+            }
+        }
+        hist
+    }
 
     pub fn validate(&self) -> Result<(), Reject> {
         self.meta.validate()?;

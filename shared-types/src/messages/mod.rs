@@ -44,7 +44,7 @@ pub const MAX_TOPICS: usize = 8;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v4.Meta")]
+#[type_name("glint.v5.Meta")]
 #[repr(C)]
 pub struct Meta {
     /// Per-producer, per-topic sequence number, starting at 0, without gaps.
@@ -134,10 +134,12 @@ pub trait Message: std::fmt::Debug + Copy + ZeroCopySend + bytemuck::NoUninit + 
     }
     /// Folds the message's content into a run's digest: everything that is a function of the
     /// scenario and the seed, so two runs compare in one value. By default every byte but the
-    /// send time (the only field that differs between two runs of the same scenario and seed).
+    /// send time (the only field that differs between two runs of the same scenario and seed)
+    /// and the contract version (a new contract with the same content digests the same).
     fn fold_digest(&self, digest: &mut xxhash_rust::xxh3::Xxh3) {
         let mut copy = *self;
         copy.meta_mut().send_mono_ns = 0;
+        copy.meta_mut().contract_version = 0;
         digest.update(bytemuck::bytes_of(&copy));
     }
 }
@@ -257,6 +259,7 @@ impl Message for EarthAttitude {
     fn fold_digest(&self, digest: &mut xxhash_rust::xxh3::Xxh3) {
         let mut copy = *self;
         copy.meta.send_mono_ns = 0;
+        copy.meta.contract_version = 0;
         for method in &mut copy.methods {
             method.time_us = 0.0;
         }
