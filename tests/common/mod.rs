@@ -5,6 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use glint::matrix::MatrixReport;
+use glint::report::inversion::{InversionReport, Stage3Report};
 use glint::report::{Report, Results};
 use serde_json::Value;
 
@@ -72,6 +74,56 @@ pub fn run_ok(scenario: Option<&Path>, dir: &Path, extra: &[&str]) -> RunResult 
         String::from_utf8_lossy(&r.output.stderr)
     );
     r
+}
+
+/// `glint run` of a `[matrix]` scenario: its output and its `report.json`, read through
+/// glint's [`MatrixReport`] (a matrix's report is not a run's [`Report`]).
+pub fn run_matrix(scenario: &Path, dir: &Path, extra: &[&str]) -> (Output, MatrixReport) {
+    let output = glint()
+        .arg("run")
+        .arg(scenario)
+        .arg("--out")
+        .arg(dir)
+        .args(extra)
+        .output()
+        .expect("spawning glint");
+    let path = dir.join("report.json");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| {
+        panic!(
+            "no report.json ({e}); stderr:\n{}",
+            String::from_utf8_lossy(&output.stderr)
+        )
+    });
+    let report = serde_json::from_str(&text).unwrap_or_else(|e| {
+        panic!(
+            "{} does not read as glint's MatrixReport: {e}",
+            path.display()
+        )
+    });
+    (output, report)
+}
+
+/// A run's `report.json` at `path`, read through glint's [`Report`] (panics with the path if
+/// missing or not a report).
+pub fn read_report(path: &Path) -> Report {
+    Report::read(path).unwrap_or_else(|e| panic!("{e:#}"))
+}
+
+/// The attitude solve's section of a report ([000]); panics without one.
+pub fn inversion(report: &Report) -> &InversionReport {
+    report
+        .results
+        .inversion
+        .as_ref()
+        .expect("no inversion section in the report")
+}
+
+/// Stage 3 of the attitude solve (glint's answer); panics without one.
+pub fn stage3(report: &Report) -> &Stage3Report {
+    inversion(report)
+        .stage3
+        .as_ref()
+        .expect("no stage3 in the report's inversion section")
 }
 
 /// The JSON file at `path` (panics with the path if missing or malformed).
