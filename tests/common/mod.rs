@@ -261,12 +261,12 @@ pub fn png_size(path: &Path) -> (u32, u32) {
 }
 
 /// The `ending` of service `name` in a report (`shutdown`, `sigkill`, …).
-pub fn ending<'a>(report: &'a Value, name: &str) -> &'a str {
-    report["services"]
-        .as_array()
-        .unwrap()
+pub fn ending<'a>(report: &'a Report, name: &str) -> &'a str {
+    report
+        .results
+        .services
         .iter()
-        .find(|s| s["name"] == name)
-        .and_then(|s| s["ending"].as_str())
+        .find(|s| s.name == name)
+        .map(|s| s.ending.as_str())
         .unwrap_or_else(|| panic!("no service {name} in the report"))
 }
