@@ -35,8 +35,6 @@ pub fn temp_dir(tag: &str) -> PathBuf {
 pub struct RunResult {
     pub output: Output,
     pub dir: PathBuf,
-    /// `report.json` as JSON (what a script without glint's types sees).
-    pub report: Value,
     /// `report.json` read through glint's types.
     pub typed: Report,
 }
@@ -59,7 +57,6 @@ pub fn run(scenario: Option<&Path>, dir: &Path, extra: &[&str]) -> RunResult {
     RunResult {
         output,
         dir: dir.to_path_buf(),
-        report: serde_json::from_str(&text).unwrap(),
         typed: serde_json::from_str(&text)
             .unwrap_or_else(|e| panic!("report.json does not read as glint's Report: {e}")),
     }
