@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{glint, read_json, temp_dir, Svg};
+use common::{glint, read_json, read_report, temp_dir, Svg};
 
 #[test]
 fn bench_ipc_measures_every_transport_and_size() {
@@ -123,8 +123,8 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
     assert!(f(&p["fps"]) > 0.0 && f(&p["in_process_fps"]) > 0.0, "{p}");
     let ratio = f(&p["fps"]) / f(&p["in_process_fps"]);
     assert!((f(&p["speedup"]) - ratio).abs() < 1e-9 * ratio, "{p}");
-    let report = read_json(&dir.join("run").join("report.json"));
-    let wall_s = f(&report["timing"]["wall_s"]);
+    let report = read_report(&dir.join("run").join("report.json"));
+    let wall_s = report.timing.wall_s;
     for stage in ["sensor", "detector", "tracker", "orchestrator"] {
         let s = &p["stages"][stage];
         let cpu = f(&s["cpu_s"]);
@@ -135,15 +135,22 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
         assert!(f(&s["p50_us"]) <= f(&s["p99_us"]), "{stage}: {s}");
     }
     for stage in ["detect", "track", "end_to_end"] {
-        let l = &report["timing"]["stage_latency_us"][stage];
-        assert_eq!(l["count"], 30, "{stage}: {l}");
+        let l = report.timing.stage_latency_us.get(stage);
+        assert_eq!(
+            l.and_then(|l| l.as_ref()).map(|l| l.count),
+            Some(30),
+            "{stage}: {l:?}"
+        );
     }
     // Where each process's time went: awake or asleep from before Start to after the last
     // result, so the three cover the production and fit in the run; busy's parts fit in busy;
     // and the kernel's CPU count (/proc, independent of the timers) fits in the awake time
     // (plus the start-up before the timers run).
-    let production_s = f(&report["timing"]["production_s"]);
-    assert_eq!(p["time_s"], report["timing"]["time_s"]);
+    let production_s = report.timing.production_s;
+    assert_eq!(
+        p["time_s"],
+        serde_json::to_value(&report.timing.time_s).unwrap()
+    );
     for name in ["sensor", "detector", "tracker"] {
         let t = &p["time_s"][name];
         let busy = f(&t["busy_s"]);

@@ -5,6 +5,13 @@
 mod common;
 
 use common::*;
+use serde_json::Value;
+
+/// A figure of campaign.json (not a typed file) as the report's type holds it: `None` for
+/// `null`, and anything else than a number or `null` is an error.
+fn opt_f64(v: &Value) -> Option<f64> {
+    serde_json::from_value(v.clone()).unwrap_or_else(|e| panic!("not a number: {v}: {e}"))
+}
 
 #[test]
 fn a_campaign_runs_one_deployment_per_value_and_tabulates_them() {
@@ -17,14 +24,12 @@ fn a_campaign_runs_one_deployment_per_value_and_tabulates_them() {
     for (i, r) in rows.iter().enumerate() {
         assert_eq!(r["success"], true, "{r}");
         // Each value ran as its own deployment with its own report.
-        let sub = read_json(&dir.join(format!("{i:02}/report.json")));
+        let sub = read_report(&dir.join(format!("{i:02}/report.json")));
+        let s3 = stage3(&sub);
+        assert_eq!(s3.err_paper_metric, opt_f64(&r["joint_err_paper_metric"]));
         assert_eq!(
-            sub["inversion"]["stage3"]["err_paper_metric"],
-            r["joint_err_paper_metric"]
-        );
-        assert_eq!(
-            sub["inversion"]["stage3"]["lambda_star"]["err_paper_metric"],
-            r["err_paper_metric"]
+            s3.lambda_star.err_paper_metric,
+            opt_f64(&r["err_paper_metric"])
         );
     }
     let md = std::fs::read_to_string(dir.join("summary.md")).unwrap();
@@ -50,13 +55,14 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
     let mc = &c["rows"][0]["monte_carlo"];
     assert_eq!(mc["runs"], 3);
     // Every run is its own deployment: the noise-free reference and seeds 1000..=1002.
-    let reference = read_json(&root.join("00/reference/report.json"));
-    assert!(reference["inversion"]["windows"]["snr"].is_null());
+    let reference = read_report(&root.join("00/reference/report.json"));
+    assert!(inversion(&reference).windows.snr.is_none());
     for k in 0..3 {
-        let run = read_json(&root.join(format!("00/s{k:03}/report.json")));
-        assert_eq!(run["inversion"]["windows"]["snr"], 20.0);
-        assert_eq!(run["seed"], 1000 + k);
-        assert!(run["inversion"]["stage3"]["widest_lobe_refit"].is_boolean());
+        let run = read_report(&root.join(format!("00/s{k:03}/report.json")));
+        assert_eq!(inversion(&run).windows.snr, Some(20.0));
+        assert_eq!(run.results.seed, 1000 + k);
+        // Stage 3 is there, and says (a bool, by its type) whether it re-fitted the widest lobe.
+        let _: bool = stage3(&run).widest_lobe_refit;
     }
     // Each run is measured from the noise-free solution of the lobe model it reported.
     assert!(
@@ -67,19 +73,20 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
     // attached. At one band σ = mean/SNR scales the whole cost by a constant, so the minimum
     // is the service's noise-free answer (to rounding); so is the joint one here, where the
     // two-facet body leaves no mismatch for the weights to act on.
+    let reference_s3 = stage3(&reference);
     for (fit, service) in [
-        ("single", &reference["inversion"]["stage3"]["lambda_star"]),
-        ("joint", &reference["inversion"]["stage3"]),
+        ("single", reference_s3.lambda_star.p_deg_per_frame),
+        ("joint", reference_s3.p_deg_per_frame),
     ] {
         let gap = (0..3)
             .map(|i| {
                 let a = mc[fit]["p0_deg_per_frame"][i].as_f64().unwrap();
-                let b = service["p_deg_per_frame"][i].as_f64().unwrap();
+                let b = service.unwrap()[i];
                 (a - b).powi(2)
             })
             .sum::<f64>()
             .sqrt();
-        assert!(gap < 1e-9, "{fit}: p₀ {} against {}", mc[fit], service);
+        assert!(gap < 1e-9, "{fit}: p₀ {} against {service:?}", mc[fit]);
     }
     for fit in ["single", "joint"] {
         let e = &mc[fit];
@@ -126,8 +133,8 @@ fn a_monte_carlo_campaign_runs_a_reference_and_the_seeds_and_scores_them() {
         .collect();
     let mean_square = (0..3)
         .map(|k| {
-            let run = read_json(&root.join(format!("00/s{k:03}/report.json")));
-            let p = vec3(&run["inversion"]["stage3"]["lambda_star"]["p_deg_per_frame"]);
+            let run = read_report(&root.join(format!("00/s{k:03}/report.json")));
+            let p = stage3(&run).lambda_star.p_deg_per_frame.unwrap();
             let centre = match copy {
                 Some(c) if dist(p, c) < dist(p, p0) => c,
                 _ => p0,

@@ -105,9 +105,9 @@ fn run_in_process(scenario: &Scenario) -> Chain {
     chain
 }
 
-fn digest_of(report: &serde_json::Value, topic: &str) -> u64 {
-    let hex = report["topics"][topic]["digest_xxh3"]
-        .as_str()
+fn digest_of(report: &glint::report::Report, topic: &str) -> u64 {
+    let hex = (report.results.topics.get(topic))
+        .and_then(|t| t.digest_xxh3.as_deref())
         .unwrap_or_else(|| panic!("no digest for {topic}"));
     u64::from_str_radix(hex, 16).expect("hex digest")
 }
@@ -128,7 +128,7 @@ fn cores_in_process_reproduce_the_deployment_byte_for_byte() {
 
     let dir = common::temp_dir("cores");
     let run = common::run_ok(Some(&path), &dir, &[]);
-    let report = &run.report;
+    let report = &run.typed;
     assert_eq!(
         digest_of(report, "detections"),
         chain.detections_digest,

@@ -9,39 +9,30 @@ use common::*;
 fn debris_scenario_meets_its_targets_across_processes() {
     let dir = temp_dir("debris");
     let r = run_ok(Some(&scenario("debris-geo.toml")), &dir, &[]);
-    let rep = &r.report;
-    let names: Vec<&str> = rep["services"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["name"].as_str().unwrap())
-        .collect();
+    let rep = &r.typed.results;
+    let names: Vec<&str> = rep.services.iter().map(|s| s.name.as_str()).collect();
     assert_eq!(names, ["sensor", "detector", "tracker"]);
     for t in ["frame", "detections", "tracks", "truth"] {
-        assert_eq!(rep["topics"][t]["published"], 50, "{t}");
+        assert_eq!(rep.topics[t].published, Some(50), "{t}");
     }
-    let d = &rep["detection"];
-    assert_eq!(d["precision"], 1.0, "{d}");
-    assert_eq!(d["recall"], 1.0, "{d}");
-    assert_eq!(d["false_targets"], 2);
-    assert_eq!(d["false_targets_rejected"], 2);
-    let targets = rep["tracking"]["targets"].as_array().unwrap();
+    let d = rep.detection.as_ref().expect("a detection score");
+    assert_eq!(d.precision, 1.0, "{d:?}");
+    assert_eq!(d.recall, 1.0, "{d:?}");
+    assert_eq!(d.false_targets, 2);
+    assert_eq!(d.false_targets_rejected, 2);
+    let targets = &rep.tracking.as_ref().expect("a tracking score").targets;
     assert_eq!(targets.len(), 4, "all four debris");
     for t in targets {
-        let f = |k: &str| {
-            t[k].as_f64()
-                .unwrap_or_else(|| panic!("{k} missing in {t}"))
-        };
-        assert!(t["track_id"].is_u64(), "{t}");
-        assert!(f("frames_tracked") >= 48.0, "{t}");
-        assert!(f("azimuth_err_deg_rms_filtered") <= 1e-3, "{t}");
-        assert!(f("elevation_err_deg_rms_filtered") <= 1e-3, "{t}");
-        assert!(f("pos_err_m_final") <= 0.5, "{t}");
-        assert!(f("vel_err_mps_final") <= 0.5, "{t}");
+        assert!(t.track_id.is_some(), "{t:?}");
+        assert!(t.frames_tracked >= 48, "{t:?}");
+        assert!(t.azimuth_err_deg_rms_filtered <= 1e-3, "{t:?}");
+        assert!(t.elevation_err_deg_rms_filtered <= 1e-3, "{t:?}");
+        assert!(t.pos_err_m_final <= 0.5, "{t:?}");
+        assert!(t.vel_err_mps_final <= 0.5, "{t:?}");
         // The filter's consistency (NEES against χ²) is asserted over 50 seeds in tests/nees.rs.
         assert!(
-            f("laser_hits") >= 0.9 * f("laser_shots") && f("laser_shots") >= 40.0,
-            "{t}"
+            t.laser_hits as f64 >= 0.9 * t.laser_shots as f64 && t.laser_shots >= 40,
+            "{t:?}"
         );
     }
     // Every measurement reaches its filter: none is skipped (the mid-exposure angles and the
@@ -70,10 +61,7 @@ fn debris_scenario_meets_its_targets_across_processes() {
     }
     assert_eq!(angles.count("circle"), 4 * 50, "a dot per track and frame");
     // The EKF starts at a track's second fix: a dot per tracked frame after the first.
-    let ekf_frames: u64 = targets
-        .iter()
-        .map(|t| t["frames_tracked"].as_u64().unwrap() - 1)
-        .sum();
+    let ekf_frames: u64 = targets.iter().map(|t| t.frames_tracked - 1).sum();
     assert_eq!(
         ekf.count("circle") as u64,
         ekf_frames,

@@ -64,12 +64,7 @@ fn same_seed_gives_identical_results_and_another_seed_differs() {
     let ja = serde_json::to_string_pretty(deterministic_part(&a.typed)).unwrap();
     let jb = serde_json::to_string_pretty(deterministic_part(&b.typed)).unwrap();
     assert_eq!(ja.as_bytes(), jb.as_bytes());
-    let digest = |r: &RunResult, t: &str| {
-        r.report["topics"][t]["digest_xxh3"]
-            .as_str()
-            .unwrap()
-            .to_string()
-    };
+    let digest = |r: &RunResult, t: &str| r.typed.results.topics[t].digest_xxh3.clone().unwrap();
     // Another seed: different noise in frames and spectra, same truth (truth has no noise).
     assert_ne!(digest(&a, "frame"), digest(&c, "frame"));
     assert_eq!(digest(&a, "truth"), digest(&c, "truth"));
@@ -95,17 +90,17 @@ fn realtime_clock_accounts_for_every_frame() {
     // The run must succeed (every message accounted for), and every consumer of the frames —
     // the detector too, not only the orchestrator — received or dropped each one with a reason.
     let r = run_ok(Some(&file), &dir.join("out"), &[]);
-    assert_eq!(r.report["success"], true);
-    assert_eq!(r.report["scenario"]["clock"], "realtime");
-    let f = &r.report["topics"]["frame"];
-    assert_eq!(f["published"], 25);
+    assert!(r.typed.results.success);
+    assert_eq!(r.typed.results.scenario.clock, "realtime");
+    let f = &r.typed.results.topics["frame"];
+    assert_eq!(f.published, Some(25));
     for name in ["orchestrator", "detector"] {
-        let c = &f["consumers"][name];
-        assert_eq!(c["accounted"], true, "{name}: {c}");
+        let c = &f.consumers[name];
+        assert!(c.accounted, "{name}: {c:?}");
         assert_eq!(
-            c["received"].as_u64().unwrap() + c["dropped"].as_u64().unwrap(),
+            c.received.unwrap() + c.dropped.unwrap(),
             25,
-            "{name}: {c}"
+            "{name}: {c:?}"
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
@@ -133,8 +128,8 @@ fn runs_started_together_get_their_own_directories() {
         assert_success(&out);
         let summary = String::from_utf8_lossy(&out.stdout).trim().to_string();
         let run_dir = dir.join(std::path::Path::new(&summary).parent().unwrap());
-        let report = read_json(&run_dir.join("report.json"));
-        assert_eq!(report["seed"], seed, "{}", run_dir.display());
+        let report = read_report(&run_dir.join("report.json"));
+        assert_eq!(report.results.seed, seed, "{}", run_dir.display());
         seen.push(run_dir);
     }
     assert_ne!(seen[0], seen[1]);
@@ -166,7 +161,7 @@ fn out_into_a_previous_run_needs_force_and_leaves_nothing_of_it() {
         !out.join("stale.txt").exists(),
         "the previous run's files are gone"
     );
-    assert_eq!(r.report["success"], true);
+    assert!(r.typed.results.success);
     let other = dir.join("not-a-run");
     std::fs::create_dir_all(&other).unwrap();
     std::fs::write(other.join("notes.txt"), "mine").unwrap();

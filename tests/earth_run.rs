@@ -6,16 +6,36 @@
 mod common;
 
 use common::*;
-use serde_json::Value;
+use glint::report::earth::{EarthReport, IntervalReport, MethodReport};
+use glint::report::Report;
 
 const METHODS: [&str; 3] = ["cross_product", "lookup", "hough"];
 
-fn f(v: &Value) -> f64 {
-    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+/// A figure of the report, which must be there.
+fn f(v: Option<f64>) -> f64 {
+    v.unwrap_or_else(|| panic!("not a number: {v:?}"))
 }
 
-fn interval<'a>(report: &'a Value, method: &str, name: &str) -> &'a Value {
-    &report["earth"]["methods"][method][name]
+fn earth(report: &Report) -> &EarthReport {
+    report.results.earth.as_ref().expect("no earth section")
+}
+
+fn method<'a>(report: &'a Report, method: &str) -> &'a MethodReport {
+    earth(report)
+        .methods
+        .get(method)
+        .unwrap_or_else(|| panic!("no method {method}"))
+}
+
+/// One interval of a method's errors, by its name in report.json.
+fn interval<'a>(report: &'a Report, m: &str, name: &str) -> &'a IntervalReport {
+    let m = method(report, m);
+    match name {
+        "within_10" => &m.within_10,
+        "10_to_40" => &m.from_10_to_40,
+        "40_to_50" => &m.from_40_to_50,
+        _ => panic!("no interval {name}"),
+    }
 }
 
 /// The shipped scenario with its σ table named by absolute path (a variant lives elsewhere).
@@ -32,32 +52,32 @@ fn the_turntable_sweep_deployed_accounts_for_every_frame_and_ranks_the_methods()
     let dir = temp_dir("earth-run");
     let file = scenario("earth-sensor-turntable.toml");
     let r = run_ok(Some(&file), &dir.join("a"), &[]);
-    let rep = &r.report;
-    assert_eq!(rep["success"], true, "{rep}");
-    assert_eq!(rep["accounting"]["invariant_held"], true);
+    let rep = &r.typed;
+    assert!(rep.results.success, "{rep:?}");
+    assert!(rep.results.accounting.invariant_held);
     // 281 angles × 2 images, every one received by each consumer and answered.
     let frames = 281 * 2;
     for topic in ["earth_frame", "earth_attitude"] {
-        let t = &rep["topics"][topic];
-        assert_eq!(t["expected"], frames, "{topic}: {t}");
-        assert_eq!(t["published"], frames, "{topic}: {t}");
-        for (name, c) in t["consumers"].as_object().unwrap() {
-            assert_eq!(c["received"], frames, "{topic} → {name}: {c}");
-            assert_eq!(c["dropped"], 0, "{topic} → {name}: {c}");
+        let t = &rep.results.topics[topic];
+        assert_eq!(t.expected, frames, "{topic}: {t:?}");
+        assert_eq!(t.published, Some(frames), "{topic}: {t:?}");
+        for (name, c) in &t.consumers {
+            assert_eq!(c.received, Some(frames), "{topic} → {name}: {c:?}");
+            assert_eq!(c.dropped, Some(0), "{topic} → {name}: {c:?}");
         }
     }
-    assert_eq!(rep["earth"]["frames"], frames);
+    assert_eq!(earth(rep).frames, frames);
     // The sweep's angles per interval: 201 within ±10°, 2 × 30 in 10–40°, 2 × 10 in 40–50°.
     for m in METHODS {
         for (name, n) in [("within_10", 402), ("10_to_40", 120), ("40_to_50", 40)] {
-            assert_eq!(interval(rep, m, name)["frames"], n, "{m} {name}");
+            assert_eq!(interval(rep, m, name).frames, n, "{m} {name}");
         }
-        assert_eq!(rep["earth"]["methods"][m]["missed"], 0, "{m}");
+        assert_eq!(method(rep, m).missed, 0, "{m}");
     }
     // Within ±10° the cross product is within the paper's 0.03°. Beyond, the baseline's limb
     // circle is not the fisheye's (math.md §4.7: 40° reads 39.137°) and its error grows to
     // that model bias, while the cross product's does not: at most half the baseline's there.
-    let sigma = |m, i| f(&interval(rep, m, i)["err_sigma_deg"]);
+    let sigma = |m, i| f(interval(rep, m, i).err_sigma_deg);
     let cross = sigma("cross_product", "within_10");
     assert!(cross <= 0.03, "cross product σ {cross}° within ±10°");
     for i in ["10_to_40", "40_to_50"] {
@@ -65,13 +85,13 @@ fn the_turntable_sweep_deployed_accounts_for_every_frame_and_ranks_the_methods()
         assert!(c <= 0.5 * h, "{i}: cross product σ {c}° vs Hough {h}°");
     }
     // The baseline's error above 40° is the model's bias: 0.86°–1.2° (math.md §4.7).
-    let hough_max = f(&interval(rep, "hough", "40_to_50")["err_max_deg"]);
+    let hough_max = f(interval(rep, "hough", "40_to_50").err_max_deg);
     assert!(
         (0.8..1.5).contains(&hough_max),
         "Hough max error above 40°: {hough_max}°"
     );
     // No jump above 40°: the worst error there stays within a few σ of the mid range's.
-    let max = |m, i| f(&interval(rep, m, i)["err_max_deg"]);
+    let max = |m, i| f(interval(rep, m, i).err_max_deg);
     assert!(
         max("cross_product", "40_to_50") < 0.2,
         "cross product max error above 40°: {}",
@@ -151,15 +171,15 @@ fn a_killed_earth_service_is_restarted_and_its_answers_are_unchanged() {
         &dir.join("kill"),
         &["--fault", "earth:kill@8"],
     );
-    let fault = &r.report["faults"][0];
-    assert_eq!(fault["service"], "earth", "{fault}");
-    assert_eq!(fault["restarts"], 1, "{fault}");
-    assert_eq!(fault["lost"], 0, "{fault}");
-    assert_eq!(r.report["science"], clean.report["science"]);
+    let fault = &r.typed.faults[0];
+    assert_eq!(fault.service, "earth", "{fault:?}");
+    assert_eq!(fault.restarts, 1, "{fault:?}");
+    assert_eq!(fault.lost, Some(0), "{fault:?}");
+    assert_eq!(r.typed.results.science, clean.typed.results.science);
     // Every method's answers, interval by interval (their compute times are in `timing`).
     assert_eq!(r.typed.results.earth, clean.typed.results.earth);
     assert!(r.typed.results.earth.is_some());
-    assert_eq!(r.report["topics"]["earth_attitude"]["expected"], 20);
+    assert_eq!(r.typed.results.topics["earth_attitude"].expected, 20);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

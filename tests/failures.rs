@@ -51,30 +51,29 @@ fn a_killed_service_fails_the_run_with_a_consistent_report() {
     kill_process(pid, Signal::KILL).expect("SIGKILL");
     let status = wait_for_exit(&mut run, Duration::from_secs(120));
     assert_eq!(status.code(), Some(1));
-    let report = read_json(&out.join("report.json"));
-    assert_eq!(report["success"], false);
-    let failure = report["failure"].as_str().unwrap_or_default();
+    let report = read_report(&out.join("report.json"));
+    assert!(!report.results.success);
+    let failure = report.results.failure.as_deref().unwrap_or_default();
     assert!(
         failure.contains("detector") && failure.contains("SIGKILL"),
         "{failure}"
     );
-    for (topic, t) in report["topics"].as_object().unwrap() {
-        let published = t["published"].as_u64();
-        for (name, c) in t["consumers"].as_object().unwrap() {
-            if let (Some(p), Some(r)) = (published, c["received"].as_u64()) {
+    for (topic, t) in &report.results.topics {
+        for (name, c) in &t.consumers {
+            if let (Some(p), Some(r)) = (t.published, c.received) {
                 assert!(p >= r, "{topic}: published {p} < received {r} by {name}");
             }
         }
     }
-    let frames = report["topics"]["frame"]["published"].as_u64().unwrap();
+    let frames = report.results.topics["frame"].published.unwrap();
     assert!(frames > 0 && frames < 20000, "{frames} frames");
-    let timing = &report["timing"];
-    let production_s = timing["production_s"].as_f64().unwrap();
-    let fps = timing["frames_per_s"].as_f64().unwrap();
-    assert!(production_s > 0.3, "{timing}");
+    let timing = &report.timing;
+    let production_s = timing.production_s;
+    let fps = timing.frames_per_s;
+    assert!(production_s > 0.3, "{timing:?}");
     assert!(
         (fps * production_s - frames as f64).abs() <= 1.0,
-        "{timing}, {frames} frames"
+        "{timing:?}, {frames} frames"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -92,13 +91,11 @@ fn a_service_killed_during_startup_leaves_no_node_behind() {
         kill_process(pid, Signal::KILL).expect("SIGKILL");
         let status = wait_for_exit(&mut run, Duration::from_secs(120));
         assert_eq!(status.code(), Some(1), "attempt {attempt}");
-        let report = read_json(&out.join("report.json"));
-        let prefix = report["run"]["prefix"]
-            .as_str()
-            .expect("prefix")
-            .to_string();
-        assert_eq!(report["shared_memory"]["leftover"], serde_json::json!([]));
-        let left = shm_left(&prefix);
+        let report = read_report(&out.join("report.json"));
+        let prefix = &report.run.prefix;
+        let leftover = &report.results.shared_memory.leftover;
+        assert!(leftover.is_empty(), "attempt {attempt}: {leftover:?}");
+        let left = shm_left(prefix);
         assert!(left.is_empty(), "attempt {attempt}: {left:?}");
     }
     let _ = std::fs::remove_dir_all(&dir);
@@ -129,28 +126,30 @@ fn a_hung_service_is_caught_by_the_heartbeat_deadline_and_killed_by_the_ladder()
         took < Duration::from_secs(5),
         "the run took {took:?} to fail"
     );
-    let report = read_json(&out.join("report.json"));
-    assert_eq!(report["success"], false);
-    let failure = report["failure"].as_str().unwrap_or_default();
+    let report = read_report(&out.join("report.json"));
+    assert!(!report.results.success);
+    let failure = report.results.failure.as_deref().unwrap_or_default();
     assert!(
         failure.contains("service detector sent no heartbeat")
             && failure.contains("run.heartbeat_deadline_ms = 400 ms"),
         "{failure}"
     );
-    assert_eq!(ending(&report, "detector"), "sigkill", "{report}");
+    let services = &report.results.services;
+    assert_eq!(ending(&report, "detector"), "sigkill", "{services:?}");
     for name in ["sensor", "tracker"] {
-        assert_eq!(ending(&report, name), "shutdown", "{name}: {report}");
+        assert_eq!(ending(&report, name), "shutdown", "{name}: {services:?}");
     }
-    assert_eq!(report["accounting"]["invariant_held"], false);
-    let frames = &report["topics"]["frame"];
-    assert!(frames["published"].as_u64().unwrap() < 20000, "{frames}");
+    assert!(!report.results.accounting.invariant_held);
+    let frames = &report.results.topics["frame"];
+    assert!(frames.published.unwrap() < 20000, "{frames:?}");
     assert_eq!(
         process_state(pid.as_raw_nonzero().get() as u32),
         None,
         "the detector lives on"
     );
-    assert_eq!(report["shared_memory"]["leftover"], serde_json::json!([]));
-    let prefix = report["run"]["prefix"].as_str().unwrap();
+    let leftover = &report.results.shared_memory.leftover;
+    assert!(leftover.is_empty(), "{leftover:?}");
+    let prefix = &report.run.prefix;
     assert!(shm_left(prefix).is_empty(), "{:?}", shm_left(prefix));
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -167,19 +166,20 @@ fn a_run_past_its_timeout_fails_and_stops_every_service() {
     let status = wait_for_exit(&mut run, Duration::from_secs(60));
     assert_eq!(status.code(), Some(1));
     assert!(t0.elapsed() < Duration::from_secs(20), "{:?}", t0.elapsed());
-    let report = read_json(&out.join("report.json"));
-    let failure = report["failure"].as_str().unwrap_or_default();
+    let report = read_report(&out.join("report.json"));
+    let failure = report.results.failure.as_deref().unwrap_or_default();
     assert!(
         failure.contains("run exceeded run.timeout_s = 1 s"),
         "{failure}"
     );
+    let services = &report.results.services;
     for name in ["sensor", "detector", "tracker"] {
-        assert_eq!(ending(&report, name), "shutdown", "{name}: {report}");
+        assert_eq!(ending(&report, name), "shutdown", "{name}: {services:?}");
     }
-    assert_eq!(report["accounting"]["invariant_held"], false);
-    let published = report["topics"]["frame"]["published"].as_u64().unwrap();
+    assert!(!report.results.accounting.invariant_held);
+    let published = report.results.topics["frame"].published.unwrap();
     assert!(published > 0 && published < 20000, "{published} frames");
-    let production_s = report["timing"]["production_s"].as_f64().unwrap();
+    let production_s = report.timing.production_s;
     assert!(production_s > 0.0 && production_s < 1.0, "{production_s}");
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -198,20 +198,17 @@ fn a_prefix_still_held_at_the_end_fails_the_leftover_check_and_glint_clean_remov
     let holder = glint_runtime::open_node(&prefix, "holder").expect("a node under the prefix");
     let status = wait_for_exit(&mut run, Duration::from_secs(120));
     assert_eq!(status.code(), Some(1));
-    let report = read_json(&out.join("report.json"));
-    assert_eq!(
-        report["shared_memory"]["held_by"],
-        serde_json::json!(["holder"])
-    );
-    let leftover = report["shared_memory"]["leftover"].as_array().unwrap();
-    assert!(!leftover.is_empty(), "{report}");
-    let failure = report["failure"].as_str().unwrap_or_default();
+    let report = read_report(&out.join("report.json"));
+    let shared_memory = &report.results.shared_memory;
+    assert_eq!(shared_memory.held_by, ["holder"]);
+    assert!(!shared_memory.leftover.is_empty(), "{shared_memory:?}");
+    let failure = report.results.failure.as_deref().unwrap_or_default();
     assert!(
         failure.contains("still held by node(s) holder") && failure.contains(&prefix),
         "{failure}"
     );
     // The science itself completed.
-    assert_eq!(report["accounting"]["invariant_held"], true);
+    assert!(report.results.accounting.invariant_held);
     // While the holder lives, `glint clean` leaves the prefix alone.
     let text = |o: std::process::Output| {
         assert!(o.status.success(), "{o:?}");
@@ -300,12 +297,16 @@ fn sighup_ends_a_run_cleanly() {
     kill_process(pid, Signal::HUP).expect("SIGHUP");
     let status = wait_for_exit(&mut run, Duration::from_secs(30));
     assert_eq!(status.code(), Some(1));
-    let report = read_json(&out.join("report.json"));
-    assert_eq!(report["failure"], "interrupted by a signal");
+    let report = read_report(&out.join("report.json"));
+    assert_eq!(
+        report.results.failure.as_deref(),
+        Some("interrupted by a signal")
+    );
+    let services = &report.results.services;
     for name in ["sensor", "detector", "tracker"] {
-        assert_eq!(ending(&report, name), "shutdown", "{name}: {report}");
+        assert_eq!(ending(&report, name), "shutdown", "{name}: {services:?}");
     }
-    let prefix = report["run"]["prefix"].as_str().unwrap();
+    let prefix = &report.run.prefix;
     assert!(shm_left(prefix).is_empty(), "{:?}", shm_left(prefix));
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -333,8 +334,8 @@ fn a_stranger_joining_a_deployment_as_a_service_fails_the_run_and_is_named() {
     );
     let status = wait_for_exit(&mut run, Duration::from_secs(60));
     assert_eq!(status.code(), Some(1));
-    let report = read_json(&out.join("report.json"));
-    let failure = report["failure"].as_str().unwrap_or_default();
+    let report = read_report(&out.join("report.json"));
+    let failure = report.results.failure.as_deref().unwrap_or_default();
     let stranger_pid = stranger.0.id();
     assert!(
         failure.contains(&format!(
@@ -342,12 +343,11 @@ fn a_stranger_joining_a_deployment_as_a_service_fails_the_run_and_is_named() {
         )),
         "{failure}"
     );
-    let strangers = report["membership"]["strangers"].as_array().unwrap();
+    let strangers = &report.membership.strangers;
     let role = |name: &str| {
-        strangers
-            .iter()
-            .find(|s| s["name"] == name)
-            .map(|s| s["role"].as_str().unwrap().to_string())
+        (strangers.iter())
+            .find(|s| s.name == name)
+            .map(|s| s.role.clone())
     };
     assert_eq!(
         role("detector").as_deref(),

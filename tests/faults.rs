@@ -7,60 +7,61 @@
 
 mod common;
 
-use common::*;
-use serde_json::{json, Value};
+use std::collections::BTreeMap;
 
-fn fault(report: &Value) -> &Value {
-    let faults = report["faults"].as_array().expect("faults[]");
+use common::*;
+use glint::report::{FaultReport, Report};
+
+fn fault(report: &Report) -> &FaultReport {
+    let faults = &report.faults;
     assert_eq!(faults.len(), 1, "{faults:?}");
     &faults[0]
 }
 
-fn secs(v: &Value, key: &str) -> f64 {
-    v[key]
-        .as_f64()
-        .unwrap_or_else(|| panic!("{key} missing in {v}"))
+/// A time of the fault's record [s], which must be there.
+fn secs(v: Option<f64>, what: &str, f: &FaultReport) -> f64 {
+    v.unwrap_or_else(|| panic!("{what} missing in {f:?}"))
 }
 
 /// What two runs of the same scenario and seed must share whatever faults they survived: the
 /// science digest, the science sections, and every topic's content and counts (not the
 /// duplicates a replay brings).
-fn science(report: &Value) -> Value {
-    let mut topics = serde_json::Map::new();
-    for (name, t) in report["topics"].as_object().unwrap() {
-        let consumers: serde_json::Map<String, Value> = t["consumers"]
-            .as_object()
-            .unwrap()
-            .iter()
-            .map(|(c, v)| (c.clone(), json!([v["received"], v["dropped"]])))
-            .collect();
-        topics.insert(
-            name.clone(),
-            json!([t["digest_xxh3"], t["published"], consumers]),
-        );
-    }
-    json!({
-        "science": report["science"],
-        "detection": report["detection"],
-        "tracking": report["tracking"],
-        "inversion": report["inversion"],
-        "laser_shots": report["laser"]["shots"],
-        "topics": topics,
-    })
+fn science(report: &Report) -> impl PartialEq + std::fmt::Debug + '_ {
+    let r = &report.results;
+    let topics: BTreeMap<&str, _> = r
+        .topics
+        .iter()
+        .map(|(name, t)| {
+            let consumers: BTreeMap<&str, _> = t
+                .consumers
+                .iter()
+                .map(|(c, v)| (c.as_str(), (v.received, v.dropped)))
+                .collect();
+            (name.as_str(), (&t.digest_xxh3, t.published, consumers))
+        })
+        .collect();
+    (
+        &r.science,
+        &r.detection,
+        &r.tracking,
+        &r.inversion,
+        r.laser.shots,
+        topics,
+    )
 }
 
 /// A fault that supervision noticed and recovered from by one restart, within the targets:
 /// noticed < 0.5 s after injection, recovered < 2 s after the fault ended, nothing lost.
-fn assert_recovered(f: &Value, detected_by: &str) {
-    assert_eq!(f["detected_by"], detected_by, "{f}");
-    assert_eq!(f["restarts"], 1, "{f}");
-    assert_eq!(f["lost"], 0, "{f}");
-    assert_eq!(f["invariant_held"], true, "{f}");
-    let ended = secs(f, "ended_s");
-    let recovered = secs(f, "recovered_s") - ended;
+fn assert_recovered(f: &FaultReport, detected_by: &str) {
+    assert_eq!(f.detected_by.as_deref(), Some(detected_by), "{f:?}");
+    assert_eq!(f.restarts, 1, "{f:?}");
+    assert_eq!(f.lost, Some(0), "{f:?}");
+    assert!(f.invariant_held, "{f:?}");
+    let ended = secs(f.ended_s, "ended_s", f);
+    let recovered = secs(f.recovered_s, "recovered_s", f) - ended;
     assert!(
         (0.0..2.0).contains(&recovered),
-        "recovered {recovered} s after: {f}"
+        "recovered {recovered} s after: {f:?}"
     );
 }
 
@@ -73,24 +74,24 @@ fn a_stop_shorter_than_the_heartbeat_deadline_holds_the_chain_and_changes_nothin
         &dir.join("stopped"),
         &["--fault", "detector:stop@10,duration_s=0.4"],
     );
-    let f = fault(&r.report);
-    assert_eq!(f["service"], "detector");
-    assert_eq!(f["kind"], "stop");
+    let f = fault(&r.typed);
+    assert_eq!(f.service, "detector");
+    assert_eq!(f.kind, "stop");
     let (injected, ended, recovered) = (
-        secs(f, "injected_s"),
-        secs(f, "ended_s"),
-        secs(f, "recovered_s"),
+        secs(f.injected_s, "injected_s", f),
+        secs(f.ended_s, "ended_s", f),
+        secs(f.recovered_s, "recovered_s", f),
     );
-    assert!(ended - injected >= 0.4 && ended - injected < 0.5, "{f}");
-    assert!(recovered >= ended && recovered - ended < 0.5, "{f}");
+    assert!(ended - injected >= 0.4 && ended - injected < 0.5, "{f:?}");
+    assert!(recovered >= ended && recovered - ended < 0.5, "{f:?}");
     // Shorter than the 5 s deadline: tolerated, not detected.
-    assert!(f["detected_s"].is_null(), "{f}");
-    assert_eq!(f["lost"], 0);
-    assert_eq!(f["invariant_held"], true);
+    assert!(f.detected_s.is_none(), "{f:?}");
+    assert_eq!(f.lost, Some(0));
+    assert!(f.invariant_held);
     // The stopped detector held the sensor back by credit: production lasted the stop.
-    let production_s = r.report["timing"]["production_s"].as_f64().unwrap();
+    let production_s = r.typed.timing.production_s;
     assert!(production_s >= 0.4, "production {production_s} s");
-    assert_eq!(science(&r.report), science(&clean.report));
+    assert_eq!(science(&r.typed), science(&clean.typed));
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -111,30 +112,25 @@ fn a_killed_service_is_restarted_and_the_science_is_that_of_the_fault_free_run()
         let service = spec.split(':').next().unwrap();
         let out = dir.join(service);
         let r = run_ok(Some(&scenario("default.toml")), &out, &["--fault", spec]);
-        let f = fault(&r.report);
-        assert_eq!(f["service"], service);
+        let f = fault(&r.typed);
+        assert_eq!(f.service, service);
         assert_recovered(f, "exit");
-        let latency = secs(f, "detected_s") - secs(f, "injected_s");
+        let latency = secs(f.detected_s, "detected_s", f) - secs(f.injected_s, "injected_s", f);
         assert!(
             (0.0..0.5).contains(&latency),
             "{spec}: detected {latency} s after"
         );
-        assert_eq!(science(&r.report), science(&clean.report), "{spec}");
-        let restarted = r.report["services"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|s| s["name"] == service)
+        assert_eq!(science(&r.typed), science(&clean.typed), "{spec}");
+        let restarted = (r.typed.results.services.iter())
+            .find(|s| s.name == service)
             .unwrap();
-        assert_eq!(restarted["restarts"], 1, "{spec}");
+        assert_eq!(restarted.restarts, 1, "{spec}");
         // The replay happened: it reached someone who already had those messages (counted,
         // not received), or, when a consumer's queue kept only the newest of the burst (safe
         // overflow drops the copies it already holds), the producer logged the rewind.
-        let duplicates: u64 = r.report["topics"][replayed]["consumers"]
-            .as_object()
-            .unwrap()
-            .values()
-            .map(|c| c["duplicates"].as_u64().unwrap())
+        let topic = &r.typed.results.topics[replayed];
+        let duplicates: u64 = (topic.consumers.values())
+            .map(|c| c.duplicates.unwrap())
             .sum();
         let read_log = |name: &str| {
             std::fs::read_to_string(out.join("logs").join(format!("{name}.log"))).unwrap()
@@ -142,8 +138,7 @@ fn a_killed_service_is_restarted_and_the_science_is_that_of_the_fault_free_run()
         let rewind = format!("replay consumer=\"{service}\" topic=\"{replayed}\"");
         assert!(
             duplicates > 0 || (producer != service && read_log(producer).contains(&rewind)),
-            "{spec}: {}",
-            r.report["topics"][replayed]
+            "{spec}: {topic:?}"
         );
         let log = read_log(service);
         assert!(log.contains("--- restart 1 ---"), "{spec}: {log}");
@@ -181,17 +176,23 @@ fn a_stop_past_the_heartbeat_deadline_is_detected_by_it_and_restarted() {
         &dir,
     );
     let r = run_ok(Some(&file), &dir.join("out"), &[]);
-    let f = fault(&r.report);
+    let f = fault(&r.typed);
     assert_recovered(f, "heartbeat deadline");
-    let latency = secs(f, "detected_s") - secs(f, "injected_s");
+    let detected = secs(f.detected_s, "detected_s", f);
+    let latency = detected - secs(f.injected_s, "injected_s", f);
     // The deadline runs from the last heartbeat heard, up to one period before the stop and
     // another period earlier when a loaded machine delays that heartbeat (so ≥ 300 − 2·50 ms);
     // at most the deadline plus the target's 0.1 s and a supervision tick's margin.
     assert!((0.2..0.5).contains(&latency), "detected {latency} s after");
     // The stop ended when supervision killed it, long before its 30 s.
-    assert_eq!(secs(f, "ended_s"), secs(f, "detected_s"), "{f}");
-    assert_eq!(science(&r.report), science(&clean.report));
-    assert_eq!(ending(&r.report, "tracker"), "shutdown", "{}", r.report);
+    assert_eq!(secs(f.ended_s, "ended_s", f), detected, "{f:?}");
+    assert_eq!(science(&r.typed), science(&clean.typed));
+    assert_eq!(
+        ending(&r.typed, "tracker"),
+        "shutdown",
+        "{:?}",
+        r.typed.results.services
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -211,30 +212,26 @@ fn without_restarts_a_killed_service_fails_the_run_naming_the_rule() {
     let out = dir.join("out");
     let r = run(Some(&file), &out, &["--fault", "detector:kill@10"]);
     assert_eq!(r.output.status.code(), Some(1));
-    let failure = r.report["failure"].as_str().unwrap();
+    let failure = r.typed.results.failure.as_deref().unwrap();
     assert!(
         failure.contains("service detector exited unexpectedly")
             && failure.contains("(injected fault: detector:kill@10)")
             && failure.contains("not restarted: supervision.restart = \"never\""),
         "{failure}"
     );
-    let f = fault(&r.report);
-    assert_eq!(f["detected_by"], "exit");
-    assert!(f["recovered_s"].is_null(), "{f}");
-    assert_eq!(f["restarts"], 0);
+    let f = fault(&r.typed);
+    assert_eq!(f.detected_by.as_deref(), Some("exit"));
+    assert!(f.recovered_s.is_none(), "{f:?}");
+    assert_eq!(f.restarts, 0);
     // Lost: frames published to the detector that it never took.
-    let frames = &r.report["topics"]["frame"];
-    let taken = frames["consumers"]["detector"]["received"]
-        .as_u64()
+    let frames = &r.typed.results.topics["frame"];
+    let taken = (frames.consumers.get("detector"))
+        .and_then(|c| c.received)
         .unwrap_or(0);
-    let lost = f["lost"].as_u64().unwrap();
-    assert_eq!(
-        lost,
-        frames["published"].as_u64().unwrap() - taken,
-        "{frames}"
-    );
-    assert!(lost > 0, "{frames}");
-    assert_eq!(f["invariant_held"], false);
+    let lost = f.lost.unwrap();
+    assert_eq!(lost, frames.published.unwrap() - taken, "{frames:?}");
+    assert!(lost > 0, "{frames:?}");
+    assert!(!f.invariant_held);
     // Two kills against a budget of one restart.
     let file = scenario_variant(
         "debris-geo.toml",
@@ -250,7 +247,7 @@ fn without_restarts_a_killed_service_fails_the_run_naming_the_rule() {
         &["--fault", "tracker:kill@10", "--fault", "tracker:kill@30"],
     );
     assert_eq!(r.output.status.code(), Some(1));
-    let failure = r.report["failure"].as_str().unwrap();
+    let failure = r.typed.results.failure.as_deref().unwrap();
     assert!(
         failure.contains("supervision.max_restarts = 1"),
         "{failure}"
@@ -307,38 +304,31 @@ fn a_bad_fault_is_bad_input_naming_the_argument_or_the_field() {
 fn the_fault_matrix_passes_every_invariant() {
     let dir = temp_dir("fault-matrix");
     let out = dir.join("matrix");
-    let r = run(Some(&scenario("faults-matrix.toml")), &out, &[]);
+    let (output, matrix) = run_matrix(&scenario("faults-matrix.toml"), &out, &[]);
     let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
-    assert!(r.output.status.success(), "{summary}");
-    assert_eq!(r.report["success"], true);
-    let cases = r.report["cases"].as_array().unwrap();
+    assert!(output.status.success(), "{summary}");
+    assert!(matrix.success);
+    let cases = &matrix.cases;
     assert_eq!(cases.len(), 24, "{cases:?}");
     for c in cases {
-        assert_eq!(c["passed"], true, "{c}");
+        assert!(c.passed, "{c:?}");
     }
-    let faults = r.report["faults"].as_array().unwrap();
+    let faults = &matrix.faults;
     assert_eq!(faults.len(), 24);
-    for f in faults {
-        let case = f["case"].as_str().unwrap();
-        assert_eq!(
-            case,
-            format!(
-                "{}-{}",
-                f["service"].as_str().unwrap(),
-                f["kind"].as_str().unwrap()
-            )
-        );
-        match f["kind"].as_str().unwrap() {
+    for case_fault in faults {
+        let f = &case_fault.fault;
+        assert_eq!(case_fault.case, format!("{}-{}", f.service, f.kind));
+        match f.kind.as_str() {
             "drop" | "corrupt" => {
-                assert!(f["science_equal"].is_null(), "{f}");
-                assert!(f["injected"].as_u64().unwrap() > 0, "{f}");
-                assert_eq!(f["injected"], f["counted"], "{f}");
+                assert!(f.science_equal.is_none(), "{case_fault:?}");
+                assert!(f.injected.unwrap() > 0, "{case_fault:?}");
+                assert_eq!(f.injected, f.counted, "{case_fault:?}");
             }
-            "delay" => assert_eq!(f["science_equal"], true, "{f}"),
+            "delay" => assert_eq!(f.science_equal, Some(true), "{case_fault:?}"),
             _ => {
-                assert_eq!(f["science_equal"], true, "{f}");
-                assert_eq!(f["restarts"], 1, "{f}");
-                assert_eq!(f["lost"], 0, "{f}");
+                assert_eq!(f.science_equal, Some(true), "{case_fault:?}");
+                assert_eq!(f.restarts, 1, "{case_fault:?}");
+                assert_eq!(f.lost, Some(0), "{case_fault:?}");
             }
         }
     }
@@ -352,10 +342,10 @@ fn the_fault_matrix_passes_every_invariant() {
         assert_eq!(row.matches('✓').count(), 6, "{row}");
     }
     // Each case keeps its own run directory; the baseline's science is what they were held to.
-    let base = read_json(&out.join("baseline").join("report.json"));
-    let kill = read_json(&out.join("tracker-kill").join("report.json"));
-    assert_eq!(base["science"], kill["science"]);
-    assert_eq!(base["faults"], json!([]));
+    let base = read_report(&out.join("baseline").join("report.json"));
+    let kill = read_report(&out.join("tracker-kill").join("report.json"));
+    assert_eq!(base.results.science, kill.results.science);
+    assert!(base.faults.is_empty(), "{:?}", base.faults);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -385,18 +375,15 @@ fn in_band_faults_need_faults_enabled_in_the_scenario() {
         &dir.join("corrupt"),
         &["--fault", "detector:corrupt@10,how=count,count=3"],
     );
-    let f = fault(&r.report);
-    assert_eq!(
-        (f["injected"].as_u64(), f["counted"].as_u64()),
-        (Some(3), Some(3)),
-        "{f}"
-    );
+    let f = fault(&r.typed);
+    assert_eq!((f.injected, f.counted), (Some(3), Some(3)), "{f:?}");
     for c in ["tracker", "orchestrator"] {
-        let by = &r.report["topics"]["detections"]["consumers"][c]["dropped_by_reason"];
-        assert_eq!(by["malformed"], 3, "{c}: {by}");
-        assert_eq!(by["overflow"], 0, "{c}: {by}");
+        let by = &r.typed.results.topics["detections"].consumers[c].dropped_by_reason;
+        let reason = |k: &str| by.as_ref().and_then(|by| by.get(k).copied());
+        assert_eq!(reason("malformed"), Some(3), "{c}: {by:?}");
+        assert_eq!(reason("overflow"), Some(0), "{c}: {by:?}");
     }
-    assert_eq!(r.report["accounting"]["invariant_held"], true);
+    assert!(r.typed.results.accounting.invariant_held);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -416,30 +403,25 @@ fn in_realtime_a_slowed_consumer_drops_counted_frames_and_the_run_still_ends() {
         &dir.join("out"),
         &["--fault", "detector:delay@5,delay_ms=200,duration_s=1.5"],
     );
-    let frames = &r.report["topics"]["frame"];
-    assert_eq!(frames["published"], 50);
-    let det = &frames["consumers"]["detector"];
-    let (received, dropped) = (
-        det["received"].as_u64().unwrap(),
-        det["dropped"].as_u64().unwrap(),
-    );
-    assert_eq!(received + dropped, 50, "{det}");
+    let topics = &r.typed.results.topics;
+    let frames = &topics["frame"];
+    assert_eq!(frames.published, Some(50));
+    let det = &frames.consumers["detector"];
+    let (received, dropped) = (det.received.unwrap(), det.dropped.unwrap());
+    assert_eq!(received + dropped, 50, "{det:?}");
     assert!(
         dropped > 0,
-        "a 200 ms delay for 1.5 s at 25 frames/s overflows the 16-frame buffer: {det}"
+        "a 200 ms delay for 1.5 s at 25 frames/s overflows the 16-frame buffer: {det:?}"
     );
-    assert_eq!(det["dropped_by_reason"]["overflow"], dropped);
+    assert_eq!(
+        (det.dropped_by_reason.as_ref()).and_then(|by| by.get("overflow").copied()),
+        Some(dropped),
+        "{det:?}"
+    );
     // One detections message per frame the detector took; the tracker took them all.
-    let detections = &r.report["topics"]["detections"];
-    assert_eq!(
-        detections["expected"].as_u64(),
-        Some(received),
-        "{detections}"
-    );
-    assert_eq!(
-        detections["consumers"]["tracker"]["received"].as_u64(),
-        Some(received)
-    );
-    assert_eq!(r.report["accounting"]["invariant_held"], true);
+    let detections = &topics["detections"];
+    assert_eq!(detections.expected, received, "{detections:?}");
+    assert_eq!(detections.consumers["tracker"].received, Some(received));
+    assert!(r.typed.results.accounting.invariant_held);
     let _ = std::fs::remove_dir_all(&dir);
 }

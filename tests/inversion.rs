@@ -5,43 +5,46 @@
 mod common;
 
 use common::*;
+use serde_json::Value;
+
+/// A rate of `glint invert`'s output (inversion.json is not a typed file), as the report's
+/// type holds it: `None` for `null`.
+fn rate(v: &Value) -> Option<[f64; 3]> {
+    serde_json::from_value(v.clone()).unwrap_or_else(|e| panic!("not a rate: {v}: {e}"))
+}
 
 #[test]
 fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
     let dir = temp_dir("yspin");
     let r = run_ok(Some(&scenario("geo-hover-yspin.toml")), &dir, &[]);
-    let rep = &r.report;
-    let names: Vec<&str> = rep["services"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["name"].as_str().unwrap())
+    let rep = &r.typed;
+    let names: Vec<&str> = (rep.results.services.iter())
+        .map(|s| s.name.as_str())
         .collect();
     assert_eq!(names, ["sensor", "inversion"]);
     assert_eq!(
-        rep["topics"]["spectrum"]["consumers"]["inversion"]["received"],
-        1440
+        rep.results.topics["spectrum"].consumers["inversion"].received,
+        Some(1440)
     );
-    let inv = &rep["inversion"];
-    assert_eq!(inv["windows"]["stable_samples"], 720);
-    assert_eq!(inv["windows"]["motion_frames"], 720);
-    assert_eq!(inv["stage1"]["status"], "ok");
-    let bands = inv["stage1"]["bands"].as_array().unwrap();
+    let inv = inversion(rep);
+    assert_eq!(inv.windows.stable_samples, 720);
+    assert_eq!(inv.windows.motion_frames, 720);
+    let stage1 = inv.stage1.as_ref().expect("stage 1");
+    assert_eq!(stage1.status, "ok");
+    let bands = &stage1.bands;
     assert_eq!(bands.len(), 36);
     for b in bands {
-        assert!(b["recon_err"].as_f64().unwrap() < 5e-3, "{b}");
+        assert!(b.recon_err.unwrap() < 5e-3, "{b:?}");
     }
-    assert_eq!(inv["stage2"]["sigma"].as_array().unwrap().len(), 36);
-    assert!(inv["stage2"]["chosen_nm"].is_number());
-    let s3 = &inv["stage3"];
-    assert_eq!(
-        s3["truth_deg_per_frame"],
-        serde_json::json!([0.0, 0.25, 0.0])
-    );
+    let stage2 = inv.stage2.as_ref().expect("stage 2");
+    assert_eq!(stage2.sigma.len(), 36);
+    assert!(stage2.chosen_nm.is_finite(), "{stage2:?}");
+    let s3 = stage3(rep);
+    assert_eq!(s3.truth_deg_per_frame, [0.0, 0.25, 0.0]);
     // The noise-free target for this case (paper: 2.41), physical materials.
-    assert_eq!(s3["status"], "ok", "{s3}");
-    let err = s3["err_paper_metric"].as_f64().unwrap();
-    assert!(err <= 0.5, "error {err} (100·|Δp|): {s3}");
+    assert_eq!(s3.status, "ok", "{s3:?}");
+    let err = s3.err_paper_metric.unwrap();
+    assert!(err <= 0.5, "error {err} (100·|Δp|): {s3:?}");
 
     // The exported observations through the offline solver: the same answer, to the bit.
     let off = invert_ok(
@@ -49,7 +52,7 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
         &dir.join("offline"),
         &["--band-sweep"],
     );
-    assert_eq!(off["chosen_wavelength_nm"], inv["stage2"]["chosen_nm"]);
+    assert_eq!(off["chosen_wavelength_nm"].as_f64(), Some(stage2.chosen_nm));
     // The band sweep fits stage 3 at every band; at λ* it is the solve's own fit.
     let sweep = off["band_sweep"].as_array().unwrap();
     assert_eq!(sweep.len(), 36);
@@ -70,48 +73,53 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
     assert!(own <= 1.1 * lowest, "λ* error {own}, lowest {lowest}");
     // glint's answer (the joint fit): the service's rate, covariance and mirror are the
     // offline solve's, to the bit, and so is λ*'s rate beside it.
-    assert_eq!(s3["fit"], "joint", "{s3}");
+    assert_eq!(s3.fit, "joint", "{s3:?}");
     let answer = &off["answer"];
-    assert_eq!(s3["p_deg_per_frame"], answer["rate_deg_per_frame"], "{s3}");
-    let flat: Vec<serde_json::Value> = answer["covariance_deg2_per_frame2"]
+    assert_eq!(
+        s3.p_deg_per_frame,
+        rate(&answer["rate_deg_per_frame"]),
+        "{s3:?}"
+    );
+    let flat: Vec<f64> = answer["covariance_deg2_per_frame2"]
         .as_array()
         .unwrap()
         .iter()
         .flat_map(|row| row.as_array().unwrap().clone())
+        .map(|x| x.as_f64().unwrap())
         .collect();
-    assert_eq!(s3["covariance"], serde_json::Value::Array(flat));
+    assert_eq!(s3.covariance.map(|c| c.to_vec()), Some(flat));
     assert_eq!(
-        s3["lambda_star"]["p_deg_per_frame"],
-        off["rate"]["rate_deg_per_frame"]
+        s3.lambda_star.p_deg_per_frame,
+        rate(&off["rate"]["rate_deg_per_frame"])
     );
-    assert_eq!(s3["fitted_frames"], answer["fitted_frames"]);
+    assert_eq!(
+        Some(u64::from(s3.fitted_frames)),
+        answer["fitted_frames"].as_u64()
+    );
     // The joint fit's test of stage 1's widest lobes travels with the answer.
     let refit = &off["joint_rate"]["refit"];
     assert_eq!(
-        s3["widest_lobe_refit"].as_bool(),
-        Some(refit["widest_lobe"].as_bool().unwrap_or(false)),
+        s3.widest_lobe_refit,
+        refit["widest_lobe"].as_bool().unwrap_or(false),
         "{refit}"
     );
     // A rate about Y is nearly its own mirror (−w_x, w_y, −w_z), which fits all bands as
     // well: the answer says the sense is not determined and names it; both meet the target.
-    let mirror = &s3["mirror_deg_per_frame"];
-    assert_eq!(mirror, &answer["mirror_deg_per_frame"]);
-    assert!(mirror.is_array(), "{s3}");
-    assert_eq!(s3["sense_determined"], false);
-    let err = s3["err_paper_metric_mirror"].as_f64().unwrap();
-    assert!(err <= 0.5, "mirror error {err}: {s3}");
+    let mirror = s3.mirror_deg_per_frame;
+    assert_eq!(mirror, rate(&answer["mirror_deg_per_frame"]));
+    assert!(mirror.is_some(), "{s3:?}");
+    assert!(!s3.sense_determined);
+    let err = s3.err_paper_metric_mirror.unwrap();
+    assert!(err <= 0.5, "mirror error {err}: {s3:?}");
     // The direction the data do not determine (the sun–observer bisector, nearest body X) is
     // named with the prior that held it.
-    assert_eq!(s3["held_at_prior"], serde_json::json!(["w_x"]), "{s3}");
-    let directions = s3["directions"].as_array().unwrap();
+    assert_eq!(s3.held_at_prior, ["w_x"], "{s3:?}");
+    let directions = &s3.directions;
     assert_eq!(directions.len(), 3);
     assert_eq!(
-        directions
-            .iter()
-            .filter(|d| d["determined"] == true)
-            .count(),
+        directions.iter().filter(|d| d.determined).count(),
         2,
-        "{s3}"
+        "{s3:?}"
     );
     // The summary leads with the answer: the first bold line after the title is the rate
     // and its error.
@@ -122,10 +130,7 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
         .expect("a bold answer line");
     assert!(
         first.starts_with("**p = [")
-            && first.contains(&format!(
-                "error {:.3}",
-                s3["err_paper_metric"].as_f64().unwrap()
-            )),
+            && first.contains(&format!("error {:.3}", s3.err_paper_metric.unwrap())),
         "{first}"
     );
     assert!(
@@ -156,7 +161,7 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
     assert!(verbose.contains("stage 3 at λ*"), "{verbose}");
     // The figures draw what the report says: σ(λ) at every band, stage 1's fit over the
     // stable window, the answer's model at the reported rate and band.
-    let chosen = inv["stage2"]["chosen_nm"].as_f64().unwrap();
+    let chosen = stage2.chosen_nm;
     let sigma = Svg::read(&dir.join("inversion-sigma.svg"));
     assert_eq!(
         sigma.count("circle"),
@@ -171,7 +176,7 @@ fn three_stage_solve_is_sequenced_across_processes_and_reproduced_offline() {
         stage1.texts
     );
     let p: Vec<String> = (0..3)
-        .map(|i| format!("{:.4}", s3["p_deg_per_frame"][i].as_f64().unwrap()))
+        .map(|i| format!("{:.4}", s3.p_deg_per_frame.unwrap()[i]))
         .collect();
     for fig in ["stage3-fit.svg", "stage3-residuals.svg"] {
         let svg = Svg::read(&dir.join(fig));
@@ -269,17 +274,18 @@ fn the_chain_recovers_the_exact_rate_when_the_satellite_is_the_two_facet_model()
         &dir,
     );
     let r = run_ok(Some(&file), &dir.join("out"), &[]);
-    let s3 = &r.report["inversion"]["stage3"];
-    assert_eq!(s3["status"], "ok", "{s3}");
-    let err = s3["err_paper_metric"].as_f64().unwrap();
-    assert!(err < 1e-3, "error {err} (100·|Δp|): {s3}");
+    let s3 = stage3(&r.typed);
+    assert_eq!(s3.status, "ok", "{s3:?}");
+    let err = s3.err_paper_metric.unwrap();
+    assert!(err < 1e-3, "error {err} (100·|Δp|): {s3:?}");
     // Fitted exactly on the frames within the 25° horizon (0.25°/frame: frames 0–100).
-    assert_eq!(s3["fitted_frames"], 101, "{s3}");
+    assert_eq!(s3.fitted_frames, 101, "{s3:?}");
     // The weakest eigen-direction is the sun–observer bisector, ≈ body X (math.md §1.6).
-    let weakest_x = s3["directions"][0]["axis"][0].as_f64().unwrap().abs();
-    assert!(weakest_x > 0.95, "{s3}");
-    for b in r.report["inversion"]["stage1"]["bands"].as_array().unwrap() {
-        assert!(b["recon_err"].as_f64().unwrap() < 1e-9, "{b}");
+    let weakest_x = s3.directions[0].axis[0].abs();
+    assert!(weakest_x > 0.95, "{s3:?}");
+    let stage1 = inversion(&r.typed).stage1.as_ref().expect("stage 1");
+    for b in &stage1.bands {
+        assert!(b.recon_err.unwrap() < 1e-9, "{b:?}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -295,11 +301,11 @@ fn phase_thirty_degrees_meets_its_target() {
         &dir,
     );
     let r = run_ok(Some(&file), &dir.join("out"), &[]);
-    let s3 = &r.report["inversion"]["stage3"];
-    assert_eq!(s3["status"], "ok", "{s3}");
-    assert_eq!(s3["fit"], "joint", "{s3}");
-    let err = s3["err_paper_metric"].as_f64().unwrap();
-    assert!(err <= 5.0, "error {err}: {s3}");
+    let s3 = stage3(&r.typed);
+    assert_eq!(s3.status, "ok", "{s3:?}");
+    assert_eq!(s3.fit, "joint", "{s3:?}");
+    let err = s3.err_paper_metric.unwrap();
+    assert!(err <= 5.0, "error {err}: {s3:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -327,11 +333,11 @@ fn with_only_glint_lobes_the_joint_fit_keeps_them_and_meets_the_noise_free_targe
             &dir,
         );
         let r = run_ok(Some(&file), &dir.join("out"), &[]);
-        let joint = &r.report["inversion"]["stage3"];
-        assert_eq!(joint["fit"], "joint", "{joint}");
-        assert_eq!(joint["widest_lobe_refit"], false, "{joint}");
-        let err = joint["err_paper_metric"].as_f64().unwrap();
-        assert!(err <= 0.5, "{phase}°: joint error {err}: {joint}");
+        let joint = stage3(&r.typed);
+        assert_eq!(joint.fit, "joint", "{joint:?}");
+        assert!(!joint.widest_lobe_refit, "{joint:?}");
+        let err = joint.err_paper_metric.unwrap();
+        assert!(err <= 0.5, "{phase}°: joint error {err}: {joint:?}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
@@ -357,19 +363,16 @@ fn without_a_glint_the_chain_answers_unobservable_with_its_reason() {
             &dir,
         );
         let r = run_ok(Some(&file), &dir.join("out"), &[]);
-        let s3 = &r.report["inversion"]["stage3"];
-        assert_eq!(s3["status"], "unobservable", "{phase}: {s3}");
-        for why in [
-            &s3["unobservable_reason"],
-            &s3["lambda_star"]["unobservable_reason"],
-        ] {
+        let s3 = stage3(&r.typed);
+        assert_eq!(s3.status, "unobservable", "{phase}: {s3:?}");
+        for why in [&s3.unobservable_reason, &s3.lambda_star.unobservable_reason] {
             assert!(
-                why.as_str().unwrap_or("").starts_with("no glint"),
-                "{phase}: {s3}"
+                why.as_deref().unwrap_or("").starts_with("no glint"),
+                "{phase}: {s3:?}"
             );
         }
-        assert!(s3["p_deg_per_frame"].is_null(), "{s3}");
-        assert!(s3["lambda_star"]["p_deg_per_frame"].is_null(), "{s3}");
+        assert!(s3.p_deg_per_frame.is_none(), "{s3:?}");
+        assert!(s3.lambda_star.p_deg_per_frame.is_none(), "{s3:?}");
         let summary = std::fs::read_to_string(r.dir.join("summary.md")).unwrap();
         assert!(summary.contains("**No rate: unobservable**"), "{summary}");
         let _ = std::fs::remove_dir_all(&dir);
@@ -418,23 +421,24 @@ fn the_answer_is_the_joint_fit_where_lambda_star_alone_lands_in_another_minimum(
         &dir,
     );
     let r = run_ok(Some(&file), &dir.join("out"), &[]);
-    let inv = &r.report["inversion"];
-    let s3 = &inv["stage3"];
-    assert_eq!(inv["stage2"]["chosen_nm"], 640.0, "{}", inv["stage2"]);
-    let lambda = &s3["lambda_star"];
-    assert_eq!(lambda["band_nm"], 640.0, "{s3}");
+    let inv = inversion(&r.typed);
+    let s3 = stage3(&r.typed);
+    let stage2 = inv.stage2.as_ref().expect("stage 2");
+    assert_eq!(stage2.chosen_nm, 640.0, "{stage2:?}");
+    let lambda = &s3.lambda_star;
+    assert_eq!(lambda.band_nm, 640.0, "{s3:?}");
     assert!(
-        lambda["err_paper_metric"].as_f64().unwrap() > 40.0,
-        "λ* alone: {lambda}"
+        lambda.err_paper_metric.unwrap() > 40.0,
+        "λ* alone: {lambda:?}"
     );
-    assert_eq!(s3["fit"], "joint");
-    let err = s3["err_paper_metric"].as_f64().unwrap();
-    assert!(err < 2.0, "error {err}: {s3}");
+    assert_eq!(s3.fit, "joint");
+    let err = s3.err_paper_metric.unwrap();
+    assert!(err < 2.0, "error {err}: {s3:?}");
     // Offline, the same file: the same answer.
     let offline = invert_ok(&r.dir.join("observations.csv"), &dir.join("offline"), &[]);
     assert_eq!(
-        offline["answer"]["rate_deg_per_frame"],
-        s3["p_deg_per_frame"]
+        rate(&offline["answer"]["rate_deg_per_frame"]),
+        s3.p_deg_per_frame
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -10,7 +10,7 @@ use common::*;
 fn ekf_nees_is_consistent_over_50_seeded_runs() {
     const RUNS: u64 = 50;
     let root = temp_dir("nees");
-    let results: Vec<serde_json::Value> = std::thread::scope(|s| {
+    let results: Vec<glint::report::Report> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..2u64)
             .map(|lane| {
                 let root = &root;
@@ -29,7 +29,7 @@ fn ekf_nees_is_consistent_over_50_seeded_runs() {
                                 "seed {seed}: {}",
                                 String::from_utf8_lossy(&r.output.stderr)
                             );
-                            r.report
+                            r.typed
                         })
                         .collect::<Vec<_>>()
                 })
@@ -43,17 +43,14 @@ fn ekf_nees_is_consistent_over_50_seeded_runs() {
     assert_eq!(results.len() as u64, RUNS);
     // χ²(300)/50: 95 % interval [253.9, 349.9]/50.
     let (lo, hi) = (5.078, 6.998);
-    for id in 1..=4u64 {
+    for id in 1..=4u32 {
         let nees: Vec<f64> = results
             .iter()
             .map(|r| {
-                let t = r["tracking"]["targets"]
-                    .as_array()
-                    .unwrap()
-                    .iter()
-                    .find(|t| t["id"] == id)
-                    .unwrap();
-                t["nees_final"].as_f64().unwrap()
+                let tracking = r.results.tracking.as_ref().expect("a tracking score");
+                let t = tracking.targets.iter().find(|t| t.id == id).unwrap();
+                assert!(!t.nees_final.is_nan(), "debris {id}: no final NEES: {t:?}");
+                t.nees_final
             })
             .collect();
         let mean = nees.iter().sum::<f64>() / nees.len() as f64;

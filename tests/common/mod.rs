@@ -5,6 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use glint::matrix::MatrixReport;
+use glint::report::inversion::{InversionReport, Stage3Report};
 use glint::report::{Report, Results};
 use serde_json::Value;
 
@@ -33,8 +35,6 @@ pub fn temp_dir(tag: &str) -> PathBuf {
 pub struct RunResult {
     pub output: Output,
     pub dir: PathBuf,
-    /// `report.json` as JSON (what a script without glint's types sees).
-    pub report: Value,
     /// `report.json` read through glint's types.
     pub typed: Report,
 }
@@ -57,7 +57,6 @@ pub fn run(scenario: Option<&Path>, dir: &Path, extra: &[&str]) -> RunResult {
     RunResult {
         output,
         dir: dir.to_path_buf(),
-        report: serde_json::from_str(&text).unwrap(),
         typed: serde_json::from_str(&text)
             .unwrap_or_else(|e| panic!("report.json does not read as glint's Report: {e}")),
     }
@@ -72,6 +71,56 @@ pub fn run_ok(scenario: Option<&Path>, dir: &Path, extra: &[&str]) -> RunResult 
         String::from_utf8_lossy(&r.output.stderr)
     );
     r
+}
+
+/// `glint run` of a `[matrix]` scenario: its output and its `report.json`, read through
+/// glint's [`MatrixReport`] (a matrix's report is not a run's [`Report`]).
+pub fn run_matrix(scenario: &Path, dir: &Path, extra: &[&str]) -> (Output, MatrixReport) {
+    let output = glint()
+        .arg("run")
+        .arg(scenario)
+        .arg("--out")
+        .arg(dir)
+        .args(extra)
+        .output()
+        .expect("spawning glint");
+    let path = dir.join("report.json");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| {
+        panic!(
+            "no report.json ({e}); stderr:\n{}",
+            String::from_utf8_lossy(&output.stderr)
+        )
+    });
+    let report = serde_json::from_str(&text).unwrap_or_else(|e| {
+        panic!(
+            "{} does not read as glint's MatrixReport: {e}",
+            path.display()
+        )
+    });
+    (output, report)
+}
+
+/// A run's `report.json` at `path`, read through glint's [`Report`] (panics with the path if
+/// missing or not a report).
+pub fn read_report(path: &Path) -> Report {
+    Report::read(path).unwrap_or_else(|e| panic!("{e:#}"))
+}
+
+/// The attitude solve's section of a report ([000]); panics without one.
+pub fn inversion(report: &Report) -> &InversionReport {
+    report
+        .results
+        .inversion
+        .as_ref()
+        .expect("no inversion section in the report")
+}
+
+/// Stage 3 of the attitude solve (glint's answer); panics without one.
+pub fn stage3(report: &Report) -> &Stage3Report {
+    inversion(report)
+        .stage3
+        .as_ref()
+        .expect("no stage3 in the report's inversion section")
 }
 
 /// The JSON file at `path` (panics with the path if missing or malformed).
@@ -209,12 +258,12 @@ pub fn png_size(path: &Path) -> (u32, u32) {
 }
 
 /// The `ending` of service `name` in a report (`shutdown`, `sigkill`, …).
-pub fn ending<'a>(report: &'a Value, name: &str) -> &'a str {
-    report["services"]
-        .as_array()
-        .unwrap()
+pub fn ending<'a>(report: &'a Report, name: &str) -> &'a str {
+    report
+        .results
+        .services
         .iter()
-        .find(|s| s["name"] == name)
-        .and_then(|s| s["ending"].as_str())
+        .find(|s| s.name == name)
+        .map(|s| s.ending.as_str())
         .unwrap_or_else(|| panic!("no service {name} in the report"))
 }
