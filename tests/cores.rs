@@ -36,11 +36,11 @@ impl Laser for DirectLaser<'_> {
 }
 
 /// A message as the wire carries it (seq, time, producer, sealed), folded into a topic digest
-/// the way the orchestrator does (send time left out).
+/// the way the orchestrator does (`Message::fold_digest`).
 fn fold<T: Message>(digest: &mut Xxh3, mut msg: T, seq: u64, t_ns: u64, producer: ServiceId) {
     *msg.meta_mut() = Meta::new(seq, t_ns, 0, producer);
     msg.seal();
-    digest.update(bytemuck::bytes_of(&msg));
+    msg.fold_digest(digest);
 }
 
 struct Chain {

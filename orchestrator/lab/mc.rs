@@ -114,9 +114,7 @@ pub fn run_value(
         noisy.seed = variant.seed + k as u64;
         let (report, ok) = deploy(noisy, &dir.join(format!("s{k:03}")))?;
         all_ok &= ok;
-        // The estimator reads each answer's fits as JSON (the stage-3 report and its λ* fit).
-        let stage3 = (report.results.inversion).and_then(|i| i.stage3);
-        runs.push(serde_json::to_value(stage3)?);
+        runs.push((report.results.inversion).and_then(|i| i.stage3));
     }
     let stable_noisy = sp.noise_windows == NoiseWindows::Both;
     let reference = Reference::solve(
@@ -127,39 +125,31 @@ pub fn run_value(
     )?;
     // λ*'s fit carries its rate (no covariance: its NEES is not scored); the answer is the
     // joint fit, with its covariance.
-    let single = Estimator::from_runs(
-        &runs,
-        &|s3| &s3["lambda_star"],
-        reference.single.clone(),
-        None,
-    );
-    // The table's bound for the joint fit: that of the model most runs reported.
-    let lobe_refits = runs
+    let single_fits: Vec<Fit> = runs
         .iter()
-        .filter(|s3| s3["widest_lobe_refit"] == true)
-        .count();
+        .map(|s3| Fit::lambda_star(s3.as_ref()))
+        .collect();
+    let joint_fits: Vec<Fit> = runs.iter().map(|s3| Fit::answer(s3.as_ref())).collect();
+    let single = Estimator::from_runs(&single_fits, reference.single.clone(), None);
+    // The table's bound for the joint fit: that of the model most runs reported.
+    let lobe_refits = joint_fits.iter().filter(|f| f.widest_lobe_refit).count();
     let joint_bound = match &reference.joint_models {
         Some(models) => models[usize::from(2 * lobe_refits > runs.len())].clone(),
         None => reference.joint.clone(),
     };
-    let joint = Estimator::from_runs(
-        &runs,
-        &|s3| s3,
-        joint_bound,
-        reference.joint_models.as_ref(),
-    );
-    let median = |key: &dyn Fn(&Value) -> Option<[f64; 3]>| {
+    let joint = Estimator::from_runs(&joint_fits, joint_bound, reference.joint_models.as_ref());
+    let median = |fits: &[Fit]| {
         median(
-            runs.iter()
-                .filter_map(|s3| key(s3).map(|p| rate_error_metric(p, truth)))
+            fits.iter()
+                .filter_map(|f| f.p.map(|p| rate_error_metric(p, truth)))
                 .collect(),
         )
     };
     let stats = json!({
         "runs": seeds,
         "snr": snr,
-        "median_err_paper_metric": median(&|s3| vec3(&s3["lambda_star"]["p_deg_per_frame"])),
-        "median_joint_err_paper_metric": median(&|s3| vec3(&s3["p_deg_per_frame"])),
+        "median_err_paper_metric": median(&single_fits),
+        "median_joint_err_paper_metric": median(&joint_fits),
         "reference_err_paper_metric": reference.single.p0.map(|p| rate_error_metric(p, truth)),
         "single": single.json(),
         "joint": joint.json(),
@@ -185,17 +175,6 @@ pub(crate) fn vec3(v: &Value) -> Option<[f64; 3]> {
         a.get(2)?.as_f64()?,
     ];
     p.iter().all(|x| x.is_finite()).then_some(p)
-}
-
-fn mat3(v: &Value) -> Option<[[f64; 3]; 3]> {
-    let a = v.as_array()?;
-    let mut m = [[0.0; 3]; 3];
-    for (i, row) in m.iter_mut().enumerate() {
-        for (j, x) in row.iter_mut().enumerate() {
-            *x = a.get(3 * i + j)?.as_f64()?;
-        }
-    }
-    m.iter().flatten().all(|x| x.is_finite()).then_some(m)
 }
 
 fn median(mut v: Vec<f64>) -> Option<f64> {
@@ -500,7 +479,7 @@ fn chapman_robbins_variances(
 
 #[path = "mc/estimator.rs"]
 mod estimator;
-use estimator::Estimator;
+use estimator::{Estimator, Fit};
 
 #[cfg(test)]
 #[path = "mc/tests.rs"]

@@ -2,10 +2,53 @@
 //! p₀ (or its copy) on the bound's observable directions, efficiency against the CRB and the
 //! two-stage bound, NEES, and the runs counted apart (other sense, no rate).
 
-use super::{distance, finite, has_sense, mat3, mirror, observable_bound, vec3, Bound};
+use super::{distance, finite, has_sense, mirror, observable_bound, Bound};
+use crate::report::inversion::Stage3Report;
 use crate::report::score_debris::chi2_mean_bounds;
 use glint_inversion::observability::symmetric_eigen;
 use serde_json::{json, Value};
+
+/// What the estimator reads of one run's fit.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Fit {
+    /// The rate \[deg/frame\], when determined (and finite).
+    pub p: Option<[f64; 3]>,
+    /// The fit used the model with the widest lobes re-fitted.
+    pub widest_lobe_refit: bool,
+    /// The mirror that fits as well, when the fit named one.
+    pub mirror: Option<[f64; 3]>,
+    /// Cov(p̂) \[(deg/frame)²\], when reported (and finite).
+    pub covariance: Option<[[f64; 3]; 3]>,
+}
+
+impl Fit {
+    /// glint's answer (the joint fit) of a run's stage 3.
+    pub(super) fn answer(s3: Option<&Stage3Report>) -> Fit {
+        let Some(s3) = s3 else {
+            return Fit::default();
+        };
+        Fit {
+            p: s3
+                .p_deg_per_frame
+                .filter(|p| p.iter().all(|x| x.is_finite())),
+            widest_lobe_refit: s3.widest_lobe_refit,
+            mirror: s3.mirror_deg_per_frame,
+            covariance: s3.covariance.and_then(|c| {
+                let m = [[c[0], c[1], c[2]], [c[3], c[4], c[5]], [c[6], c[7], c[8]]];
+                m.iter().flatten().all(|x| x.is_finite()).then_some(m)
+            }),
+        }
+    }
+
+    /// λ*'s own fit (the paper's stage 3): its rate alone.
+    pub(super) fn lambda_star(s3: Option<&Stage3Report>) -> Fit {
+        Fit {
+            p: (s3.and_then(|s3| s3.lambda_star.p_deg_per_frame))
+                .filter(|p| p.iter().all(|x| x.is_finite())),
+            ..Fit::default()
+        }
+    }
+}
 
 /// Scatter and consistency of one estimator over the noisy runs.
 pub(super) struct Estimator {
@@ -33,12 +76,7 @@ pub(super) struct Estimator {
 impl Estimator {
     /// `models`: the noise-free solutions of the fit's two lobe models ([`Reference`]); a run
     /// is then measured from that of the model it reported.
-    pub(super) fn from_runs(
-        runs: &[Value],
-        pick: &dyn Fn(&Value) -> &Value,
-        bound: Bound,
-        models: Option<&[Bound; 2]>,
-    ) -> Self {
+    pub(super) fn from_runs(runs: &[Fit], bound: Bound, models: Option<&[Bound; 2]>) -> Self {
         let observable = bound.observable();
         let mut out = Estimator {
             dev2_observable: vec![],
@@ -55,13 +93,12 @@ impl Estimator {
             out.undetermined = runs.len();
             return out;
         };
-        for s3 in runs {
-            let fit = pick(s3);
-            let Some(p) = vec3(&fit["p_deg_per_frame"]) else {
+        for fit in runs {
+            let Some(p) = fit.p else {
                 out.undetermined += 1;
                 continue;
             };
-            let own = models.map(|m| &m[usize::from(fit["widest_lobe_refit"] == true)]);
+            let own = models.map(|m| &m[usize::from(fit.widest_lobe_refit)]);
             let (p0, copy) = match own {
                 Some(Bound {
                     p0: Some(p0), copy, ..
@@ -72,8 +109,7 @@ impl Estimator {
             // A rate mostly about Y is nearly its own mirror and has no sense to lose.
             if has_sense(p0) && distance(p, m0) < distance(p, p0) {
                 out.other_sense += 1;
-                out.other_sense_flagged +=
-                    usize::from(vec3(&fit["mirror_deg_per_frame"]).is_some());
+                out.other_sense_flagged += usize::from(fit.mirror.is_some());
                 continue;
             }
             // The data cannot tell p₀ from its copy: scatter is measured from the nearer.
@@ -93,7 +129,7 @@ impl Estimator {
             out.dev2_along.push(along2);
             out.dev2_observable
                 .push((0..3).filter(|&i| observable[i]).map(|i| along2[i]).sum());
-            if let Some(cov) = mat3(&fit["covariance"]) {
+            if let Some(cov) = fit.covariance {
                 if let Some(n) = nees(&cov, &d) {
                     out.nees.push(n);
                 }

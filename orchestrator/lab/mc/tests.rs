@@ -15,12 +15,13 @@ fn bound(p0: [f64; 3]) -> Bound {
     }
 }
 
-fn run(p: [f64; 3], mirror: Option<[f64; 3]>) -> Value {
-    json!({
-        "p_deg_per_frame": p,
-        "covariance": [1e-6, 0.0, 0.0, 0.0, 1e-6, 0.0, 0.0, 0.0, 1e-6],
-        "mirror_deg_per_frame": mirror,
-    })
+fn run(p: [f64; 3], mirror: Option<[f64; 3]>) -> Fit {
+    Fit {
+        p: Some(p),
+        covariance: Some([[1e-6, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 1e-6]]),
+        mirror,
+        widest_lobe_refit: false,
+    }
 }
 
 #[test]
@@ -37,9 +38,9 @@ fn runs_on_the_other_sense_are_counted_apart_with_those_that_said_so() {
         // On the mirror, claiming it.
         run([0.0, -0.003, -0.252], None),
         // No rate.
-        json!({ "p_deg_per_frame": null }),
+        Fit::default(),
     ];
-    let e = Estimator::from_runs(&runs, &|r| r, bound(p0), None).json();
+    let e = Estimator::from_runs(&runs, bound(p0), None).json();
     assert_eq!(e["determined"], 4, "{e}");
     assert_eq!(e["undetermined"], 1, "{e}");
     assert_eq!(e["other_sense"], 2, "{e}");
@@ -97,30 +98,25 @@ fn curvilinear_deviation_is_speed_and_arc() {
 fn a_held_axis_wander_costs_the_straight_nees_not_the_curvilinear_one() {
     let p0 = [0.0, 0.25, 0.0];
     let a: f64 = 0.02;
-    let runs: Vec<Value> = [a, -a]
+    let runs: Vec<Fit> = [a, -a]
         .iter()
         .map(|&t| {
             // 1e-5 deg/frame along the run's axis; 0.5 across it (unobservable).
             let (c, s) = (t.cos(), t.sin());
             let (sp, sx) = (1e-10, 0.25);
             let cov = [
-                sx,
-                0.0,
-                0.0,
-                0.0,
-                sp * c * c + sx * s * s,
-                (sp - sx) * c * s,
-                0.0,
-                (sp - sx) * c * s,
-                sp * s * s + sx * c * c,
+                [sx, 0.0, 0.0],
+                [0.0, sp * c * c + sx * s * s, (sp - sx) * c * s],
+                [0.0, (sp - sx) * c * s, sp * s * s + sx * c * c],
             ];
-            json!({
-                "p_deg_per_frame": [0.0, 0.25 * c, 0.25 * s],
-                "covariance": cov,
-            })
+            Fit {
+                p: Some([0.0, 0.25 * c, 0.25 * s]),
+                covariance: Some(cov),
+                ..Fit::default()
+            }
         })
         .collect();
-    let e = Estimator::from_runs(&runs, &|r| r, bound(p0), None).json();
+    let e = Estimator::from_runs(&runs, bound(p0), None).json();
     // Straight: (|p0|(1 − cos a) / 1e-5)² ≈ 2.5² on the speed.
     let straight = 0.25 * (1.0 - a.cos()) / 1e-5;
     let nees = e["nees_mean"].as_f64().unwrap();
