@@ -373,7 +373,7 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<Report
 
 /// `light-curve.svg`: the band-integrated flux of the first, middle and last band of every
 /// received spectrum.
-fn light_curve_plot(dir: &Path, spectra: &[shared_types::Spectrum]) -> Result<()> {
+pub(crate) fn light_curve_plot(dir: &Path, spectra: &[shared_types::Spectrum]) -> Result<()> {
     let light_curve = light_curve(spectra);
     let Some((_, bands, _)) = light_curve.first() else {
         return Ok(());
