@@ -61,8 +61,8 @@ fn same_seed_gives_identical_results_and_another_seed_differs() {
         );
     }
     assert_eq!(deterministic_part(&a.typed), deterministic_part(&b.typed));
-    let ja = serde_json::to_string_pretty(deterministic_part(&a.typed)).unwrap();
-    let jb = serde_json::to_string_pretty(deterministic_part(&b.typed)).unwrap();
+    let ja = serde_json::to_string_pretty(&deterministic_part(&a.typed)).unwrap();
+    let jb = serde_json::to_string_pretty(&deterministic_part(&b.typed)).unwrap();
     assert_eq!(ja.as_bytes(), jb.as_bytes());
     let digest = |r: &RunResult, t: &str| r.typed.results.topics[t].digest_xxh3.clone().unwrap();
     // Another seed: different noise in frames and spectra, same truth (truth has no noise).

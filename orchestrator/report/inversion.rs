@@ -78,7 +78,9 @@ pub struct SigmaBand {
 /// One Fisher direction of the answer.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct DirectionReport {
-    /// Unit vector in (w_x, w_y, w_z).
+    /// Unit vector in (w_x, w_y, w_z) (not numbers when the stage failed).
+    #[serde(deserialize_with = "crate::report::model::triple_or_nan")]
+    #[schemars(with = "[Option<f64>; 3]")]
     pub axis: [f64; 3],
     /// 1σ \[deg/frame\].
     pub sigma_deg_per_frame: Option<f64>,

@@ -281,6 +281,12 @@ pub fn f64_or_nan<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
     Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
+/// [`f64_or_nan`] for a triple.
+pub fn triple_or_nan<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+    let v = <[Option<f64>; 3]>::deserialize(d)?;
+    Ok(v.map(|x| x.unwrap_or(f64::NAN)))
+}
+
 /// [`f64_or_nan`] for a pair.
 pub fn pair_or_nan<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
     let v = <[Option<f64>; 2]>::deserialize(d)?;
@@ -299,6 +305,25 @@ mod tests {
             published,
             Report::schema(),
             "docs/report.schema.json is stale: `glint report --schema > docs/report.schema.json`"
+        );
+    }
+
+    #[test]
+    fn a_failed_solve_reads_back() {
+        // A failed stage 3 answers with every number NaN: written as nulls, read back as NaN.
+        let sp = crate::run::command::default_scenario().spectra.unwrap();
+        let failed = shared_types::SolveResponse {
+            stage: 3,
+            ..Default::default()
+        };
+        let report = super::super::inversion::InversionReport::new(&sp, &[failed]);
+        let text = serde_json::to_string(&report).unwrap();
+        let back: super::super::inversion::InversionReport =
+            serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"));
+        assert_eq!(
+            serde_json::to_string(&back).unwrap(),
+            text,
+            "the same report once read back"
         );
     }
 

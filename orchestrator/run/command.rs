@@ -38,6 +38,12 @@ pub(crate) fn load(path: Option<&PathBuf>) -> Result<(Scenario, String), Scenari
     }
 }
 
+/// The built-in default scenario.
+#[cfg(test)]
+pub(crate) fn default_scenario() -> Scenario {
+    Scenario::from_toml_str(DEFAULT_SCENARIO, "(built-in default)").expect("the default scenario")
+}
+
 /// The scenario (or the default) with `seed` applied; exit code 2 with the error printed.
 pub(crate) fn load_with_seed(
     path: Option<&PathBuf>,

@@ -7,7 +7,7 @@ use std::process::{Command, Output};
 
 use glint::matrix::MatrixReport;
 use glint::report::inversion::{InversionReport, Stage3Report};
-use glint::report::{Report, Results};
+use glint::report::Report;
 use serde_json::Value;
 
 pub mod procs;
@@ -190,10 +190,11 @@ pub fn scenario_variant(name: &str, replacements: &[(&str, &str)], dir: &Path) -
     file
 }
 
-/// The deterministic part of a report: its [`Results`] (the run's identity, timings, faults
+/// The deterministic part of a report: its `Results` (the run's identity, timings, faults
 /// and strangers are beside them).
-pub fn deterministic_part(report: &Report) -> &Results {
-    &report.results
+/// As JSON, so that a score that is not a number (written as null) compares equal to itself.
+pub fn deterministic_part(report: &Report) -> Value {
+    serde_json::to_value(&report.results).expect("the results as JSON")
 }
 
 /// What a prefix left behind, in `/dev/shm` and in iceoryx2's node and service directories.
