@@ -167,9 +167,19 @@ impl Harness {
     }
 }
 
+/// Removes the test's shared memory however the test ends (a failed assertion too).
+struct Cleanup(String);
+
+impl Drop for Cleanup {
+    fn drop(&mut self) {
+        remove_shm(&self.0);
+    }
+}
+
 #[test]
 fn the_skeleton_holds_credit_acks_replays_an_injected_drop_and_shuts_down() {
     let prefix = format!("glt{}sk_", std::process::id() % 100_000);
+    let cleanup = Cleanup(prefix.clone());
     let sc = scenario();
     let window = credit_window(TopicId::Detections, &sc) as u64;
     let frame_window = credit_window(TopicId::Frame, &sc) as u64;
@@ -308,6 +318,6 @@ fn the_skeleton_holds_credit_acks_replays_an_injected_drop_and_shuts_down() {
         });
         service.join().unwrap().unwrap();
     }
-    remove_shm(&prefix);
+    drop(cleanup);
     assert!(shm_entries(&prefix).is_empty());
 }
