@@ -25,25 +25,46 @@ pub struct Snapshot {
     pub pixels: Vec<u16>,
 }
 
+/// What every tap records of the messages it takes: their digest, latencies and send times.
+#[derive(Default)]
+pub struct Record {
+    digest: Xxh3,
+    latency_ns: Vec<u64>,
+    send_ns: Vec<(u64, u64)>,
+}
+
+impl Record {
+    fn take(&mut self, seq: u64, send_mono_ns: u64, latency_ns: u64) {
+        self.latency_ns.push(latency_ns);
+        self.send_ns.push((seq, send_mono_ns));
+    }
+}
+
 /// One tapped topic.
 pub trait Tap {
     fn stats(&self) -> &TopicStats;
+    fn record(&self) -> &Record;
     /// Receives everything queued; accounts for, digests and keeps each message.
     fn poll(&mut self) -> Result<()>;
-    fn digest(&self) -> u64;
-    /// Send → receive latency of every message taken [ns].
-    fn latency_ns(&self) -> &[u64];
-    /// Per message taken: (seq, the producer's send time [ns, CLOCK_MONOTONIC]).
-    fn send_ns(&self) -> &[(u64, u64)];
     fn as_any(&self) -> &dyn Any;
+
+    fn digest(&self) -> u64 {
+        self.record().digest.digest()
+    }
+    /// Send → receive latency of every message taken [ns].
+    fn latency_ns(&self) -> &[u64] {
+        &self.record().latency_ns
+    }
+    /// Per message taken: (seq, the producer's send time [ns, CLOCK_MONOTONIC]).
+    fn send_ns(&self) -> &[(u64, u64)] {
+        &self.record().send_ns
+    }
 }
 
 /// A message topic: every message kept.
 pub struct MessageTap<T: Message> {
     inbox: Inbox<T>,
-    digest: Xxh3,
-    latency_ns: Vec<u64>,
-    send_ns: Vec<(u64, u64)>,
+    record: Record,
     pub kept: Vec<T>,
 }
 
@@ -51,30 +72,18 @@ impl<T: Message> Tap for MessageTap<T> {
     fn stats(&self) -> &TopicStats {
         &self.inbox.stats
     }
+    fn record(&self) -> &Record {
+        &self.record
+    }
     fn poll(&mut self) -> Result<()> {
-        let (digest, lat, sent, kept) = (
-            &mut self.digest,
-            &mut self.latency_ns,
-            &mut self.send_ns,
-            &mut self.kept,
-        );
+        let (record, kept) = (&mut self.record, &mut self.kept);
         self.inbox.drain(|r| {
-            r.msg.fold_digest(digest);
-            lat.push(r.latency_ns);
-            sent.push((r.msg.meta().seq, r.msg.meta().send_mono_ns));
+            r.msg.fold_digest(&mut record.digest);
+            record.take(r.msg.meta().seq, r.msg.meta().send_mono_ns, r.latency_ns);
             kept.push(*r.msg);
             Ok(())
         })?;
         Ok(())
-    }
-    fn digest(&self) -> u64 {
-        self.digest.digest()
-    }
-    fn latency_ns(&self) -> &[u64] {
-        &self.latency_ns
-    }
-    fn send_ns(&self) -> &[(u64, u64)] {
-        &self.send_ns
     }
     fn as_any(&self) -> &dyn Any {
         self
@@ -85,9 +94,7 @@ impl<T: Message> Tap for MessageTap<T> {
 /// report section asked for it.
 pub struct FrameTap {
     inbox: FrameInbox,
-    digest: Xxh3,
-    latency_ns: Vec<u64>,
-    send_ns: Vec<(u64, u64)>,
+    record: Record,
     want: Option<u64>,
     pub snapshot: Option<Snapshot>,
 }
@@ -96,14 +103,15 @@ impl Tap for FrameTap {
     fn stats(&self) -> &TopicStats {
         &self.inbox.stats
     }
+    fn record(&self) -> &Record {
+        &self.record
+    }
     fn poll(&mut self) -> Result<()> {
-        let (digest, lat, sent) = (&mut self.digest, &mut self.latency_ns, &mut self.send_ns);
-        let (snap, want) = (&mut self.snapshot, self.want);
+        let (record, snap, want) = (&mut self.record, &mut self.snapshot, self.want);
         self.inbox.drain(|h, pixels, latency_ns| {
-            digest.update(&h.meta.seq.to_le_bytes());
-            digest.update(&h.pixels_xxh3.to_le_bytes());
-            lat.push(latency_ns);
-            sent.push((h.meta.seq, h.meta.send_mono_ns));
+            record.digest.update(&h.meta.seq.to_le_bytes());
+            record.digest.update(&h.pixels_xxh3.to_le_bytes());
+            record.take(h.meta.seq, h.meta.send_mono_ns, latency_ns);
             if Some(h.frame_index) == want {
                 *snap = Some(Snapshot {
                     frame_index: h.frame_index,
@@ -115,15 +123,6 @@ impl Tap for FrameTap {
             Ok(())
         })?;
         Ok(())
-    }
-    fn digest(&self) -> u64 {
-        self.digest.digest()
-    }
-    fn latency_ns(&self) -> &[u64] {
-        &self.latency_ns
-    }
-    fn send_ns(&self) -> &[(u64, u64)] {
-        &self.send_ns
     }
     fn as_any(&self) -> &dyn Any {
         self
@@ -153,9 +152,7 @@ pub fn open(
             inbox.verify_checksum = services.iter().all(|s| *s == ServiceId::Orchestrator);
             let tap = FrameTap {
                 inbox,
-                digest: Xxh3::new(),
-                latency_ns: vec![],
-                send_ns: vec![],
+                record: Record::default(),
                 want: self.snapshot,
                 snapshot: None,
             };
@@ -165,9 +162,7 @@ pub fn open(
             let (inbox, l) = Inbox::<T>::open(self.node, spec.id)?;
             let tap = MessageTap {
                 inbox,
-                digest: Xxh3::new(),
-                latency_ns: vec![],
-                send_ns: vec![],
+                record: Record::default(),
                 kept: vec![],
             };
             Ok((Box::new(tap), l))

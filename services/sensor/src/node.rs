@@ -24,19 +24,35 @@ const BATCH: usize = 8;
 
 /// A stream with the port it publishes on.
 trait Emitter {
-    fn topic(&self) -> TopicId;
+    fn stream(&self) -> &dyn Stream;
+    fn out(&self) -> &dyn Output;
     fn output(&mut self) -> &mut dyn Output;
-    fn stats(&self) -> &TopicStats;
-    /// Index of the next message to emit.
-    fn next_seq(&self) -> u64;
-    /// The simulated time of the next message, if the stream has one left.
-    fn next_t_ns(&self) -> Option<u64>;
-    /// Realtime: when the next message is due after `Start` [ns].
-    fn due_ns(&self) -> Option<u64>;
-    /// Whether the next message is a replay (a consumer restarted).
-    fn replaying(&self) -> bool;
     /// Publishes the next message (rendered into the loan, or made whole); its truth.
     fn emit(&mut self) -> Result<Truth>;
+
+    fn topic(&self) -> TopicId {
+        self.stream().topic()
+    }
+    fn stats(&self) -> &TopicStats {
+        self.out().stats()
+    }
+    /// Index of the next message to emit.
+    fn next_seq(&self) -> u64 {
+        self.out().next_seq()
+    }
+    /// The simulated time of the next message, if the stream has one left.
+    fn next_t_ns(&self) -> Option<u64> {
+        let k = self.next_seq();
+        (k < self.stream().messages()).then(|| self.stream().t_ns(k))
+    }
+    /// Realtime: when the next message is due after `Start` [ns].
+    fn due_ns(&self) -> Option<u64> {
+        self.stream().due_ns(self.next_seq())
+    }
+    /// Whether the next message is a replay (a consumer restarted).
+    fn replaying(&self) -> bool {
+        self.out().replaying()
+    }
 }
 
 struct Frames<S: FrameStream> {
@@ -45,27 +61,14 @@ struct Frames<S: FrameStream> {
 }
 
 impl<S: FrameStream> Emitter for Frames<S> {
-    fn topic(&self) -> TopicId {
-        self.stream.topic()
+    fn stream(&self) -> &dyn Stream {
+        &self.stream
+    }
+    fn out(&self) -> &dyn Output {
+        &self.out
     }
     fn output(&mut self) -> &mut dyn Output {
         &mut self.out
-    }
-    fn stats(&self) -> &TopicStats {
-        &self.out.stats
-    }
-    fn next_seq(&self) -> u64 {
-        self.out.next_seq()
-    }
-    fn next_t_ns(&self) -> Option<u64> {
-        let k = self.out.next_seq();
-        (k < self.stream.messages()).then(|| self.stream.t_ns(k))
-    }
-    fn due_ns(&self) -> Option<u64> {
-        self.stream.due_ns(self.out.next_seq())
-    }
-    fn replaying(&self) -> bool {
-        self.out.replaying()
     }
     fn emit(&mut self) -> Result<Truth> {
         let k = self.out.next_seq();
@@ -82,27 +85,14 @@ struct Messages<S: MessageStream> {
 }
 
 impl<S: MessageStream> Emitter for Messages<S> {
-    fn topic(&self) -> TopicId {
-        self.stream.topic()
+    fn stream(&self) -> &dyn Stream {
+        &self.stream
+    }
+    fn out(&self) -> &dyn Output {
+        &self.out
     }
     fn output(&mut self) -> &mut dyn Output {
         &mut self.out
-    }
-    fn stats(&self) -> &TopicStats {
-        &self.out.stats
-    }
-    fn next_seq(&self) -> u64 {
-        self.out.next_seq()
-    }
-    fn next_t_ns(&self) -> Option<u64> {
-        let k = self.out.next_seq();
-        (k < self.stream.messages()).then(|| self.stream.t_ns(k))
-    }
-    fn due_ns(&self) -> Option<u64> {
-        self.stream.due_ns(self.out.next_seq())
-    }
-    fn replaying(&self) -> bool {
-        self.out.replaying()
     }
     fn emit(&mut self) -> Result<Truth> {
         let k = self.out.next_seq();
