@@ -233,6 +233,9 @@ fn the_skeleton_holds_credit_acks_replays_an_injected_drop_and_shuts_down() {
             h.detections.stats.next_seq, window,
             "held by its consumers' credit"
         );
+        // Its ack of what it took arrives in its own time (a deadline, not a duration).
+        h.drive("the frames' ack", n, false, |h| h.frames_acked >= window);
+        assert_eq!(h.detections.stats.next_seq, window, "still held");
         assert_eq!(
             h.frames_acked, window,
             "it took only the frames it could answer"
