@@ -2,16 +2,13 @@
 //! answer's model against the motion window, with its residuals, at λ*.
 //!
 //! The curves are not on the wire (a solve response carries the answer, not series): they are
-//! the model evaluated at the service's answer on the run's `observations.csv`, with stage 1's
-//! coefficients recomputed (a few NNLS fits, the service's to the bit). Stage 3 is not solved
-//! again.
+//! the model evaluated on the run's `observations.csv` at the service's answer — its rate and
+//! the two-facet coefficients at λ* it carries. Nothing is solved again.
 
 use std::path::Path;
 
 use anyhow::{anyhow, Result};
-use glint_inversion::stage1::{
-    coefficients_to_array, design_matrix, run_stage1_full, Stage1Config,
-};
+use glint_inversion::stage1::{coefficients_from_slice, design_matrix};
 use glint_inversion::{MotionModelConfig, RateBand, RateProblem};
 use nalgebra::Vector3;
 use shared_types::scenario::SpectraScenario;
@@ -29,23 +26,23 @@ pub fn plots(dir: &Path, sp: &SpectraScenario, responses: &[SolveResponse]) -> R
     let path = dir.join("observations.csv");
     let file = crate::tools::observations::read(&path)?;
     let model = glint_inversion::service_core::model_config(sp);
-    // Stage 1 again (a few NNLS fits, deterministic: the service's coefficients to the bit).
     let body_normal = Vector3::from(model.body_normal);
-    let stage1 = run_stage1_full(
-        &file.set.stable,
-        &file.set.wavelengths_nm,
-        body_normal,
-        None,
-        &Stage1Config::default(),
-    )
-    .map_err(|e| anyhow!("{}: {e}", path.display()))?;
     let chosen = answer.chosen_band as usize;
-    let nm = file.set.wavelengths_nm[chosen];
+    let nm = *file.set.wavelengths_nm.get(chosen).ok_or_else(|| {
+        anyhow!(
+            "{}: the answer's band {chosen} is not among the file's {} bands",
+            path.display(),
+            file.set.wavelengths_nm.len()
+        )
+    })?;
+    if answer.recon_coefficients.iter().any(|c| c.is_nan()) {
+        return Ok(false);
+    }
 
     // Stage 1: Φ_rec,j = G_j x / ‖T0_j‖² over the stable window.
     let stable = &file.set.stable;
     let g = design_matrix(stable, body_normal);
-    let x = coefficients_to_array(&stage1.bands[chosen].coeffs);
+    let x = answer.recon_coefficients;
     let observed: Vec<(f64, f64)> = stable
         .iter()
         .enumerate()
@@ -63,7 +60,7 @@ pub fn plots(dir: &Path, sp: &SpectraScenario, responses: &[SolveResponse]) -> R
         &dir.join("stage1-fit.svg"),
         &format!(
             "Stage 1 at λ* = {nm} nm: stable window (dots) and its NNLS reconstruction (line), ε_rec = {:.2e}",
-            stage1.bands[chosen].recon_err
+            answer.recon_err[chosen]
         ),
         "stable-window sample",
         observed,
@@ -71,9 +68,10 @@ pub fn plots(dir: &Path, sp: &SpectraScenario, responses: &[SolveResponse]) -> R
     )?;
 
     // Stage 3: the answer's model at λ*, over the frames the answer fitted. The joint fit
-    // evaluates every band with its own coefficients and re-fitted diffuse terms at p̂; a
-    // per-band weight does not move a band's re-fitted terms, so its reweighting does not
-    // enter the curve.
+    // evaluates every band with its own coefficients and re-fitted diffuse terms at p̂, each
+    // band on its own (a per-band weight does not move a band's re-fitted terms), so λ*'s curve
+    // is λ* alone with the coefficients the answer used there and the lobes it re-fitted (chosen
+    // over every band, so carried in the answer).
     if answer.status != SolveStatus::Ok as u32 {
         return Ok(false);
     }
@@ -87,29 +85,21 @@ pub fn plots(dir: &Path, sp: &SpectraScenario, responses: &[SolveResponse]) -> R
         epoch_frame: Some(epoch),
         refit_diffuse: true,
         refit_widest_lobe: answer.flags & SolveResponse::LOBE_REFIT != 0,
+        widest_lobes: Some(answer.refit_lobes.map(|k| k as usize)),
         ..model
     };
     let coefficients = if joint {
-        &stage1.bands
+        &answer.recon_coefficients
     } else {
-        stage1.single_band()
+        &answer.rate_coefficients
     };
-    let bands: Vec<RateBand> = coefficients
-        .iter()
-        .enumerate()
-        .filter(|(b, _)| joint || *b == chosen)
-        .map(|(b, s)| RateBand {
-            band_index: b,
-            wavelength_nm: s.wavelength_nm,
-            coeffs: s.coeffs,
-        })
-        .collect();
-    let row = bands
-        .iter()
-        .position(|b| b.band_index == chosen)
-        .unwrap_or(0);
-    let problem = RateProblem::new(&motion, &bands, &model)?;
-    let curve = problem.model_flux_w(p).swap_remove(row);
+    let band = RateBand {
+        band_index: chosen,
+        wavelength_nm: nm,
+        coeffs: coefficients_from_slice(coefficients),
+    };
+    let problem = RateProblem::new(&motion, &[band], &model)?;
+    let curve = problem.model_flux_w(p).swap_remove(0);
     let frame = |o: &glint_inversion::Observation| (o.frame_index - epoch) as f64;
     let observed: Vec<(f64, f64)> = motion
         .iter()

@@ -251,12 +251,12 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveRequest, request_id), 32);
     assert_eq!(offset_of!(SolveRequest, stage), 40);
     assert_eq!(offset_of!(SolveRequest, flags), 44);
-    // The answer, ≤ 1 KiB: no lab notes on the wire.
+    // The answer, ≤ 1.25 KiB: no lab notes on the wire (ADR 0035).
     assert_eq!(
         (size_of::<SolveResponse>(), align_of::<SolveResponse>()),
-        (848, 8)
+        (1208, 8)
     );
-    assert!(size_of::<SolveResponse>() <= 1024);
+    assert!(size_of::<SolveResponse>() <= 1280);
     assert_eq!(offset_of!(SolveResponse, request_id), 32);
     assert_eq!(offset_of!(SolveResponse, stage), 40);
     assert_eq!(offset_of!(SolveResponse, status), 44);
@@ -280,4 +280,7 @@ fn solve_layout() {
     assert_eq!(offset_of!(SolveResponse, band_status), 816);
     assert_eq!(offset_of!(SolveResponse, band_unobservable_reason), 820);
     assert_eq!(offset_of!(SolveResponse, band_rate_deg_per_frame), 824);
+    assert_eq!(offset_of!(SolveResponse, recon_coefficients), 848);
+    assert_eq!(offset_of!(SolveResponse, rate_coefficients), 1024);
+    assert_eq!(offset_of!(SolveResponse, refit_lobes), 1200);
 }

@@ -35,7 +35,7 @@ mod coefficients;
 mod diagnostics;
 pub mod refit;
 
-use refit::{nuisance_columns, take_widest_lobes};
+use refit::{nuisance_columns, take_lobes, take_widest_lobes};
 
 /// Panel normal during the motion window (§1.6 \[ASSUMP\]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -68,6 +68,9 @@ pub struct MotionModelConfig {
     pub refit_diffuse: bool,
     /// With `refit_diffuse`: also re-estimate each facet's widest lobe in use.
     pub refit_widest_lobe: bool,
+    /// With `refit_widest_lobe`: the lobe to re-fit per facet (a term index, 0 for none)
+    /// instead of the widest in use over these bands — a fit over more bands chose it.
+    pub widest_lobes: Option<[usize; 2]>,
     /// Frame index with t = 0 (all angles 0); `None` = the smallest motion frame index.
     pub epoch_frame: Option<u64>,
 }
@@ -80,6 +83,7 @@ impl Default for MotionModelConfig {
             attitude: AttitudeModel::Verbatim,
             refit_diffuse: false,
             refit_widest_lobe: false,
+            widest_lobes: None,
             epoch_frame: None,
         }
     }
@@ -256,7 +260,10 @@ impl RateProblem {
             active[0][0] = true;
             active[1][0] = true;
             if config.refit_widest_lobe {
-                refit_lobes = take_widest_lobes(&mut data, &active);
+                refit_lobes = match config.widest_lobes {
+                    Some(lobes) => take_lobes(&mut data, &mut active, lobes),
+                    None => take_widest_lobes(&mut data, &active),
+                };
             }
         }
         Ok(Self {

@@ -10,8 +10,11 @@ use shared_types::{SolveRequest, SolveResponse, SolveStatus, Spectrum};
 use crate::model::MotionModelConfig;
 use crate::rotation::AttitudeModel;
 use crate::session::{Session, StageOutcome};
+use crate::stage1::{coefficients_to_array, Stage1Band, DESIGN_COLUMNS};
 use crate::stage3::{RateSolution, Stage3Config};
 use crate::{Answer, AnswerFit, Observation};
+
+const _: () = assert!(DESIGN_COLUMNS == shared_types::TWO_FACET_TERMS);
 
 /// The session of a deployment's spectra scenario.
 pub fn session(sp: &SpectraScenario) -> Session {
@@ -160,6 +163,17 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
             *slot = b.sigma as f32;
         }
         out.chosen_band = s2.chosen_index as u32;
+        if let Some(s1) = &session.stage1 {
+            let at_chosen = |bands: &[Stage1Band]| {
+                bands
+                    .get(s2.chosen_index)
+                    .map(|b| coefficients_to_array(&b.coeffs))
+            };
+            if let (Some(recon), Some(rate)) = (at_chosen(&s1.bands), at_chosen(s1.single_band())) {
+                out.recon_coefficients = recon;
+                out.rate_coefficients = rate;
+            }
+        }
     }
     if req.stage == 3 {
         if let (Some(answer), Some(fits)) = (&session.answer, &session.fits) {
@@ -171,8 +185,9 @@ pub fn answer(session: &mut Session, req: &SolveRequest) -> SolveResponse {
             };
             if let Some(fit) = from.and_then(RateSolution::fit) {
                 out.iterations = fit.total_iterations as u32;
-                if fit.refit.is_some_and(|r| r.widest_lobe) {
+                if let Some(refit) = fit.refit.filter(|r| r.widest_lobe) {
                     out.flags |= SolveResponse::LOBE_REFIT;
+                    out.refit_lobes = refit.lobes.map(|k| k as u32);
                 }
             }
         }

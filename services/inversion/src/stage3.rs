@@ -116,6 +116,9 @@ pub struct RateFit {
 pub struct Refit {
     /// Each facet's widest lobe too (besides both diffuse terms and the constant).
     pub widest_lobe: bool,
+    /// The lobe re-fitted per facet (panel, body) as a term index, 0 for none.
+    #[serde(default)]
+    pub lobes: [usize; 2],
     /// The direction held at the prior (the body axis nearest the sun–observer bisector).
     pub held_direction: [f64; 3],
     /// The test that decided `widest_lobe` ([`LobeRefit::WhenNeeded`]); `None` when the
@@ -412,6 +415,7 @@ fn polish(
         hold_start_deg_per_frame: hold.as_ref().and(starts.first().copied()),
         refit: hold.as_ref().map(|h| Refit {
             widest_lobe: problem.refits_widest_lobe(),
+            lobes: problem.refit_lobes(),
             held_direction: h.held_direction(),
             lobe_test: None,
             glint_lobes_only: problem.keeps_glint_lobes(),

@@ -465,3 +465,69 @@ fn the_neighbour_search_finds_the_lower_minimum_a_frame_s_shift_away() {
     assert!(truth.delta_chi2 < -4.0, "{truth:?}");
     assert_eq!(neighbours[0], truth, "the best first");
 }
+
+/// λ*'s curve of a joint answer, evaluated on λ* alone with the lobes the joint fit re-fitted
+/// (what a solve response carries, and what the report draws), is the joint model's row for
+/// λ*; choosing the lobes from λ* alone is not.
+#[test]
+fn one_band_with_the_joint_fits_lobes_is_the_joint_models_row() {
+    let p = [0.0, 0.25, 0.0];
+    let wavelengths = [650.0, 500.0];
+    let obs = motion_window(
+        120,
+        alpha_phase15_deg(),
+        0.004_167,
+        p,
+        AttitudeConvention::from(AttitudeModel::Verbatim),
+        PanelNormalMode::Literal,
+        &wavelengths,
+        &band_coeffs,
+    );
+    let band = |i: usize| RateBand {
+        band_index: i,
+        wavelength_nm: wavelengths[i],
+        coeffs: scaled(&band_coeffs(wavelengths[i]), band_scale_w(wavelengths[i])),
+    };
+    // λ* (band 0) without each facet's widest lobe: over both bands the widest in use is band
+    // 1's, over λ* alone a narrower one.
+    let mut chosen = band(0);
+    for c in [&mut chosen.coeffs.panel, &mut chosen.coeffs.body] {
+        if let Some(k) = (1..c.len()).rev().find(|&k| c[k] != 0.0) {
+            c[k] = 0.0;
+        }
+    }
+    let model = MotionModelConfig {
+        refit_diffuse: true,
+        refit_widest_lobe: true,
+        ..config(AttitudeModel::Verbatim, PanelNormalMode::Literal)
+    };
+    let joint = RateProblem::new(&obs, &[chosen, band(1)], &model).expect("joint");
+    assert!(
+        joint.refits_widest_lobe(),
+        "the case needs a broad lobe re-fitted"
+    );
+    let row = joint.model_flux_w(p).swap_remove(0);
+    let alone = |widest_lobes| {
+        let m = MotionModelConfig {
+            widest_lobes,
+            ..model.clone()
+        };
+        let problem = RateProblem::new(&obs, std::slice::from_ref(&chosen), &m).expect("one band");
+        (
+            problem.refit_lobes(),
+            problem.model_flux_w(p).swap_remove(0),
+        )
+    };
+    let max_rel = |curve: &[f64]| {
+        row.iter()
+            .zip(curve)
+            .map(|(a, b)| ((a - b) / a.abs().max(1e-300)).abs())
+            .fold(0.0, f64::max)
+    };
+    let (lobes, curve) = alone(Some(joint.refit_lobes()));
+    assert_eq!(lobes, joint.refit_lobes());
+    assert!(max_rel(&curve) < 1e-12, "{}", max_rel(&curve));
+    let (own_lobes, own_curve) = alone(None);
+    assert_ne!(own_lobes, joint.refit_lobes());
+    assert!(max_rel(&own_curve) > 1e-6, "{}", max_rel(&own_curve));
+}

@@ -44,7 +44,7 @@ impl DropReason {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v5.TopicCounters")]
+#[type_name("glint.v6.TopicCounters")]
 #[repr(C)]
 pub struct TopicCounters {
     /// [`crate::TopicId`] as u32, or `u32::MAX` for an unused slot.
@@ -67,7 +67,7 @@ pub struct TopicCounters {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v5.ServiceTime")]
+#[type_name("glint.v6.ServiceTime")]
 #[repr(C)]
 pub struct ServiceTime {
     /// Handling wake-ups: its own work, checksums, publishing, waiting for RPC answers.
@@ -88,7 +88,7 @@ pub struct ServiceTime {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v5.Heartbeat")]
+#[type_name("glint.v6.Heartbeat")]
 #[repr(C)]
 pub struct Heartbeat {
     pub meta: Meta,
@@ -123,7 +123,7 @@ impl Heartbeat {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v5.Ack")]
+#[type_name("glint.v6.Ack")]
 #[repr(C)]
 pub struct Ack {
     pub meta: Meta,
@@ -172,7 +172,7 @@ impl Command {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v5.Control")]
+#[type_name("glint.v6.Control")]
 #[repr(C)]
 pub struct Control {
     pub meta: Meta,

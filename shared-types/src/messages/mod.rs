@@ -33,6 +33,8 @@ pub use truth::*;
 
 /// Maximum number of spectral bands in one [`Spectrum`].
 pub const MAX_BANDS: usize = 64;
+/// Coefficients of the two-facet model, `[panel; body]`, 11 terms each (math.md §3).
+pub const TWO_FACET_TERMS: usize = 22;
 /// Maximum number of debris objects carried in one [`Truth`] message.
 pub const MAX_DEBRIS: usize = 16;
 /// Number of per-reason drop counters in a [`Heartbeat`].
@@ -44,7 +46,7 @@ pub const MAX_TOPICS: usize = 8;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v5.Meta")]
+#[type_name("glint.v6.Meta")]
 #[repr(C)]
 pub struct Meta {
     /// Per-producer, per-topic sequence number, starting at 0, without gaps.

@@ -26,7 +26,7 @@ impl Window {
 
 /// One time sample of the target's spectrum plus the geometry the inversion needs.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v5.Spectrum")]
+#[type_name("glint.v6.Spectrum")]
 #[repr(C)]
 pub struct Spectrum {
     pub meta: Meta,
@@ -134,7 +134,7 @@ impl Spectrum {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v5.SolveRequest")]
+#[type_name("glint.v6.SolveRequest")]
 #[repr(C)]
 pub struct SolveRequest {
     pub meta: Meta,
@@ -201,7 +201,7 @@ impl SolveStatus {
 /// stage 3). Per-band figures are `f32`: relative errors and degrees of separation, printed to
 /// four digits.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v5.SolveResponse")]
+#[type_name("glint.v6.SolveResponse")]
 #[repr(C)]
 pub struct SolveResponse {
     pub meta: Meta,
@@ -251,6 +251,15 @@ pub struct SolveResponse {
     pub band_unobservable_reason: u32,
     /// λ*'s fit: p̂ \[deg/frame\] (NaN without a rate).
     pub band_rate_deg_per_frame: [f64; 3],
+    /// Stage 1's two-facet coefficients at λ*, `[panel; body]` (stages 2 and 3; NaN before
+    /// λ* is chosen): the reconstruction of the stable window, and the joint fit's model.
+    pub recon_coefficients: [f64; TWO_FACET_TERMS],
+    /// The coefficients λ*'s own rate fit used, `[panel; body]`: the spectrally pooled ones
+    /// when stage 1 pooled, else [`Self::recon_coefficients`] (stages 2 and 3).
+    pub rate_coefficients: [f64; TWO_FACET_TERMS],
+    /// With [`Self::LOBE_REFIT`]: the lobe the answer re-fitted per facet (panel, body), as a
+    /// term index of [`Self::recon_coefficients`] (1–10; 0 for none).
+    pub refit_lobes: [u32; 2],
 }
 
 impl Default for SolveResponse {
@@ -280,6 +289,9 @@ impl Default for SolveResponse {
             band_status: 0,
             band_unobservable_reason: 0,
             band_rate_deg_per_frame: [f64::NAN; 3],
+            recon_coefficients: [f64::NAN; TWO_FACET_TERMS],
+            rate_coefficients: [f64::NAN; TWO_FACET_TERMS],
+            refit_lobes: [0; 2],
         }
     }
 }
@@ -351,6 +363,28 @@ impl SolveResponse {
             return Err(Reject::new(
                 "solve_response.n_bands/chosen_band",
                 "out of range",
+            ));
+        }
+        for (field, c) in [
+            (
+                "solve_response.recon_coefficients",
+                &self.recon_coefficients,
+            ),
+            ("solve_response.rate_coefficients", &self.rate_coefficients),
+        ] {
+            // Given (every term a number) or not (every term NaN), never a mix or an infinity.
+            if !(c.iter().all(|v| v.is_finite()) || c.iter().all(|v| v.is_nan())) {
+                return Err(Reject::new(field, "a mix of numbers and non-numbers"));
+            }
+        }
+        if self
+            .refit_lobes
+            .iter()
+            .any(|&k| k as usize >= TWO_FACET_TERMS / 2)
+        {
+            return Err(Reject::new(
+                "solve_response.refit_lobes",
+                "not a lobe's term index (0–10)",
             ));
         }
         if self.stage == 3 && status == SolveStatus::Ok {

@@ -6,7 +6,7 @@ use super::*;
 
 /// Ground truth for scoring; read only by the orchestrator.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v5.Truth")]
+#[type_name("glint.v6.Truth")]
 #[repr(C)]
 pub struct Truth {
     pub meta: Meta,

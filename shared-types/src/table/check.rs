@@ -112,10 +112,10 @@ mod tests {
         assert_eq!(ServiceId::from_u32(5), Some(ServiceId::Earth));
         assert_eq!(ServiceId::from_u32(6), None);
         assert_eq!(TopicId::from_u32(11), Some(TopicId::EarthAttitude));
-        assert_eq!(payload_type_name(TopicId::Tracks), "glint.v5.Tracks");
+        assert_eq!(payload_type_name(TopicId::Tracks), "glint.v6.Tracks");
         assert_eq!(
             payload_type_name(TopicId::EarthFrame),
-            "glint.v5.FrameHeader"
+            "glint.v6.FrameHeader"
         );
         assert_eq!(
             ServiceId::names(),

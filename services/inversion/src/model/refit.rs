@@ -18,6 +18,11 @@ impl RateProblem {
         self.refit_lobes.iter().any(|&k| k > 0)
     }
 
+    /// The lobe re-fitted per facet (panel, body) as a term index, 0 for none.
+    pub fn refit_lobes(&self) -> [usize; 2] {
+        self.refit_lobes
+    }
+
     /// Whether the widest-lobe re-fit was asked for but every facet's widest lobe in use is a
     /// glint lobe (narrower than [`BROAD_LOBE_MIN_MU`]), so only the diffuse terms are re-fitted.
     pub fn keeps_glint_lobes(&self) -> bool {
@@ -105,6 +110,24 @@ pub(super) fn take_widest_lobes(data: &mut [BandData], active: &[[bool; TERMS]; 
         }
     }
     lobes
+}
+
+/// Re-fits the given lobe of each facet (a term index, 0 for none) instead of choosing it: the
+/// lobes a fit over more bands chose.
+pub(super) fn take_lobes(
+    data: &mut [BandData],
+    active: &mut [[bool; TERMS]; 2],
+    lobes: [usize; 2],
+) -> [usize; 2] {
+    for (f, &k) in lobes.iter().enumerate() {
+        if (1..TERMS).contains(&k) {
+            active[f][k] = true;
+            for band in data.iter_mut() {
+                band.x[f][k] = 0.0;
+            }
+        }
+    }
+    lobes.map(|k| if k < TERMS { k } else { 0 })
 }
 
 /// A facet's widest lobe in use (`active`: its terms any band uses), when it is broad.

@@ -8,6 +8,7 @@ use crate::stage3::Refit;
 fn refit_record(widest_lobe: bool) -> Refit {
     Refit {
         widest_lobe,
+        lobes: if widest_lobe { [10, 10] } else { [0, 0] },
         held_direction: [1.0, 0.0, 0.0],
         lobe_test: None,
         glint_lobes_only: false,
