@@ -154,12 +154,27 @@ pub struct FaultReport {
     pub at_seq: Option<u64>,
     pub at_s: Option<f64>,
     pub duration_s: Option<f64>,
+    /// A delay by messages, a drop's or a corruption's outputs: how many.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub count: Option<u32>,
+    /// A delay: added before each message [ms].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub delay_ms: Option<u64>,
     pub injected_s: Option<f64>,
     pub ended_s: Option<f64>,
     pub detected_s: Option<f64>,
     /// `exit`, `heartbeat deadline`, `sequence gap`, `validation`.
     pub detected_by: Option<String>,
+    /// Recovered: a restarted service has taken again the input the fault found it at; a
+    /// stop's service is heard from after SIGCONT; a delay's service has taken every input
+    /// that had arrived when the delay ended; a drop or corruption is counted downstream.
     pub recovered_s: Option<f64>,
+    /// From the restarted service's resume (a delay: its end) to recovered [s].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub catch_up_s: Option<f64>,
+    /// Why the run ended before this fault's verdict could be reached (absent: reached).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub not_reached: Option<String>,
     pub restarts: u32,
     /// What it cost: messages the service's inputs carried that it never processed (the
     /// sensor: that it never produced); a drop or corruption: how many it made.

@@ -15,9 +15,33 @@ enum State {
     Stopped {
         until_s: f64,
     },
+    /// A delay ordered (the service's `order`-th in-band order since it started): waiting for
+    /// a heartbeat that says the service obeyed it and is no longer slowed.
+    Delaying {
+        order: u32,
+    },
+    /// A delay over: waiting for the service to have taken every input that had arrived by
+    /// then (`to`, the orchestrator's count of its trigger topic).
+    CatchingUp {
+        to: u64,
+    },
     /// Injected (and, for a stop, continued): waiting to hear from the service again.
     Injected,
     Done,
+}
+
+/// What the orchestrator knows of a service when it hears from it.
+#[derive(Debug, Clone, Copy)]
+pub struct Heard {
+    /// When its latest heartbeat arrived [s since start].
+    pub at_s: f64,
+    /// In-band orders it obeyed, and whether a delay slows it (that heartbeat's).
+    pub faults_obeyed: u32,
+    pub delaying: bool,
+    /// Its progress on its fault's trigger topic (inputs taken; a source: messages published).
+    pub progress: u64,
+    /// Messages of the trigger topic the orchestrator has seen so far.
+    pub carried: u64,
 }
 
 /// One fault and its timeline [s since the services were started].
@@ -31,6 +55,12 @@ pub struct Fault {
     pub detected_s: Option<f64>,
     pub detected_by: Option<&'static str>,
     pub recovered_s: Option<f64>,
+    /// From the fault's end (a restart: the new incarnation resumed) to recovered: the
+    /// backlog worked off, or the inputs replayed.
+    pub catch_up_s: Option<f64>,
+    catch_up_from_s: Option<f64>,
+    /// Why the run ended before the fault's verdict could be reached (`None`: reached).
+    pub not_reached: Option<String>,
     /// Restarts of the service after this fault.
     pub restarts: u32,
     /// The topic whose progress fires an `at_seq` fault (the table's main input of the
@@ -57,6 +87,11 @@ pub struct Action {
 
 pub struct Injector {
     pub faults: Vec<Fault>,
+    /// In-band orders sent to each service's current incarnation.
+    orders: Vec<(ServiceId, u32)>,
+    /// The furthest each service has been heard to get on its trigger topic, over all its
+    /// incarnations: where a fault that ended one found it.
+    furthest: Vec<(ServiceId, u64)>,
 }
 
 impl Injector {
@@ -78,18 +113,40 @@ impl Injector {
                     detected_s: None,
                     detected_by: None,
                     recovered_s: None,
+                    catch_up_s: None,
+                    catch_up_from_s: None,
+                    not_reached: None,
                     restarts: 0,
                 })
             })
             .collect();
-        Injector { faults }
+        Injector {
+            faults,
+            orders: vec![],
+            furthest: vec![],
+        }
     }
 
-    /// The signals due at `now_s`; `carried(topic)` is how many messages of a fault's
-    /// trigger topic have been seen.
+    /// Counts an in-band order to `service`; its number since the service (re)started.
+    fn ordered(&mut self, service: ServiceId) -> u32 {
+        match self.orders.iter_mut().find(|(s, _)| *s == service) {
+            Some((_, n)) => {
+                *n += 1;
+                *n
+            }
+            None => {
+                self.orders.push((service, 1));
+                1
+            }
+        }
+    }
+
+    /// The signals and orders due at `now_s`; `carried(topic)` is how many messages of a
+    /// fault's trigger topic have been seen.
     pub fn step(&mut self, now_s: f64, carried: impl Fn(TopicId) -> u64) -> Vec<Action> {
         let mut actions = vec![];
-        for f in &mut self.faults {
+        for i in 0..self.faults.len() {
+            let f = &self.faults[i];
             match f.state {
                 State::Armed => {
                     let due = match (f.spec.at_seq, f.spec.at_s) {
@@ -100,35 +157,39 @@ impl Injector {
                     if !due {
                         continue;
                     }
+                    let (kind, service) = (f.spec.kind, f.service);
+                    let order = kind.in_band().then(|| self.ordered(service));
+                    let f = &mut self.faults[i];
                     f.injected_s = Some(now_s);
                     let until_s = now_s + f.spec.duration_s.unwrap_or(0.0);
-                    let (act, next) = match f.spec.kind {
+                    let (act, next) = match kind {
                         FaultKind::Kill => (Act::Signal(Signal::KILL), State::Injected),
                         FaultKind::Stop => (Act::Signal(Signal::STOP), State::Stopped { until_s }),
+                        // The service says when its delay is over (a time, or a count of inputs).
                         FaultKind::Delay => (
                             Act::Order(InBandFault::of(&f.spec)),
-                            State::Stopped { until_s },
+                            State::Delaying {
+                                order: order.unwrap_or(1),
+                            },
                         ),
-                        _ => (Act::Order(InBandFault::of(&f.spec)), State::Injected),
+                        FaultKind::Panic | FaultKind::Drop | FaultKind::Corrupt => {
+                            (Act::Order(InBandFault::of(&f.spec)), State::Injected)
+                        }
                     };
-                    if !matches!(next, State::Stopped { .. }) {
+                    if matches!(next, State::Injected) {
                         f.ended_s = Some(now_s);
                     }
                     f.state = next;
-                    actions.push(Action {
-                        service: f.service,
-                        act,
-                    });
+                    actions.push(Action { service, act });
                 }
                 State::Stopped { until_s } if now_s >= until_s => {
+                    let f = &mut self.faults[i];
                     f.state = State::Injected;
                     f.ended_s = Some(now_s);
-                    if f.spec.kind == FaultKind::Stop {
-                        actions.push(Action {
-                            service: f.service,
-                            act: Act::Signal(Signal::CONT),
-                        });
-                    }
+                    actions.push(Action {
+                        service: f.service,
+                        act: Act::Signal(Signal::CONT),
+                    });
                 }
                 _ => {}
             }
@@ -146,23 +207,76 @@ impl Injector {
         }
     }
 
-    /// `service` was last heard from (a heartbeat arrived) at `heard_s`: a stop is recovered
-    /// once the service is heard from after its SIGCONT.
-    pub fn heard_from(&mut self, service: ServiceId, heard_s: f64) {
+    /// What `service`'s latest heartbeat says: a stop is recovered once the service is heard
+    /// from after its SIGCONT; a delay is over once the service says so, and recovered once
+    /// it has taken every input that had arrived by then.
+    pub fn heard_from(&mut self, service: ServiceId, heard: Heard) {
+        match self.furthest.iter_mut().find(|(s, _)| *s == service) {
+            Some((_, p)) => *p = (*p).max(heard.progress),
+            None => self.furthest.push((service, heard.progress)),
+        }
         for f in self.faults.iter_mut().filter(|f| f.service == service) {
-            let continued = f.ended_s.is_some_and(|e| heard_s >= e);
-            let timed = matches!(f.spec.kind, FaultKind::Stop | FaultKind::Delay);
-            if f.state == State::Injected && timed && continued {
-                f.recovered_s = Some(heard_s);
-                f.state = State::Done;
+            match f.state {
+                State::Injected
+                    if f.spec.kind == FaultKind::Stop
+                        && f.ended_s.is_some_and(|e| heard.at_s >= e) =>
+                {
+                    f.recovered_s = Some(heard.at_s);
+                    f.state = State::Done;
+                }
+                State::Delaying { order } if heard.faults_obeyed >= order && !heard.delaying => {
+                    f.ended_s = Some(heard.at_s);
+                    f.catch_up_from_s = Some(heard.at_s);
+                    f.state = State::CatchingUp { to: heard.carried };
+                }
+                _ => {}
+            }
+            if let State::CatchingUp { to } = f.state {
+                let since = f.catch_up_from_s.is_none_or(|t| heard.at_s >= t);
+                if since && heard.progress >= to {
+                    f.recovered_s = Some(heard.at_s);
+                    f.catch_up_s = f.catch_up_from_s.map(|e| heard.at_s - e);
+                    f.state = State::Done;
+                }
             }
         }
+    }
+
+    /// The run ended at `now_s`: each fault whose verdict was not reached says why, and the
+    /// faults that never fired are returned (a run that did not test what it was asked to
+    /// fails).
+    pub fn finish(&mut self) -> Vec<String> {
+        let mut never = vec![];
+        for f in &mut self.faults {
+            let why = match f.state {
+                State::Armed => {
+                    never.push(format!(
+                        "fault {} never fired: the run ended first",
+                        f.label()
+                    ));
+                    Some("never fired: the run ended first")
+                }
+                State::Delaying { .. } => {
+                    Some("the run ended while the delay still slowed the service")
+                }
+                State::CatchingUp { .. } => Some("the run ended before the service had caught up"),
+                State::Stopped { .. } => Some("the run ended while the service was stopped"),
+                State::Injected | State::Done => None,
+            };
+            f.not_reached = why.map(str::to_string);
+        }
+        never
     }
 
     /// Supervision restarted `service`, and its new incarnation was resumed at `now_s`: the
     /// faults it had been injected with are recovered from (a stop that supervision ended by
     /// killing the process ends when it was detected).
+    /// Recovered once the new incarnation has taken the input the fault found the service at.
     pub fn restarted(&mut self, service: ServiceId, now_s: f64) {
+        self.orders.retain(|(s, _)| *s != service);
+        let found_at = (self.furthest.iter())
+            .find(|(s, _)| *s == service)
+            .map_or(0, |(_, p)| *p);
         for f in self.faults.iter_mut().filter(|f| f.service == service) {
             // Supervision acted on it: noticed, or not yet over.
             let acted_on = f.state != State::Done || (f.detected_s.is_some() && f.restarts == 0);
@@ -170,11 +284,12 @@ impl Injector {
                 continue;
             }
             f.restarts += 1;
-            f.recovered_s = Some(now_s);
+            f.recovered_s = None;
+            f.catch_up_from_s = Some(now_s);
             if f.ended_s.is_none() {
                 f.ended_s = f.detected_s.or(Some(now_s));
             }
-            f.state = State::Done;
+            f.state = State::CatchingUp { to: found_at };
         }
     }
 
@@ -222,12 +337,10 @@ impl Injector {
             if let State::Stopped { .. } = f.state {
                 f.state = State::Injected;
                 f.ended_s = Some(now_s);
-                if f.spec.kind == FaultKind::Stop {
-                    actions.push(Action {
-                        service: f.service,
-                        act: Act::Signal(Signal::CONT),
-                    });
-                }
+                actions.push(Action {
+                    service: f.service,
+                    act: Act::Signal(Signal::CONT),
+                });
             }
         }
         actions
@@ -258,11 +371,15 @@ impl Fault {
             at_seq: self.spec.at_seq,
             at_s: self.spec.at_s,
             duration_s: self.spec.duration_s,
+            count: self.spec.count,
+            delay_ms: self.spec.delay_ms,
             injected_s: self.injected_s,
             ended_s: self.ended_s,
             detected_s: self.detected_s,
             detected_by: self.detected_by.map(str::to_string),
             recovered_s: self.recovered_s,
+            catch_up_s: self.catch_up_s,
+            not_reached: self.not_reached.clone(),
             restarts: self.restarts,
             lost,
             invariant_held,
@@ -285,8 +402,98 @@ mod tests {
         )
         .unwrap();
         sc.fault = specs.iter().map(|s| FaultSpec::parse(s).unwrap()).collect();
+        sc.faults.enabled = true;
         sc.validate().unwrap();
         Injector::new(&sc)
+    }
+
+    /// A heartbeat at `at_s` from a service that has taken `progress` inputs, no fault order
+    /// obeyed, and the orchestrator at the same point.
+    fn heard(at_s: f64, progress: u64) -> Heard {
+        Heard {
+            at_s,
+            faults_obeyed: 0,
+            delaying: false,
+            progress,
+            carried: progress,
+        }
+    }
+
+    #[test]
+    fn a_delay_by_messages_ends_when_the_service_says_so_and_recovers_once_caught_up() {
+        let mut inj = injector(&["detector:delay@10,delay_ms=5,count=8"]);
+        let a = inj.step(0.5, |_| 11);
+        assert!(matches!(a[0].act, Act::Order(f) if f.count == 8 && f.duration_ms == 0));
+        // Before the service obeyed: a heartbeat saying it is not slowed ends nothing.
+        inj.heard_from(ServiceId::Detector, heard(0.52, 11));
+        assert_eq!(inj.faults[0].ended_s, None, "the order had not arrived");
+        let slowed = Heard {
+            faults_obeyed: 1,
+            delaying: true,
+            ..heard(0.6, 14)
+        };
+        inj.heard_from(ServiceId::Detector, slowed);
+        assert_eq!(inj.faults[0].ended_s, None, "still slowed");
+        // Over, with a backlog: 30 frames had arrived, it had taken 19.
+        let over = Heard {
+            faults_obeyed: 1,
+            carried: 30,
+            ..heard(0.7, 19)
+        };
+        inj.heard_from(ServiceId::Detector, over);
+        assert_eq!(inj.faults[0].ended_s, Some(0.7));
+        assert_eq!(inj.faults[0].recovered_s, None, "a backlog left");
+        let caught_up = Heard {
+            faults_obeyed: 1,
+            carried: 34,
+            ..heard(0.75, 30)
+        };
+        inj.heard_from(ServiceId::Detector, caught_up);
+        let f = &inj.faults[0];
+        assert_eq!(f.recovered_s, Some(0.75));
+        assert!((f.catch_up_s.unwrap() - 0.05).abs() < 1e-12);
+        assert!(inj.finish().is_empty());
+        assert_eq!(inj.faults[0].not_reached, None);
+    }
+
+    #[test]
+    fn a_delay_the_run_outlasted_is_not_reached_and_a_fault_that_never_fired_fails_the_run() {
+        let mut inj = injector(&["detector:delay@10,delay_ms=5,count=8", "tracker:kill@40"]);
+        inj.step(0.5, |_| 11);
+        let slowed = Heard {
+            faults_obeyed: 1,
+            delaying: true,
+            ..heard(0.6, 14)
+        };
+        inj.heard_from(ServiceId::Detector, slowed);
+        let never = inj.finish();
+        assert_eq!(never.len(), 1, "{never:?}");
+        assert!(
+            never[0].contains("tracker:kill@40 never fired"),
+            "{never:?}"
+        );
+        assert!(inj.faults[0]
+            .not_reached
+            .as_deref()
+            .unwrap()
+            .contains("still slowed"));
+        assert_eq!(inj.faults[0].recovered_s, None);
+    }
+
+    #[test]
+    fn a_restarted_service_recovers_once_it_has_taken_the_input_the_kill_found_it_at() {
+        let mut inj = injector(&["detector:kill@20"]);
+        inj.heard_from(ServiceId::Detector, heard(0.4, 21));
+        assert_eq!(inj.step(0.45, |_| 21)[0].act, Act::Signal(Signal::KILL));
+        inj.detected(ServiceId::Detector, "exit", 0.46);
+        inj.restarted(ServiceId::Detector, 0.6);
+        assert_eq!(inj.faults[0].recovered_s, None, "resumed is not recovered");
+        inj.heard_from(ServiceId::Detector, heard(0.62, 5));
+        assert_eq!(inj.faults[0].recovered_s, None, "replaying");
+        inj.heard_from(ServiceId::Detector, heard(0.7, 21));
+        let f = &inj.faults[0];
+        assert_eq!((f.recovered_s, f.restarts), (Some(0.7), 1));
+        assert!((f.catch_up_s.unwrap() - 0.1).abs() < 1e-12);
     }
 
     #[test]
@@ -310,14 +517,14 @@ mod tests {
                 act: Act::Signal(Signal::CONT)
             }]
         );
-        inj.heard_from(ServiceId::Detector, 1.55);
+        inj.heard_from(ServiceId::Detector, heard(1.55, 0));
         assert_eq!(
             inj.faults[0].recovered_s, None,
             "a heartbeat from before SIGCONT"
         );
-        inj.heard_from(ServiceId::Tracker, 1.7);
+        inj.heard_from(ServiceId::Tracker, heard(1.7, 0));
         assert_eq!(inj.faults[0].recovered_s, None, "another service");
-        inj.heard_from(ServiceId::Detector, 1.7);
+        inj.heard_from(ServiceId::Detector, heard(1.7, 0));
         let f = &inj.faults[0];
         assert_eq!(
             (f.injected_s, f.ended_s, f.recovered_s),

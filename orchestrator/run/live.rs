@@ -18,7 +18,7 @@ use shared_types::{deployment, Command, Control, Heartbeat, Replay, Scenario, Se
 use crate::report::{Outcome, RunFacts};
 use crate::run::consume::Consumer;
 use crate::run::deploy::{stop_ladder, Ending, ServiceProcess};
-use crate::run::faults::{Act, Injector};
+use crate::run::faults::{Act, Heard, Injector};
 use crate::run::membership::Membership;
 use crate::run::sequence::Sequencer;
 use crate::run::supervise::{Action, Noticed, Observation, Supervisor};
@@ -202,13 +202,40 @@ impl<'a> Live<'a> {
                 self.injector.counted(i, now_s);
             }
         }
-        let heard: Vec<(ServiceId, f64)> = (self.consumer.seen.iter())
-            .map(|(id, seen)| (*id, self.since_start(seen.at)))
-            .collect();
-        for (id, at_s) in heard {
-            self.injector.heard_from(id, at_s);
-        }
+        self.hear_from_services();
         Ok(())
+    }
+
+    /// Hands each service's latest heartbeat to the faults.
+    fn hear_from_services(&mut self) {
+        let current =
+            |id: &ServiceId, pid: u32| self.children.iter().any(|c| c.id == *id && c.pid == pid);
+        let heard: Vec<(ServiceId, Heard)> = (self.consumer.seen.iter())
+            // The current incarnation's heartbeats only (a dead one's last may linger).
+            .filter(|(id, seen)| current(id, seen.heartbeat.pid))
+            .map(|(id, seen)| {
+                let trigger = deployment::trigger_topic(self.scenario, *id);
+                let hb = &seen.heartbeat;
+                let progress = trigger.map_or(0, |t| {
+                    let c = hb.topics.iter().find(|c| c.topic == t as u32);
+                    match deployment::producer(t) == Some(*id) {
+                        true => c.map_or(0, |c| c.published),
+                        false => c.map_or(0, |c| c.next_seq),
+                    }
+                });
+                let heard = Heard {
+                    at_s: self.since_start(seen.at),
+                    faults_obeyed: hb.faults_obeyed,
+                    delaying: hb.delaying != 0,
+                    progress,
+                    carried: trigger.map_or(0, |t| self.consumer.carried(t)),
+                };
+                (*id, heard)
+            })
+            .collect();
+        for (id, heard) in heard {
+            self.injector.heard_from(id, heard);
+        }
     }
 
     /// Sends `Start` once every service is ready; fails the run past the startup timeout.
@@ -419,6 +446,13 @@ impl<'a> Live<'a> {
         );
         shutdown_sent.into_inner()?;
         self.consumer.poll()?;
+        // The last heartbeats may settle a fault's verdict; a fault that never fired fails
+        // the run (it did not test what it was asked to).
+        self.hear_from_services();
+        let never = self.injector.finish();
+        if self.failure.is_none() && !never.is_empty() {
+            self.failure = Some(never.join("; "));
+        }
         if self.children.iter().any(|c| c.ending == Ending::Running) {
             bail!("a child survived the stop ladder");
         }

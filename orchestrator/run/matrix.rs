@@ -117,7 +117,13 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
             sc.fault = vec![matrix.fault(service, si, kind, at_seq)];
             sc.faults.enabled |= kind.in_band();
             let report = deploy(sc, &name)?;
-            cases.push(judge(&name, service, kind, &report, &baseline, deadline_s));
+            let run = CaseRun {
+                success: report.results.success,
+                failure: report.results.failure.clone(),
+                science_equal: report.results.science == baseline.results.science,
+                fault: report.faults.first().cloned(),
+            };
+            cases.push(judge(&name, service, kind, run, deadline_s));
         }
     }
     let baseline_ok = baseline.results.success;
@@ -163,24 +169,33 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
     Ok((root, passed))
 }
 
+/// What the matrix reads of one case's run.
+#[derive(Debug, Clone)]
+struct CaseRun {
+    success: bool,
+    failure: Option<String>,
+    /// Its science equals the baseline's.
+    science_equal: bool,
+    /// Its one fault's entry.
+    fault: Option<FaultReport>,
+}
+
 /// A case against the targets: detected in time, recovered in time, nothing lost and the
-/// science equal (kill, stop, panic, delay), or exact counts (drop, corrupt).
-fn judge(
-    name: &str,
-    service: ServiceId,
-    kind: FaultKind,
-    report: &Report,
-    baseline: &Report,
-    deadline_s: f64,
-) -> Case {
-    let fault = report.faults.first().cloned();
-    let success = report.results.success;
+/// science equal (kill, stop, panic, delay), or exact counts (drop, corrupt). A verdict the
+/// run ended before reaching is a miss that says so.
+fn judge(name: &str, service: ServiceId, kind: FaultKind, run: CaseRun, deadline_s: f64) -> Case {
+    let CaseRun {
+        success,
+        failure,
+        science_equal: equal,
+        fault,
+    } = run;
     let mut misses = vec![];
     let mut late = vec![];
     if !success {
         misses.push(format!(
             "the run failed: {}",
-            report.results.failure.as_deref().unwrap_or("invariant")
+            failure.as_deref().unwrap_or("invariant")
         ));
     }
     let f = fault.as_ref();
@@ -207,13 +222,31 @@ fn judge(
             _ => misses.push("not detected".into()),
         }
     }
-    match (ended, recovered) {
-        (Some(e), Some(r)) if r - e < RECOVER_S => {}
-        (Some(e), Some(r)) => late.push(format!(
+    match (ended, recovered, f.and_then(|f| f.not_reached.as_deref())) {
+        (Some(e), Some(r), _) if r - e < RECOVER_S => {}
+        (Some(e), Some(r), _) => late.push(format!(
             "recovered {:.3} s after the fault ended (target < {RECOVER_S} s)",
             r - e
         )),
+        (_, _, Some(why)) => misses.push(format!("not reached: {why}")),
         _ => misses.push("not recovered".into()),
+    }
+    // A delay took effect: the service slept `delay_ms` before each of `count` messages
+    // between the order and the heartbeat that said it was over (a lower bound on any host).
+    if let Some(f) = f.filter(|_| kind == FaultKind::Delay) {
+        let slept_s = match (f.count, f.duration_s) {
+            (Some(n), _) => f64::from(n) * f.delay_ms.unwrap_or(0) as f64 * 1e-3,
+            (None, Some(d)) => d,
+            (None, None) => 0.0,
+        };
+        if let (Some(i), Some(e)) = (f.injected_s, f.ended_s) {
+            if e - i < slept_s {
+                misses.push(format!(
+                    "the delay took no effect: over {:.3} s after injection, it sleeps {slept_s:.3} s",
+                    e - i
+                ));
+            }
+        }
     }
     if !f.is_some_and(|f| f.invariant_held) {
         misses.push("accounting invariant broken".into());
@@ -228,7 +261,6 @@ fn judge(
             None
         }
         FaultKind::Kill | FaultKind::Stop | FaultKind::Panic | FaultKind::Delay => {
-            let equal = report.results.science == baseline.results.science;
             if !equal {
                 misses.push("science differs from the baseline".into());
             }
@@ -313,9 +345,9 @@ fn summary(scenario: &Scenario, cases: &[Case], baseline_ok: bool, passed: bool)
     }
     let _ = writeln!(
         s,
-        "\n## Cases\n\nTimes in seconds after the fault was injected (detected) or ended (recovered).\n\n\
-         | case | detected (by) | recovered | restarts | lost | counted | science equal | misses |\n\
-         |---|---|---|---|---|---|---|---|"
+        "\n## Cases\n\nTimes in seconds after the fault was injected (detected) or ended (recovered); catch-up from the restarted service's resume (a delay: its end) to recovered.\n\n\
+         | case | detected (by) | recovered | catch-up | restarts | lost | counted | science equal | misses |\n\
+         |---|---|---|---|---|---|---|---|---|"
     );
     for c in cases {
         let f = c.fault.as_ref();
@@ -336,9 +368,11 @@ fn summary(scenario: &Scenario, cases: &[Case], baseline_ok: bool, passed: bool)
         };
         let _ = writeln!(
             s,
-            "| {} | {detected} | {} | {} | {} | {counted} | {} | {} |",
+            "| {} | {detected} | {} | {} | {} | {} | {counted} | {} | {} |",
             c.name,
             after(f.and_then(|f| f.recovered_s), f.and_then(|f| f.ended_s)),
+            f.and_then(|f| f.catch_up_s)
+                .map_or("—".into(), |s| format!("{s:.3}")),
             f.map_or("—".into(), |f| f.restarts.to_string()),
             f.and_then(|f| f.lost).map_or("—".into(), |n| n.to_string()),
             c.science_equal
@@ -356,4 +390,172 @@ fn summary(scenario: &Scenario, cases: &[Case], baseline_ok: bool, passed: bool)
          timeline); the baseline's is `baseline/`."
     );
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DEADLINE_S: f64 = 0.3;
+
+    /// A fault entry that held everything: injected at 1 s, over at once, noticed 10 ms later,
+    /// recovered 0.2 s after, nothing lost.
+    fn fault(kind: FaultKind) -> FaultReport {
+        FaultReport {
+            service: "detector".into(),
+            kind: kind.name().into(),
+            at_seq: Some(15),
+            at_s: None,
+            duration_s: None,
+            count: None,
+            delay_ms: None,
+            injected_s: Some(1.0),
+            ended_s: Some(1.0),
+            detected_s: Some(1.01),
+            detected_by: Some("exit".into()),
+            recovered_s: Some(1.2),
+            catch_up_s: Some(0.05),
+            not_reached: None,
+            restarts: 1,
+            lost: Some(0),
+            invariant_held: true,
+            science_equal: None,
+            injected: None,
+            counted: None,
+        }
+    }
+
+    fn run(fault: FaultReport) -> CaseRun {
+        CaseRun {
+            success: true,
+            failure: None,
+            science_equal: true,
+            fault: Some(fault),
+        }
+    }
+
+    fn misses(kind: FaultKind, run: CaseRun) -> Vec<String> {
+        judge("case", ServiceId::Detector, kind, run, DEADLINE_S).misses
+    }
+
+    #[test]
+    fn a_case_that_held_everything_passes() {
+        for kind in [FaultKind::Kill, FaultKind::Panic, FaultKind::Stop] {
+            assert_eq!(misses(kind, run(fault(kind))), Vec::<String>::new());
+        }
+        let delay = FaultReport {
+            detected_s: None,
+            detected_by: None,
+            restarts: 0,
+            count: Some(10),
+            delay_ms: Some(5),
+            ended_s: Some(1.06),
+            ..fault(FaultKind::Delay)
+        };
+        assert_eq!(
+            misses(FaultKind::Delay, run(delay.clone())),
+            Vec::<String>::new()
+        );
+        // Over before it could have slept 10 × 5 ms: it did not take effect.
+        let refused = FaultReport {
+            ended_s: Some(1.02),
+            ..delay
+        };
+        let m = misses(FaultKind::Delay, run(refused));
+        assert!(m[0].starts_with("the delay took no effect"), "{m:?}");
+        let drop = FaultReport {
+            injected: Some(2),
+            counted: Some(2),
+            ..fault(FaultKind::Drop)
+        };
+        assert_eq!(misses(FaultKind::Drop, run(drop)), Vec::<String>::new());
+    }
+
+    #[test]
+    fn a_delay_that_never_ends_fails_and_says_it_was_not_reached() {
+        let never = FaultReport {
+            ended_s: None,
+            recovered_s: None,
+            detected_s: None,
+            not_reached: Some("the run ended while the delay still slowed the service".into()),
+            ..fault(FaultKind::Delay)
+        };
+        let m = misses(FaultKind::Delay, run(never));
+        assert_eq!(m.len(), 1, "{m:?}");
+        assert!(
+            m[0].starts_with("not reached: the run ended while"),
+            "{m:?}"
+        );
+    }
+
+    #[test]
+    fn a_drop_not_counted_fails() {
+        let uncounted = FaultReport {
+            injected: Some(2),
+            counted: Some(1),
+            ..fault(FaultKind::Drop)
+        };
+        assert_eq!(
+            misses(FaultKind::Drop, run(uncounted)),
+            ["2 injected, 1 counted"]
+        );
+        let none_made = FaultReport {
+            injected: Some(0),
+            counted: Some(0),
+            ..fault(FaultKind::Corrupt)
+        };
+        assert_eq!(misses(FaultKind::Corrupt, run(none_made)).len(), 1);
+    }
+
+    #[test]
+    fn a_science_digest_that_differs_fails() {
+        let differs = CaseRun {
+            science_equal: false,
+            ..run(fault(FaultKind::Kill))
+        };
+        assert_eq!(
+            misses(FaultKind::Kill, differs),
+            ["science differs from the baseline"]
+        );
+    }
+
+    #[test]
+    fn a_loss_an_undetected_kill_and_a_failed_run_fail() {
+        let lost = FaultReport {
+            lost: Some(3),
+            ..fault(FaultKind::Kill)
+        };
+        assert_eq!(misses(FaultKind::Kill, run(lost)), ["lost 3"]);
+        let unseen = FaultReport {
+            detected_s: None,
+            detected_by: None,
+            ..fault(FaultKind::Kill)
+        };
+        assert_eq!(misses(FaultKind::Kill, run(unseen)), ["not detected"]);
+        let failed = CaseRun {
+            success: false,
+            failure: Some("fault detector:kill@15 never fired: the run ended first".into()),
+            ..run(fault(FaultKind::Kill))
+        };
+        let m = misses(FaultKind::Kill, failed);
+        assert!(m[0].contains("never fired"), "{m:?}");
+    }
+
+    #[test]
+    fn slow_is_late_not_failed() {
+        let slow = FaultReport {
+            detected_s: Some(1.9),
+            recovered_s: Some(4.0),
+            ..fault(FaultKind::Kill)
+        };
+        let case = judge(
+            "case",
+            ServiceId::Detector,
+            FaultKind::Kill,
+            run(slow),
+            DEADLINE_S,
+        );
+        assert!(case.misses.is_empty(), "{:?}", case.misses);
+        assert_eq!(case.late.len(), 2, "{:?}", case.late);
+    }
 }

@@ -149,6 +149,9 @@ fn housekeeping_layout() {
     assert_eq!(offset_of!(TopicCounters, next_seq), 88);
     assert_eq!((size_of::<Heartbeat>(), align_of::<Heartbeat>()), (864, 8));
     assert_eq!(offset_of!(Heartbeat, time), 816);
+    assert_eq!(offset_of!(Heartbeat, faults_obeyed), 864);
+    assert_eq!(offset_of!(Heartbeat, delaying), 872);
+    assert_eq!(size_of::<Heartbeat>(), 880);
     assert_eq!(
         (size_of::<ServiceTime>(), align_of::<ServiceTime>()),
         (48, 8)

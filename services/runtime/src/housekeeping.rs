@@ -26,9 +26,11 @@ pub struct Housekeeping {
     /// Obey in-band fault commands (the scenario's `faults.enabled`); refused ones are counted.
     pub faults_enabled: bool,
     /// In-band fault commands refused because faults are not enabled.
-    pub faults_refused: u64,
-    /// An injected delay: added before each message until the instant.
-    delay: Option<(std::time::Duration, std::time::Instant)>,
+    pub faults_refused: u32,
+    /// In-band fault commands obeyed.
+    pub faults_obeyed: u32,
+    /// An injected delay: added before each message until it ends.
+    delay: Option<(std::time::Duration, DelayEnd)>,
     /// Drop and corrupt orders not yet armed on an output ([`Housekeeping::take_output_faults`]).
     output_faults: Vec<InBandFault>,
     /// The scenario's `run.heartbeat_period_ms`: a slowed service still beats this often.
@@ -41,6 +43,15 @@ pub struct Housekeeping {
     pub last_latency_ns: u64,
     /// Where the service's time went, as of its last heartbeat.
     pub time: ServiceTime,
+}
+
+/// When an injected delay ends.
+#[derive(Debug, Clone, Copy)]
+enum DelayEnd {
+    /// At this instant.
+    At(std::time::Instant),
+    /// After this many more messages.
+    After(u32),
 }
 
 impl Housekeeping {
@@ -62,6 +73,7 @@ impl Housekeeping {
                 shutdown_requested: false,
                 faults_enabled: false,
                 faults_refused: 0,
+                faults_obeyed: 0,
                 delay: None,
                 output_faults: vec![],
                 heartbeat_period: std::time::Duration::from_millis(100),
@@ -112,15 +124,19 @@ impl Housekeeping {
             return;
         }
         tracing::warn!(kind = f.kind.name(), "injected fault");
+        self.faults_obeyed += 1;
         match f.kind {
             FaultKind::Panic => panic!("injected fault: panic"),
             FaultKind::Delay => {
-                let until = std::time::Instant::now()
-                    + std::time::Duration::from_millis(u64::from(f.duration_ms));
-                self.delay = Some((
-                    std::time::Duration::from_millis(u64::from(f.delay_ms)),
-                    until,
-                ));
+                let end = if f.count > 0 {
+                    DelayEnd::After(f.count)
+                } else {
+                    DelayEnd::At(
+                        std::time::Instant::now()
+                            + std::time::Duration::from_millis(u64::from(f.duration_ms)),
+                    )
+                };
+                self.delay = Some((std::time::Duration::from_millis(u64::from(f.delay_ms)), end));
             }
             FaultKind::Drop | FaultKind::Corrupt => self.output_faults.push(f),
             FaultKind::Kill | FaultKind::Stop => {}
@@ -131,14 +147,26 @@ impl Housekeeping {
     /// slowed this way still beats on time (with the counters of its last heartbeat): slow is
     /// not hung.
     pub fn pace(&mut self) -> Result<()> {
-        let Some((d, until)) = self.delay else {
+        let Some((d, end)) = self.delay.as_mut() else {
             return Ok(());
         };
-        if std::time::Instant::now() >= until {
+        let over = match end {
+            DelayEnd::At(t) => std::time::Instant::now() >= *t,
+            DelayEnd::After(0) => true,
+            DelayEnd::After(n) => {
+                *n -= 1;
+                false
+            }
+        };
+        if over {
             self.delay = None;
             return Ok(());
         }
-        std::thread::sleep(d);
+        std::thread::sleep(*d);
+        // The last input of a delay by inputs: over now, not at the next message.
+        if matches!(self.delay, Some((_, DelayEnd::After(0)))) {
+            self.delay = None;
+        }
         self.beat_if_due()
     }
 
@@ -199,6 +227,9 @@ impl Housekeeping {
             last_latency_ns: self.last_latency_ns,
             topics,
             time: self.time,
+            faults_obeyed: self.faults_obeyed,
+            faults_refused: self.faults_refused,
+            delaying: u32::from(self.delay.is_some()),
             ..Default::default()
         };
         self.heartbeat.send(hb, t_ns)?;

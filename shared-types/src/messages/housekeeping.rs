@@ -100,6 +100,13 @@ pub struct Heartbeat {
     pub topics: [TopicCounters; MAX_TOPICS],
     /// Where its time went so far.
     pub time: ServiceTime,
+    /// In-band fault orders (`panic`, `delay`, `drop`, `corrupt`) this process obeyed.
+    pub faults_obeyed: u32,
+    /// In-band fault orders it refused (`faults.enabled` false).
+    pub faults_refused: u32,
+    /// 1 while an injected delay slows it, else 0.
+    pub delaying: u32,
+    pub _reserved: u32,
 }
 
 impl Heartbeat {
@@ -113,6 +120,9 @@ impl Heartbeat {
         self.meta.validate()?;
         if self.state > Self::STOPPING {
             return Err(Reject::new("heartbeat.state", "out of range 0..=4"));
+        }
+        if self.delaying > 1 {
+            return Err(Reject::new("heartbeat.delaying", "out of range 0..=1"));
         }
         Ok(())
     }
@@ -201,6 +211,7 @@ pub struct InBandFault {
     /// Drop every this many-th output.
     pub every: u16,
     pub delay_ms: u32,
+    /// A delay by time [ms]; 0 with a delay by inputs (`count`).
     pub duration_ms: u32,
 }
 
@@ -210,7 +221,11 @@ impl InBandFault {
         InBandFault {
             kind: spec.kind,
             how: spec.how.unwrap_or_default(),
-            count: spec.count.unwrap_or(1),
+            // A delay's count is the inputs it slows (0: it lasts `duration_ms`).
+            count: spec.count.unwrap_or(match spec.kind {
+                crate::scenario::FaultKind::Delay => 0,
+                _ => 1,
+            }),
             every: spec.every.unwrap_or(1).min(u32::from(u16::MAX)) as u16,
             delay_ms: spec.delay_ms.unwrap_or(0).min(u64::from(u32::MAX)) as u32,
             duration_ms: (spec.duration_s.unwrap_or(0.0) * 1e3).round() as u32,

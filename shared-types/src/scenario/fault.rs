@@ -7,7 +7,7 @@
 //! `kill` is SIGKILL, `stop` is SIGSTOP for `duration_s`, then SIGCONT. In-band faults are
 //! control commands the service's runtime obeys only when the scenario sets
 //! `faults.enabled = true`: `panic` (it panics in its loop), `delay` (`delay_ms` before each
-//! message it processes, for `duration_s`), `drop` (`count` of its outputs, every `every`-th,
+//! message it processes, for `duration_s` or for `count` messages), `drop` (`count` of its outputs, every `every`-th,
 //! are not sent), `corrupt` (`count` outputs sent invalid: `how` = `nan`, a non-finite value;
 //! `count`, a count or length field out of range; `version`, a wrong contract version).
 
@@ -29,7 +29,8 @@ pub enum FaultKind {
     Stop,
     /// The service panics in its loop.
     Panic,
-    /// `delay_ms` before each message the service processes, for `duration_s`.
+    /// `delay_ms` before each message the service processes, for `duration_s` or for `count`
+    /// messages.
     Delay,
     /// `count` outputs not sent (every `every`-th).
     Drop,
@@ -144,7 +145,8 @@ pub struct FaultSpec {
     /// `delay`: added before each message the service processes [ms], 1–10000.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub delay_ms: Option<u64>,
-    /// `drop`, `corrupt`: how many outputs, 1–1000 (default 1).
+    /// `drop`, `corrupt`: how many outputs, 1–1000 (default 1). `delay`: how many messages
+    /// it slows, 1–10⁶ (instead of `duration_s`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub count: Option<u32>,
     /// `drop`: every this many-th output, 1–1000 (default 1: a burst of `count`).
@@ -267,8 +269,21 @@ pub(super) fn check_faults(c: &mut Checker, scenario: &super::Scenario) {
         }
         let kind = f.kind.name();
         let timed = matches!(f.kind, FaultKind::Stop | FaultKind::Delay);
+        // A delay lasts a time or a number of inputs (which no host's speed can outrun).
+        let counted_delay = f.kind == FaultKind::Delay && f.count.is_some();
         match (timed, f.duration_s) {
+            (true, Some(_)) if counted_delay => c.fail(
+                &at("duration_s"),
+                "a delay lasts duration_s or count inputs, not both".into(),
+            ),
             (true, Some(d)) => c.range(&at("duration_s"), d, 0.001, 3600.0),
+            (true, None) if counted_delay => {}
+            (true, None) if f.kind == FaultKind::Delay => c.fail(
+                &at("duration_s"),
+                "a delay needs its length: duration_s (0.001..=3600) or count inputs \
+                 (1..=1000000)"
+                    .into(),
+            ),
             (true, None) => c.fail(
                 &at("duration_s"),
                 format!("a {kind} needs its duration; allowed 0.001..=3600"),
@@ -293,7 +308,7 @@ pub(super) fn check_faults(c: &mut Checker, scenario: &super::Scenario) {
             c,
             "count",
             f.count.is_some(),
-            &[FaultKind::Drop, FaultKind::Corrupt],
+            &[FaultKind::Drop, FaultKind::Corrupt, FaultKind::Delay],
         );
         only(c, "every", f.every.is_some(), &[FaultKind::Drop]);
         only(c, "how", f.how.is_some(), &[FaultKind::Corrupt]);
@@ -305,8 +320,27 @@ pub(super) fn check_faults(c: &mut Checker, scenario: &super::Scenario) {
             ),
             _ => {}
         }
-        if let Some(n) = f.count {
-            c.range_u(&at("count"), u64::from(n), 1, 1000);
+        match (f.kind, f.count) {
+            (FaultKind::Delay, Some(n)) => c.range_u(&at("count"), u64::from(n), 1, 1_000_000),
+            (_, Some(n)) => c.range_u(&at("count"), u64::from(n), 1, 1000),
+            _ => {}
+        }
+        // A fault at a message its trigger never carries would never fire.
+        if let (Some(seq), Some(s)) = (f.at_seq, f.service_id()) {
+            let carried = deployment::trigger_topic(scenario, s)
+                .map(|t| (t, deployment::expected_messages(scenario, t)));
+            if let Some((t, n)) = carried.filter(|(_, n)| seq >= *n) {
+                c.fail(
+                    &at("at_seq"),
+                    format!(
+                        "{} carries {n} messages ({}), so a fault at message {seq} would never \
+                         fire; allowed 0..={}",
+                        f.service,
+                        t.name(),
+                        n.saturating_sub(1)
+                    ),
+                );
+            }
         }
         if let Some(k) = f.every {
             c.range_u(&at("every"), u64::from(k), 1, 1000);

@@ -23,8 +23,11 @@ pub struct FaultMatrix {
     pub kinds: Vec<FaultKind>,
     /// How long a stop lasts [s] (default 1.0: past a short heartbeat deadline).
     pub stop_s: Option<f64>,
-    /// A delay's added time per message [ms] and its duration [s] (default 5 ms for 0.3 s).
+    /// A delay's added time per message [ms] (default 5 ms), and how many messages it slows
+    /// (default 10) — or, with `delay_s`, how long it lasts [s] (then its end may race the end
+    /// of a short run on a fast host: a case reports it as not reached).
     pub delay_ms: Option<u64>,
+    pub delay_count: Option<u32>,
     pub delay_s: Option<f64>,
     /// Outputs dropped, and every how many (default 2, every 3rd).
     pub drop_count: Option<u32>,
@@ -73,7 +76,10 @@ impl FaultMatrix {
             FaultKind::Stop => f.duration_s = Some(self.stop_s.unwrap_or(1.0)),
             FaultKind::Delay => {
                 f.delay_ms = Some(self.delay_ms.unwrap_or(5));
-                f.duration_s = Some(self.delay_s.unwrap_or(0.3));
+                match self.delay_s {
+                    Some(s) => f.duration_s = Some(s),
+                    None => f.count = Some(self.delay_count.unwrap_or(10)),
+                }
             }
             FaultKind::Drop => {
                 f.count = Some(self.drop_count.unwrap_or(2));
@@ -114,6 +120,15 @@ pub(super) fn check_matrix(c: &mut Checker, scenario: &super::Scenario) {
     }
     if let Some(v) = m.delay_s {
         c.range("matrix.delay_s", v, 0.001, 3600.0);
+    }
+    if let Some(v) = m.delay_count {
+        c.range_u("matrix.delay_count", u64::from(v), 1, 1_000_000);
+        if m.delay_s.is_some() {
+            c.fail(
+                "matrix.delay_count",
+                "a delay lasts delay_s or delay_count messages, not both".into(),
+            );
+        }
     }
     for (field, v) in [
         ("matrix.drop_count", m.drop_count),
