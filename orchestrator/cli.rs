@@ -28,6 +28,9 @@ pub(crate) enum Cmd {
         /// Only this deployment prefix (`glint_<hex>_`, in report.json under run.prefix).
         #[arg(long)]
         prefix: Option<String>,
+        /// List what ended deployments left (one path a line), removing nothing.
+        #[arg(long, conflicts_with = "prefix")]
+        list: bool,
     },
     /// Check a scenario file; report every problem with its field and allowed range.
     Validate { scenario: PathBuf },

@@ -30,7 +30,7 @@ use cli::{Cli, Cmd};
 pub fn main() -> ExitCode {
     match Cli::parse().command {
         Cmd::Run(args) => run::command::command(args),
-        Cmd::Clean { prefix } => run::clean::command(prefix),
+        Cmd::Clean { prefix, list } => run::clean::command(prefix, list),
         Cmd::Validate { scenario } => run::command::validate(scenario),
         Cmd::Report { schema } => report::command(schema),
         Cmd::Invert(args) => tools::invert::command(args),

@@ -425,3 +425,47 @@ fn in_realtime_a_slowed_consumer_drops_counted_frames_and_the_run_still_ends() {
     assert!(r.typed.results.accounting.invariant_held);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A restarted service takes up its last checkpoint and is fed again only the inputs after
+/// it: the detector, the tracker (whose input the detector replays from a log trimmed to the
+/// tracker's checkpoints) and the sensor, each killed late in the run. The science is the
+/// fault-free run's; the negative control (checkpoints too rare to be taken) replays from the
+/// first input and restores nothing.
+#[test]
+fn a_restart_resumes_from_its_checkpoint_and_replays_only_what_came_after() {
+    let dir = temp_dir("fault-checkpoint");
+    let every = |n: &str, ms: &str| {
+        let sub = dir.join(format!("every-{n}"));
+        std::fs::create_dir_all(&sub).unwrap();
+        let table = format!(
+            "[supervision]\ncheckpoint_every_inputs = {n}\ncheckpoint_every_ms = {ms}\n\n[camera]\n"
+        );
+        scenario_variant("debris-geo.toml", &[("[camera]\n", table.as_str())], &sub)
+    };
+    let (often, never) = (every("8", "600000"), every("1000000", "600000"));
+    let clean = run_ok(Some(&often), &dir.join("clean"), &[]);
+    for spec in ["detector:kill@40", "tracker:kill@40", "sensor:kill@40"] {
+        let service = spec.split(':').next().unwrap();
+        let replayed = |file: &std::path::Path, name: &str| {
+            let out = dir.join(format!("{service}-{name}"));
+            let r = run_ok(Some(file), &out, &["--fault", spec]);
+            assert_eq!(science(&r.typed), science(&clean.typed), "{spec} {name}");
+            let f = fault(&r.typed);
+            assert_recovered(f, "exit");
+            let log =
+                std::fs::read_to_string(out.join("logs").join(format!("{service}.log"))).unwrap();
+            (
+                f.replayed.expect("a restart says what it replayed"),
+                log.contains("restored its checkpoint"),
+            )
+        };
+        let (with, restored) = replayed(&often, "often");
+        let (without, restored_without) = replayed(&never, "never");
+        assert!(restored && !restored_without, "{spec}");
+        assert!(
+            with < without && without >= 20,
+            "{spec}: replayed {with} with checkpoints every 8 inputs, {without} without"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

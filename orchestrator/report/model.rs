@@ -172,6 +172,10 @@ pub struct FaultReport {
     /// From the restarted service's resume (a delay: its end) to recovered [s].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub catch_up_s: Option<f64>,
+    /// A restart: inputs fed again, from its restored checkpoint (or the first) to where the
+    /// fault found it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub replayed: Option<u64>,
     /// Why the run ended before this fault's verdict could be reached (absent: reached).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub not_reached: Option<String>,

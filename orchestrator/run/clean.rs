@@ -45,9 +45,15 @@ pub fn clean(prefix: Option<&str>) -> Vec<String> {
     lines
 }
 
-/// `glint clean [--prefix P]`.
-pub fn command(prefix: Option<String>) -> std::process::ExitCode {
+/// `glint clean [--prefix P | --list]`.
+pub fn command(prefix: Option<String>, list: bool) -> std::process::ExitCode {
     use std::process::ExitCode;
+    if list {
+        for p in glint_runtime::leftovers() {
+            println!("{}", p.display());
+        }
+        return ExitCode::SUCCESS;
+    }
     if let Some(p) = prefix
         .as_deref()
         .filter(|p| !glint_runtime::is_deployment_prefix(p))

@@ -170,10 +170,12 @@ impl Consumer {
     }
 
     fn send_ack(&mut self, topic: TopicId, next_seq: u64) -> Result<()> {
+        // The orchestrator is never restarted: nothing it took is ever replayed to it.
         let a = Ack {
             topic: topic as u32,
             consumer: ServiceId::Orchestrator as u32,
             next_seq,
+            checkpoint_seq: next_seq,
             ..Default::default()
         };
         self.acks.send(a, 0)?;

@@ -42,6 +42,10 @@ pub struct Heard {
     pub progress: u64,
     /// Messages of the trigger topic the orchestrator has seen so far.
     pub carried: u64,
+    /// How far the service has got as the orchestrator sees it (its outputs, one per input;
+    /// a source's messages), over all its incarnations: sharper than a heartbeat for where a
+    /// fault found it.
+    pub done: u64,
 }
 
 /// One fault and its timeline [s since the services were started].
@@ -59,6 +63,9 @@ pub struct Fault {
     /// backlog worked off, or the inputs replayed.
     pub catch_up_s: Option<f64>,
     catch_up_from_s: Option<f64>,
+    /// Inputs the restarted service was fed again (from its checkpoint to where the fault
+    /// found it).
+    pub replayed: Option<u64>,
     /// Why the run ended before the fault's verdict could be reached (`None`: reached).
     pub not_reached: Option<String>,
     /// Restarts of the service after this fault.
@@ -115,6 +122,7 @@ impl Injector {
                     recovered_s: None,
                     catch_up_s: None,
                     catch_up_from_s: None,
+                    replayed: None,
                     not_reached: None,
                     restarts: 0,
                 })
@@ -212,8 +220,10 @@ impl Injector {
     /// it has taken every input that had arrived by then.
     pub fn heard_from(&mut self, service: ServiceId, heard: Heard) {
         match self.furthest.iter_mut().find(|(s, _)| *s == service) {
-            Some((_, p)) => *p = (*p).max(heard.progress),
-            None => self.furthest.push((service, heard.progress)),
+            Some((_, p)) => *p = (*p).max(heard.progress).max(heard.done),
+            None => self
+                .furthest
+                .push((service, heard.progress.max(heard.done))),
         }
         for f in self.faults.iter_mut().filter(|f| f.service == service) {
             match f.state {
@@ -271,8 +281,10 @@ impl Injector {
     /// Supervision restarted `service`, and its new incarnation was resumed at `now_s`: the
     /// faults it had been injected with are recovered from (a stop that supervision ended by
     /// killing the process ends when it was detected).
-    /// Recovered once the new incarnation has taken the input the fault found the service at.
-    pub fn restarted(&mut self, service: ServiceId, now_s: f64) {
+    /// Recovered once the new incarnation has taken the input the fault found the service at;
+    /// it resumed at `resumed_at` (its restored checkpoint's, or 0), so it is replayed the
+    /// inputs between.
+    pub fn restarted(&mut self, service: ServiceId, now_s: f64, resumed_at: u64) {
         self.orders.retain(|(s, _)| *s != service);
         let found_at = (self.furthest.iter())
             .find(|(s, _)| *s == service)
@@ -284,6 +296,7 @@ impl Injector {
                 continue;
             }
             f.restarts += 1;
+            f.replayed = Some(found_at.saturating_sub(resumed_at));
             f.recovered_s = None;
             f.catch_up_from_s = Some(now_s);
             if f.ended_s.is_none() {
@@ -379,6 +392,7 @@ impl Fault {
             detected_by: self.detected_by.map(str::to_string),
             recovered_s: self.recovered_s,
             catch_up_s: self.catch_up_s,
+            replayed: self.replayed,
             not_reached: self.not_reached.clone(),
             restarts: self.restarts,
             lost,
@@ -416,6 +430,7 @@ mod tests {
             delaying: false,
             progress,
             carried: progress,
+            done: 0,
         }
     }
 
@@ -486,13 +501,16 @@ mod tests {
         inj.heard_from(ServiceId::Detector, heard(0.4, 21));
         assert_eq!(inj.step(0.45, |_| 21)[0].act, Act::Signal(Signal::KILL));
         inj.detected(ServiceId::Detector, "exit", 0.46);
-        inj.restarted(ServiceId::Detector, 0.6);
+        inj.restarted(ServiceId::Detector, 0.6, 16);
         assert_eq!(inj.faults[0].recovered_s, None, "resumed is not recovered");
         inj.heard_from(ServiceId::Detector, heard(0.62, 5));
         assert_eq!(inj.faults[0].recovered_s, None, "replaying");
         inj.heard_from(ServiceId::Detector, heard(0.7, 21));
         let f = &inj.faults[0];
-        assert_eq!((f.recovered_s, f.restarts), (Some(0.7), 1));
+        assert_eq!(
+            (f.recovered_s, f.restarts, f.replayed),
+            (Some(0.7), 1, Some(5))
+        );
         assert!((f.catch_up_s.unwrap() - 0.1).abs() < 1e-12);
     }
 

@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Result};
 use glint_runtime::{Exit, Step, Wake};
 use shared_types::scenario::Clock;
+use shared_types::table::Count;
 use shared_types::topics::IpcNode;
 use shared_types::{deployment, Command, Control, Heartbeat, Replay, Scenario, ServiceId, TopicId};
 
@@ -206,6 +207,32 @@ impl<'a> Live<'a> {
         Ok(())
     }
 
+    /// How far `id` had got on its fault trigger topic by heartbeat `hb`: inputs taken, or (a
+    /// source) messages sent.
+    fn progress(&self, id: ServiceId, hb: &Heartbeat) -> u64 {
+        deployment::trigger_topic(self.scenario, id).map_or(0, |t| {
+            let c = hb.topics.iter().find(|c| c.topic == t as u32);
+            match deployment::producer(t) == Some(id) {
+                true => c.map_or(0, |c| c.published),
+                false => c.map_or(0, |c| c.next_seq),
+            }
+        })
+    }
+
+    /// How far `id` has got as the orchestrator sees it, between heartbeats: a source's
+    /// messages taken, a service's outputs of one per input taken.
+    fn done_as_seen(&self, id: ServiceId) -> u64 {
+        let Some(trigger) = deployment::trigger_topic(self.scenario, id) else {
+            return 0;
+        };
+        if deployment::producer(trigger) == Some(id) {
+            return self.consumer.carried(trigger);
+        }
+        deployment::fault_output(self.scenario, id)
+            .filter(|o| matches!(o.spec().count, Count::PerInput(t) if t == trigger))
+            .map_or(0, |o| self.consumer.carried(o))
+    }
+
     /// Hands each service's latest heartbeat to the faults.
     fn hear_from_services(&mut self) {
         let current =
@@ -216,18 +243,12 @@ impl<'a> Live<'a> {
             .map(|(id, seen)| {
                 let trigger = deployment::trigger_topic(self.scenario, *id);
                 let hb = &seen.heartbeat;
-                let progress = trigger.map_or(0, |t| {
-                    let c = hb.topics.iter().find(|c| c.topic == t as u32);
-                    match deployment::producer(t) == Some(*id) {
-                        true => c.map_or(0, |c| c.published),
-                        false => c.map_or(0, |c| c.next_seq),
-                    }
-                });
                 let heard = Heard {
                     at_s: self.since_start(seen.at),
                     faults_obeyed: hb.faults_obeyed,
                     delaying: hb.delaying != 0,
-                    progress,
+                    progress: self.progress(*id, hb),
+                    done: self.done_as_seen(*id),
                     carried: trigger.map_or(0, |t| self.consumer.carried(t)),
                 };
                 (*id, heard)
@@ -366,10 +387,13 @@ impl<'a> Live<'a> {
             Action::Resume(id) => {
                 if self.scenario.clock == Clock::Sim {
                     for topic in deployment::inputs(self.scenario, id) {
+                        // From where its restored checkpoint left it (its ready heartbeat
+                        // says), or from the first message without one.
+                        let from_seq = self.consumer.reported(id, topic).map_or(0, |c| c.next_seq);
                         let order = Replay {
                             consumer: id,
                             topic,
-                            from_seq: 0,
+                            from_seq,
                         };
                         if let Some(producer) = deployment::producer(topic) {
                             self.consumer.replay(producer, order)?;
@@ -377,7 +401,8 @@ impl<'a> Live<'a> {
                     }
                 }
                 self.consumer.command(Command::Start, id as u32)?;
-                self.injector.restarted(id, now_s);
+                let resumed_at = self.progress(id, &self.consumer.seen[&id].heartbeat);
+                self.injector.restarted(id, now_s, resumed_at);
                 let serves_solve = deployment::producer(TopicId::Solve) == Some(id);
                 if let (true, Some(seq)) = (serves_solve, self.sequencer.as_mut()) {
                     seq.server_restarted();

@@ -415,6 +415,7 @@ mod tests {
             detected_by: Some("exit".into()),
             recovered_s: Some(1.2),
             catch_up_s: Some(0.05),
+            replayed: Some(3),
             not_reached: None,
             restarts: 1,
             lost: Some(0),

@@ -147,11 +147,10 @@ fn housekeeping_layout() {
     assert_eq!(offset_of!(TopicCounters, received), 16);
     assert_eq!(offset_of!(TopicCounters, dropped), 24);
     assert_eq!(offset_of!(TopicCounters, next_seq), 88);
-    assert_eq!((size_of::<Heartbeat>(), align_of::<Heartbeat>()), (864, 8));
+    assert_eq!((size_of::<Heartbeat>(), align_of::<Heartbeat>()), (880, 8));
     assert_eq!(offset_of!(Heartbeat, time), 816);
     assert_eq!(offset_of!(Heartbeat, faults_obeyed), 864);
     assert_eq!(offset_of!(Heartbeat, delaying), 872);
-    assert_eq!(size_of::<Heartbeat>(), 880);
     assert_eq!(
         (size_of::<ServiceTime>(), align_of::<ServiceTime>()),
         (48, 8)
@@ -162,7 +161,8 @@ fn housekeeping_layout() {
     assert_eq!(offset_of!(Heartbeat, state), 36);
     assert_eq!(offset_of!(Heartbeat, last_latency_ns), 40);
     assert_eq!(offset_of!(Heartbeat, topics), 48);
-    assert_eq!((size_of::<Ack>(), align_of::<Ack>()), (48, 8));
+    assert_eq!((size_of::<Ack>(), align_of::<Ack>()), (56, 8));
+    assert_eq!(offset_of!(Ack, checkpoint_seq), 48);
     assert_eq!(offset_of!(Ack, topic), 32);
     assert_eq!(offset_of!(Ack, consumer), 36);
     assert_eq!(offset_of!(Ack, next_seq), 40);

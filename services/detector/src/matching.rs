@@ -215,8 +215,8 @@ pub enum MatchError {
 }
 
 /// What the matcher remembers of an object.
-#[derive(Debug, Clone, Copy)]
-struct Object {
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Object {
     track_id: Option<u64>,
     features: Ellipse,
     centroid: [f64; 2],
@@ -238,7 +238,33 @@ pub struct Matcher {
 
 mod gates;
 
+/// What a matcher remembers between frames: its objects, the last frame, the next track id
+/// (its settings come from the scenario).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MatcherState {
+    objects: Vec<Object>,
+    last_frame: Option<u64>,
+    next_track_id: u64,
+}
+
 impl Matcher {
+    /// What it remembers between frames.
+    pub fn state(&self) -> MatcherState {
+        MatcherState {
+            objects: self.objects.clone(),
+            last_frame: self.last_frame,
+            next_track_id: self.next_track_id,
+        }
+    }
+
+    /// Remembers `state` instead (a restored checkpoint): the next frame matches as it would
+    /// have after the frames `state` was taken from.
+    pub fn restore(&mut self, state: MatcherState) {
+        self.objects = state.objects;
+        self.last_frame = state.last_frame;
+        self.next_track_id = state.next_track_id;
+    }
+
     /// A matcher for validated settings; track ids start at 1.
     pub fn new(config: MatcherConfig) -> Result<Self, ConfigError> {
         config.validate()?;

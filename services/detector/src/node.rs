@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use glint_runtime::ports::{FrameInbox, Outbox};
-use glint_runtime::{Frame, Io, Output, Service, Setup};
+use glint_runtime::{checkpoint, Frame, Io, Output, Service, Setup};
 use shared_types::{DropReason, ServiceId, TopicId};
 
 use crate::service_core::DetectorCore;
@@ -35,6 +35,15 @@ impl Service for DetectorNode {
 
     fn stats(&self) -> Vec<&glint_runtime::TopicStats> {
         vec![&self.out.stats]
+    }
+
+    fn checkpoint(&self) -> Result<Option<Vec<u8>>> {
+        checkpoint::encode(&self.core.state()).map(Some)
+    }
+
+    fn restore(&mut self, state: &[u8]) -> Result<()> {
+        self.core.restore(checkpoint::decode(state)?);
+        Ok(())
     }
 
     fn on_input(&mut self, _io: &mut Io<'_>, frame: Frame<'_>) -> Result<Result<(), DropReason>> {

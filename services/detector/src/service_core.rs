@@ -142,6 +142,17 @@ impl DetectorCore {
 
     /// Detects and matches the streaks of one frame. A frame the detector cannot read is
     /// dropped as malformed; one the matcher refuses (out of order) as stale.
+    /// What the detector carries from frame to frame (the matcher's objects and track ids;
+    /// detection itself is per frame).
+    pub fn state(&self) -> crate::matching::MatcherState {
+        self.matcher.state()
+    }
+
+    /// Carries `state` instead: a restored checkpoint.
+    pub fn restore(&mut self, state: crate::matching::MatcherState) {
+        self.matcher.restore(state);
+    }
+
     pub fn process(
         &mut self,
         header: &FrameHeader,

@@ -15,12 +15,15 @@ use crate::ports::Inbox;
 pub struct Credit {
     window: u64,
     acked: BTreeMap<ServiceId, u64>,
+    /// Per consumer: everything below is in its checkpoint.
+    checkpointed: BTreeMap<ServiceId, u64>,
 }
 
 impl Credit {
     pub fn new(window: usize, consumers: Vec<ServiceId>) -> Self {
         Credit {
             window: window as u64,
+            checkpointed: consumers.iter().map(|c| (*c, 0)).collect(),
             acked: consumers.into_iter().map(|c| (c, 0)).collect(),
         }
     }
@@ -58,9 +61,45 @@ impl Credit {
         }
     }
 
-    pub fn record(&mut self, consumer: ServiceId, next_seq: u64) {
+    pub fn record(&mut self, consumer: ServiceId, next_seq: u64, checkpoint_seq: u64) {
         if let Some(a) = self.acked.get_mut(&consumer) {
             *a = (*a).max(next_seq);
+        }
+        if let Some(c) = self.checkpointed.get_mut(&consumer) {
+            *c = (*c).max(checkpoint_seq);
+        }
+    }
+
+    /// The first message a replay may still ask for: every consumer's checkpoint covers what
+    /// is below.
+    pub fn replayable_from(&self) -> u64 {
+        self.checkpointed
+            .values()
+            .copied()
+            .min()
+            .unwrap_or(u64::MAX)
+    }
+
+    /// Per consumer: (id, acknowledged up to, checkpointed up to), for a checkpoint.
+    pub fn snapshot(&self) -> Vec<(u32, u64, u64)> {
+        self.acked
+            .iter()
+            .map(|(c, a)| {
+                (
+                    *c as u32,
+                    *a,
+                    self.checkpointed.get(c).copied().unwrap_or(0),
+                )
+            })
+            .collect()
+    }
+
+    /// Takes up a checkpoint's credit (acks only grow, so it is a lower bound of the present).
+    pub fn restore(&mut self, credit: &[(u32, u64, u64)]) {
+        for &(c, a, k) in credit {
+            if let Some(c) = ServiceId::from_u32(c) {
+                self.record(c, a, k);
+            }
         }
     }
 }
@@ -86,7 +125,7 @@ impl AckReader {
             {
                 for (t, c) in credits.iter_mut() {
                     if *t == topic {
-                        c.record(consumer, a.next_seq);
+                        c.record(consumer, a.next_seq, a.checkpoint_seq);
                     }
                 }
             }
@@ -105,14 +144,14 @@ mod tests {
         let mut c = Credit::new(4, vec![ServiceId::Detector, ServiceId::Orchestrator]);
         assert_eq!(c.available(0), 4);
         assert!(c.allows(3) && !c.allows(4));
-        c.record(ServiceId::Detector, 3);
+        c.record(ServiceId::Detector, 3, 0);
         assert!(!c.allows(4), "the orchestrator has not acked");
-        c.record(ServiceId::Orchestrator, 2);
+        c.record(ServiceId::Orchestrator, 2, 0);
         assert_eq!(c.available(4), 2);
-        c.record(ServiceId::Tracker, 100); // not a consumer of this topic: ignored
+        c.record(ServiceId::Tracker, 100, 0); // not a consumer of this topic: ignored
         assert_eq!(c.available(4), 2);
         // A restarted detector starts over: its window is counted from 0 again.
-        c.record(ServiceId::Orchestrator, 4);
+        c.record(ServiceId::Orchestrator, 4, 0);
         c.reset(ServiceId::Detector, 0);
         assert!(c.allows(3) && !c.allows(4));
     }

@@ -18,7 +18,8 @@ pub struct Housekeeping {
     heartbeat: Outbox<Heartbeat>,
     control: Inbox<Control>,
     acks: Outbox<Ack>,
-    acked: Vec<(TopicId, u64)>,
+    /// Per consumed topic: acknowledged up to, and covered by this service's checkpoint up to.
+    acked: Vec<(TopicId, u64, u64)>,
     /// Replays ordered and not yet taken ([`Housekeeping::take_replays`]).
     replays: Vec<Replay>,
     /// `Shutdown` has arrived (possibly while the service waited outside its loop).
@@ -213,8 +214,8 @@ impl Housekeeping {
         }
         self.send_beat(t_ns, topics)?;
         // Acks again with every heartbeat: a restarted producer learns where its consumers are.
-        for (topic, next_seq) in self.acked.clone() {
-            self.send_ack(topic, next_seq, t_ns)?;
+        for (topic, next_seq, checkpoint_seq) in self.acked.clone() {
+            self.send_ack(topic, next_seq, checkpoint_seq, t_ns)?;
         }
         Ok(())
     }
@@ -237,22 +238,40 @@ impl Housekeeping {
         Ok(())
     }
 
-    /// Acknowledges everything below `next_seq` on `topic` (sent only when it advanced).
-    pub fn ack(&mut self, topic: TopicId, next_seq: u64, t_ns: u64) -> Result<()> {
-        let prev = self.acked.iter_mut().find(|(t, _)| *t == topic);
+    /// Acknowledges everything below `next_seq` on `topic`, and that everything below
+    /// `checkpoint_seq` is in this service's checkpoint (its producer need not keep it to
+    /// replay); sent only when either advanced.
+    pub fn ack(
+        &mut self,
+        topic: TopicId,
+        next_seq: u64,
+        checkpoint_seq: u64,
+        t_ns: u64,
+    ) -> Result<()> {
+        let prev = self.acked.iter_mut().find(|(t, _, _)| *t == topic);
         match prev {
-            Some((_, n)) if *n >= next_seq => return Ok(()),
-            Some((_, n)) => *n = next_seq,
-            None => self.acked.push((topic, next_seq)),
+            Some((_, n, c)) if *n >= next_seq && *c >= checkpoint_seq => return Ok(()),
+            Some((_, n, c)) => {
+                *n = (*n).max(next_seq);
+                *c = (*c).max(checkpoint_seq);
+            }
+            None => self.acked.push((topic, next_seq, checkpoint_seq)),
         }
-        self.send_ack(topic, next_seq, t_ns)
+        self.send_ack(topic, next_seq, checkpoint_seq, t_ns)
     }
 
-    fn send_ack(&mut self, topic: TopicId, next_seq: u64, t_ns: u64) -> Result<()> {
+    fn send_ack(
+        &mut self,
+        topic: TopicId,
+        next_seq: u64,
+        checkpoint_seq: u64,
+        t_ns: u64,
+    ) -> Result<()> {
         let ack = Ack {
             topic: topic as u32,
             consumer: self.id as u32,
             next_seq,
+            checkpoint_seq,
             ..Default::default()
         };
         self.acks.send(ack, t_ns)?;

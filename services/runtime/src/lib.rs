@@ -4,6 +4,7 @@
 //!
 //! A service is a pure core plus a thin node loop; this crate is the loop's vocabulary.
 
+pub mod checkpoint;
 pub mod clock;
 pub mod credit;
 pub mod housekeeping;
@@ -21,8 +22,8 @@ pub use clock::mono_ns;
 pub use credit::{AckReader, Credit};
 pub use housekeeping::Housekeeping;
 pub use node::{
-    glint_prefixes, init_tracing, is_deployment_prefix, live_nodes, open_node, remove_shm,
-    shm_entries,
+    glint_prefixes, init_tracing, is_deployment_prefix, leftovers, live_nodes, open_node,
+    remove_shm, shm_entries,
 };
 pub use ports::{Inbox, Outbox};
 pub use service::{run_service, Frame, Io, NoInput, Output, Service, ServiceArgs, Setup};

@@ -41,11 +41,14 @@ fn restrict_to_owner(prefix: &str) {
     }
 }
 
-/// What a prefix left behind: its entries in `/dev/shm`, and the node and service
-/// directories under iceoryx2's root path (`/tmp/iceoryx2` by default) that hold its files.
+/// Everything of a deployment on the machine: its entries in `/dev/shm` (shared memory, and
+/// its services' checkpoints), those at the top of iceoryx2's root path (`/tmp/iceoryx2` by
+/// default: event sockets), and the node and service directories under it that hold its files.
+/// The one listing the report, `glint clean`, the tests and CI use.
 pub fn shm_entries(prefix: &str) -> Vec<std::path::PathBuf> {
     let mut out = prefixed_in(std::path::Path::new("/dev/shm"), prefix);
     let root = Config::global_config().global.root_path().to_string();
+    out.extend(prefixed_in(std::path::Path::new(&root), prefix));
     for sub in ["nodes", "services"] {
         let dir = std::path::Path::new(&root).join(sub);
         out.extend(prefixed_in(&dir, prefix));
@@ -68,7 +71,10 @@ pub fn shm_entries(prefix: &str) -> Vec<std::path::PathBuf> {
 /// node and service directories, sorted.
 pub fn glint_prefixes() -> Vec<String> {
     let root = Config::global_config().global.root_path().to_string();
-    let mut dirs = vec![std::path::PathBuf::from("/dev/shm")];
+    let mut dirs = vec![
+        std::path::PathBuf::from("/dev/shm"),
+        std::path::PathBuf::from(&root),
+    ];
     for sub in ["nodes", "services"] {
         let dir = std::path::Path::new(&root).join(sub);
         if let Ok(rd) = std::fs::read_dir(&dir) {
@@ -149,6 +155,16 @@ pub fn remove_shm(prefix: &str) -> (usize, Vec<String>) {
         n += ok as usize;
     }
     (n, alive)
+}
+
+/// What ended deployments left behind: [`shm_entries`] of every `glint_<hex>_` prefix that no
+/// live node holds (a deployment still running is not a leftover).
+pub fn leftovers() -> Vec<std::path::PathBuf> {
+    glint_prefixes()
+        .into_iter()
+        .filter(|p| live_nodes(p).is_empty())
+        .flat_map(|p| shm_entries(&p))
+        .collect()
 }
 
 /// The live nodes under `prefix`: each one's name (or id, where it published no details) and

@@ -42,8 +42,11 @@ pub struct Outbox<T: Message> {
     producer: ServiceId,
     /// Seq of the next message: `stats.published` except while replaying.
     next_seq: u64,
-    /// Every message sent, kept for replays to a restarted consumer ([`Outbox::keep_log`]).
-    log: Option<Vec<T>>,
+    /// Messages sent from seq `log_base` on, kept for replays to a restarted consumer
+    /// ([`Outbox::keep_log`]); trimmed to what a consumer may still be sent again
+    /// ([`Outbox::trim_log`]).
+    log: Option<std::collections::VecDeque<T>>,
+    log_base: u64,
     /// Injected drops and corruptions still to apply.
     pub tamper: Tamper,
     pub stats: TopicStats,
@@ -64,6 +67,7 @@ impl<T: Message> Outbox<T> {
             producer,
             next_seq: 0,
             log: None,
+            log_base: 0,
             tamper: Tamper::default(),
             stats: TopicStats::new(topic),
         };
@@ -76,7 +80,60 @@ impl<T: Message> Outbox<T> {
     /// Keeps every message sent, so that a restarted consumer can be sent them again
     /// ([`Outbox::rewind`], [`Outbox::resend`]) when the producer cannot re-make them.
     pub fn keep_log(&mut self) {
-        self.log.get_or_insert_with(Vec::new);
+        self.log.get_or_insert_with(Default::default);
+    }
+
+    /// Forgets the logged messages below `seq`: every consumer's checkpoint covers them, so no
+    /// replay will ask for them again. Keeps the log as long as the consumers' checkpoint
+    /// interval, however long the run.
+    pub fn trim_log(&mut self, seq: u64) {
+        let Some(log) = self.log.as_mut() else {
+            return;
+        };
+        let drop = seq.saturating_sub(self.log_base).min(log.len() as u64);
+        log.drain(..drop as usize);
+        self.log_base += drop;
+    }
+
+    /// Messages in the log (first seq, count).
+    pub fn log_span(&self) -> (u64, usize) {
+        (self.log_base, self.log.as_ref().map_or(0, |l| l.len()))
+    }
+
+    /// The log as bytes, for a checkpoint.
+    pub fn log_bytes(&self) -> Vec<u8> {
+        self.log.as_ref().map_or_else(Vec::new, |log| {
+            log.iter()
+                .flat_map(|m| bytemuck::bytes_of(m).iter().copied())
+                .collect()
+        })
+    }
+
+    /// Takes up a checkpoint: its accounting, and its log from `base` on.
+    pub fn restore(
+        &mut self,
+        stats: &crate::stats::StatsSnapshot,
+        base: u64,
+        log: &[u8],
+    ) -> Result<()> {
+        self.stats.restore(stats);
+        self.next_seq = self.stats.published;
+        if let Some(l) = self.log.as_mut() {
+            let size = std::mem::size_of::<T>();
+            if !log.len().is_multiple_of(size) {
+                return Err(anyhow!(
+                    "a checkpoint's log of {} bytes is not whole {}-byte messages",
+                    log.len(),
+                    size
+                ));
+            }
+            *l = log
+                .chunks_exact(size)
+                .map(bytemuck::pod_read_unaligned::<T>)
+                .collect();
+            self.log_base = base;
+        }
+        Ok(())
     }
 
     /// Whether every message sent is kept ([`Outbox::keep_log`]).
@@ -97,7 +154,10 @@ impl<T: Message> Outbox<T> {
         };
         let mut n = 0;
         while n < limit && self.next_seq < self.stats.published {
-            let Some(msg) = log.get(self.next_seq as usize) else {
+            let Some(msg) =
+                (self.next_seq.checked_sub(self.log_base)).and_then(|i| log.get(i as usize))
+            else {
+                // Trimmed: below every consumer's checkpoint, so nobody asks for it.
                 break;
             };
             self.publisher
@@ -128,8 +188,8 @@ impl<T: Message> Outbox<T> {
         *msg.meta_mut() = Meta::new(seq, t_ns, mono_ns(), self.producer);
         msg.seal();
         if let Some(log) = self.log.as_mut() {
-            if seq as usize == log.len() {
-                log.push(msg);
+            if seq == self.log_base + log.len() as u64 {
+                log.push_back(msg);
             }
         }
         match self
@@ -304,6 +364,12 @@ impl FrameOutbox {
     /// Seq (frame number) of the next frame published.
     pub fn next_seq(&self) -> u64 {
         self.next_seq
+    }
+
+    /// Takes up a checkpoint's accounting: the next frame is the first it had not published.
+    pub fn restore_stats(&mut self, s: &crate::stats::StatsSnapshot) {
+        self.stats.restore(s);
+        self.next_seq = self.stats.published;
     }
 
     /// Whether frames below `stats.published` are still to be published again.

@@ -290,6 +290,17 @@ impl<R: Rpc> RpcClient<R> {
         self.call_with_id(node, req, id, t_ns, timeout)
     }
 
+    /// The id the next fresh request gets (a checkpoint keeps it).
+    pub fn next_id(&self) -> u64 {
+        self.next_id
+    }
+
+    /// Fresh ids go on from `id` (a restored checkpoint): the requests a replay makes get the
+    /// ids they first had.
+    pub fn resume_ids_at(&mut self, id: u64) {
+        self.next_id = id;
+    }
+
     /// A fresh request id, for [`RpcClient::call_with_id`].
     pub fn new_id(&mut self) -> u64 {
         self.next_id += 1;

@@ -18,9 +18,12 @@
 //! 6. on the heartbeat tick, a heartbeat with every counter (and between two inputs whenever
 //!    one is due, so that a long burst of work never looks like a hang).
 //!
-//! Recovery is by deterministic replay (docs/adr/0032): a restarted service is fed its inputs
-//! again from the first one and rebuilds its state exactly; consumers skip what they already
-//! have as duplicates.
+//! Recovery is by checkpoint and deterministic replay (docs/adr/0032, 0036): every
+//! `supervision.checkpoint_every_inputs` inputs (or `checkpoint_every_ms`) the skeleton writes
+//! the service's state with its ports' accounting ([`crate::checkpoint`]); a restarted service
+//! restores the last one and is fed only the inputs that came after it, rebuilding its state
+//! exactly; consumers skip what they already have as duplicates. A kept log is trimmed to what
+//! its consumers' checkpoints do not cover.
 
 use std::time::Duration;
 
@@ -33,6 +36,7 @@ use shared_types::{
     ServiceId, TopicId,
 };
 
+use crate::checkpoint::{Checkpoint, OutputSnapshot, Policy, Schedule};
 use crate::credit::{AckReader, Credit};
 use crate::housekeeping::Housekeeping;
 use crate::loop_timer::LoopTimer;
@@ -70,6 +74,12 @@ pub trait Output {
     /// Re-sends at most `limit` logged messages; how many were sent.
     fn resend(&mut self, limit: u64) -> Result<u64>;
     fn tamper(&mut self) -> &mut Tamper;
+    /// Its accounting and log for a checkpoint (the skeleton adds the credit).
+    fn snapshot(&self) -> OutputSnapshot;
+    /// Takes up a checkpoint's accounting and log.
+    fn restore(&mut self, s: &OutputSnapshot) -> Result<()>;
+    /// Forgets logged messages below `seq` (every consumer's checkpoint covers them).
+    fn trim(&mut self, seq: u64);
 }
 
 impl<T: Message> Output for Outbox<T> {
@@ -93,6 +103,20 @@ impl<T: Message> Output for Outbox<T> {
     }
     fn tamper(&mut self) -> &mut Tamper {
         &mut self.tamper
+    }
+    fn snapshot(&self) -> OutputSnapshot {
+        OutputSnapshot {
+            stats: self.stats.snapshot(),
+            credit: vec![],
+            log_base: self.log_span().0,
+            log: self.log_bytes(),
+        }
+    }
+    fn restore(&mut self, s: &OutputSnapshot) -> Result<()> {
+        Outbox::restore(self, &s.stats, s.log_base, &s.log)
+    }
+    fn trim(&mut self, seq: u64) {
+        self.trim_log(seq)
     }
 }
 
@@ -118,6 +142,19 @@ impl Output for FrameOutbox {
     fn tamper(&mut self) -> &mut Tamper {
         &mut self.tamper
     }
+    fn snapshot(&self) -> OutputSnapshot {
+        OutputSnapshot {
+            stats: self.stats.snapshot(),
+            credit: vec![],
+            log_base: 0,
+            log: vec![],
+        }
+    }
+    fn restore(&mut self, s: &OutputSnapshot) -> Result<()> {
+        self.restore_stats(&s.stats);
+        Ok(())
+    }
+    fn trim(&mut self, _seq: u64) {}
 }
 
 /// One frame handed to a consumer: header and pixels, read in place in shared memory.
@@ -302,6 +339,19 @@ pub trait Service: Sized {
         0
     }
 
+    /// Its state after the inputs it has taken, as checkpoint bytes ([`crate::checkpoint::encode`]);
+    /// empty for a service whose state is its ports' accounting alone (the sensor: message
+    /// `k` is a function of `k`). `None` (the default): it takes no checkpoints, and a restart
+    /// replays its inputs from the first.
+    fn checkpoint(&self) -> Result<Option<Vec<u8>>> {
+        Ok(None)
+    }
+
+    /// Takes up the state of a checkpoint [`Service::checkpoint`] made.
+    fn restore(&mut self, _state: &[u8]) -> Result<()> {
+        Ok(())
+    }
+
     /// Arms an in-band `drop` or `corrupt` on the service's main output (its first).
     fn arm(&mut self, fault: &InBandFault) {
         if let Some(out) = self.outputs().into_iter().next() {
@@ -366,11 +416,6 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
     let (mut svc, mut input) = S::open(&mut setup)?;
     let listeners = std::mem::take(&mut setup.listeners);
     let realtime = scenario.clock == ClockMode::Realtime;
-    if restarted && !realtime {
-        if let Some(stats) = input.stats_mut() {
-            stats.await_replay();
-        }
-    }
     let input_topic = input.stats().map(|s| s.topic);
     let mut credits: Vec<(TopicId, Credit)> = svc
         .outputs()
@@ -384,6 +429,25 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
             )
         })
         .collect();
+    if restarted && !realtime {
+        if let Some(c) = Checkpoint::read(prefix, S::ID)? {
+            restore(&mut svc, &mut input, &mut credits, &c)?;
+        }
+        if let Some(stats) = input.stats_mut() {
+            stats.await_replay();
+        }
+    }
+    let sup = &scenario.supervision;
+    let mut schedule = (!realtime).then(|| {
+        let policy = Policy {
+            every_inputs: sup.checkpoint_every_inputs,
+            every: Duration::from_millis(sup.checkpoint_every_ms),
+        };
+        Schedule::new(policy, progress(&input, &mut svc))
+    });
+    // Everything below it is in this incarnation's last checkpoint (realtime: nothing is
+    // ever replayed, so everything taken).
+    let mut checkpointed_seq = input.stats().map_or(0, |s| s.next_seq);
     hk.state = Heartbeat::READY;
     let mut timer = LoopTimer::new();
     // A first heartbeat at once: a service blocked before its first tick still has one to repeat.
@@ -418,11 +482,17 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
             hk.beat(0, &all_stats(&input, &svc))?;
             return Ok(Step::Stop);
         }
-        // 2. Credit.
+        // 2. Credit, and the logs trimmed to what a replay may still ask for.
         {
             let mut feed: Vec<(TopicId, &mut Credit)> =
                 credits.iter_mut().map(|(t, c)| (*t, c)).collect();
             acks.poll(&mut feed)?;
+        }
+        for out in svc.outputs() {
+            let topic = out.stats().topic;
+            if let Some((_, c)) = credits.iter().find(|(t, _)| *t == topic) {
+                out.trim(c.replayable_from());
+            }
         }
         // 3. Faults and replays.
         for f in hk.take_output_faults() {
@@ -503,9 +573,18 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
             if let Some(e) = fatal {
                 return Err(e);
             }
+            // 4b. A checkpoint when one is due (not while a restarted consumer is replayed).
+            if let Some(s) = schedule.as_mut() {
+                let now = progress(&input, &mut svc);
+                if s.due(now) && take_checkpoint(prefix, &input, &mut svc, &credits)? {
+                    s.taken_at(now);
+                    checkpointed_seq = input.stats().map_or(0, |st| st.next_seq);
+                }
+            }
             if let (Some(topic), Some(stats)) = (input_topic, input.stats()) {
                 let next = stats.next_seq;
-                hk.ack(topic, next, last_t_ns)?;
+                let covered = if realtime { next } else { checkpointed_seq };
+                hk.ack(topic, next, covered, last_t_ns)?;
             }
         }
         // 5. The service's own work.
@@ -539,6 +618,77 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
     if exit == Exit::Terminated {
         tracing::info!("{name} terminated by signal");
     }
+    Ok(())
+}
+
+/// How far a service has got: inputs taken, or (a source) messages sent.
+fn progress<S: Service>(input: &S::Input, svc: &mut S) -> u64 {
+    match input.stats() {
+        Some(s) => s.next_seq,
+        None => svc.outputs().iter().map(|o| o.stats().published).sum(),
+    }
+}
+
+/// Writes the service's checkpoint: its state, its input's and outputs' accounting, the
+/// outputs' credit and logs. `false`: the service takes none.
+fn take_checkpoint<S: Service>(
+    prefix: &str,
+    input: &S::Input,
+    svc: &mut S,
+    credits: &[(TopicId, Credit)],
+) -> Result<bool> {
+    let Some(state) = svc.checkpoint()? else {
+        return Ok(false);
+    };
+    let outputs = (svc.outputs().iter())
+        .map(|o| {
+            let mut snap = o.snapshot();
+            let topic = o.stats().topic;
+            if let Some((_, c)) = credits.iter().find(|(t, _)| *t == topic) {
+                snap.credit = c.snapshot();
+            }
+            snap
+        })
+        .collect();
+    let c = Checkpoint {
+        contract: shared_types::CONTRACT_VERSION,
+        service: S::ID as u32,
+        input: input.stats().map(|s| s.snapshot()),
+        outputs,
+        state,
+    };
+    c.write(prefix, S::ID)?;
+    tracing::debug!(
+        input_seq = c.input.as_ref().map(|s| s.next_seq),
+        "checkpoint"
+    );
+    Ok(true)
+}
+
+/// A restarted service takes up its last checkpoint.
+fn restore<S: Service>(
+    svc: &mut S,
+    input: &mut S::Input,
+    credits: &mut [(TopicId, Credit)],
+    c: &Checkpoint,
+) -> Result<()> {
+    svc.restore(&c.state)?;
+    if let (Some(stats), Some(snap)) = (input.stats_mut(), c.input.as_ref()) {
+        stats.restore(snap);
+    }
+    for out in svc.outputs() {
+        let topic = out.stats().topic as u32;
+        if let Some(snap) = c.outputs.iter().find(|o| o.stats.topic == topic) {
+            out.restore(snap)?;
+            if let Some((_, credit)) = credits.iter_mut().find(|(t, _)| *t as u32 == topic) {
+                credit.restore(&snap.credit);
+            }
+        }
+    }
+    tracing::info!(
+        input_seq = c.input.as_ref().map(|s| s.next_seq),
+        "restored its checkpoint"
+    );
     Ok(())
 }
 

@@ -20,9 +20,10 @@ pub struct TopicStats {
     /// Copies of messages already accounted for (a producer's replay): skipped, not dropped.
     pub duplicates: u64,
     per_producer: Vec<(u32, u64)>,
-    /// A restarted consumer: everything before its producer's replay reaches seq 0 (history,
-    /// messages in flight) is skipped as a duplicate; the replay brings it again in order.
-    awaiting_replay: bool,
+    /// A restarted consumer: everything before its producer's replay reaches this seq (its
+    /// checkpoint's `next_seq`, or 0; history, messages in flight) is skipped as a duplicate;
+    /// the replay brings it again in order.
+    awaiting_replay: Option<u64>,
     /// Many-to-one housekeeping topics (heartbeat, ack, control): a producer joins at whatever
     /// seq it is at, and a seq going back means that producer restarted.
     peers_restart: bool,
@@ -34,6 +35,18 @@ pub struct TopicStats {
     pub publish_ns: u64,
     /// Time spent on frame checksums on this topic [ns]: computed (producer) or verified.
     pub checksum_ns: u64,
+}
+
+/// A topic's accounting as a checkpoint keeps it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StatsSnapshot {
+    pub topic: u32,
+    pub published: u64,
+    pub received: u64,
+    pub dropped: [u64; DROP_REASONS],
+    pub next_seq: u64,
+    pub duplicates: u64,
+    pub per_producer: Vec<(u32, u64)>,
 }
 
 /// What the consumer should do with a message after sequence accounting.
@@ -55,7 +68,7 @@ impl TopicStats {
             next_seq: 0,
             duplicates: 0,
             per_producer: Vec::new(),
-            awaiting_replay: false,
+            awaiting_replay: None,
             peers_restart: false,
             unread_malformed: 0,
             publish_ns: 0,
@@ -70,9 +83,33 @@ impl TopicStats {
         self.unread_malformed += 1;
     }
 
-    /// Accounting of a restarted consumer whose producer replays from seq 0.
+    /// Accounting of a restarted consumer whose producer replays from its `next_seq` (0, or
+    /// where its restored checkpoint left it).
     pub fn await_replay(&mut self) {
-        self.awaiting_replay = true;
+        self.awaiting_replay = Some(self.next_seq);
+    }
+
+    /// The accounting a checkpoint keeps.
+    pub fn snapshot(&self) -> StatsSnapshot {
+        StatsSnapshot {
+            topic: self.topic as u32,
+            published: self.published,
+            received: self.received,
+            dropped: self.dropped,
+            next_seq: self.next_seq,
+            duplicates: self.duplicates,
+            per_producer: self.per_producer.clone(),
+        }
+    }
+
+    /// Takes up a checkpoint's accounting (timings start again).
+    pub fn restore(&mut self, s: &StatsSnapshot) {
+        self.published = s.published;
+        self.received = s.received;
+        self.dropped = s.dropped;
+        self.next_seq = s.next_seq;
+        self.duplicates = s.duplicates;
+        self.per_producer = s.per_producer.clone();
     }
 
     /// Accounting of a many-to-one housekeeping topic whose producers may restart.
@@ -88,12 +125,12 @@ impl TopicStats {
 
     /// Accounts for the arrival of `seq` from `producer` (sequence numbers are per producer).
     pub fn observe(&mut self, producer: u32, seq: u64) -> SeqVerdict {
-        if self.awaiting_replay {
-            if seq != 0 {
+        if let Some(start) = self.awaiting_replay {
+            if seq != start {
                 self.duplicates += 1;
                 return SeqVerdict::Duplicate;
             }
-            self.awaiting_replay = false;
+            self.awaiting_replay = None;
         }
         let slot = match self.per_producer.iter().position(|(p, _)| *p == producer) {
             Some(i) => i,
@@ -177,6 +214,28 @@ mod tests {
         }
         assert_eq!((s.received, s.duplicates, s.dropped_total()), (4, 3, 0));
         assert_eq!(s.next_seq, 4);
+    }
+
+    #[test]
+    fn a_consumer_restored_from_a_checkpoint_takes_the_replay_from_where_it_left_off() {
+        let mut before = TopicStats::new(TopicId::Frame);
+        for seq in 0..40 {
+            before.observe_seq(seq);
+            before.accept();
+        }
+        let at_checkpoint = before.snapshot();
+        let mut s = TopicStats::new(TopicId::Frame);
+        s.restore(&at_checkpoint);
+        s.await_replay();
+        // In flight when it died, then the replay from its checkpoint on.
+        for seq in [52, 53, 40, 41, 42] {
+            if s.observe_seq(seq) == SeqVerdict::Accept {
+                s.accept();
+            }
+        }
+        assert_eq!((s.received, s.duplicates, s.dropped_total()), (43, 2, 0));
+        assert_eq!(s.next_seq, 43);
+        assert_eq!(s.received + s.dropped_total(), s.next_seq);
     }
 
     #[test]

@@ -149,7 +149,7 @@ pub fn wrap_pi(a: f64) -> f64 {
 }
 
 /// The §3.6 angle filter.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct AngleFilter {
     config: AngleFilterConfig,
     t_s: f64,

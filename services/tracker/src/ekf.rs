@@ -216,7 +216,7 @@ pub fn fix_jacobian(azimuth_rad: f64, elevation_rad: f64, range_m: f64) -> Matri
 }
 
 /// The §3.8 CW EKF.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CwEkf {
     config: CwEkfConfig,
     t_s: f64,

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use glint_runtime::ports::{Inbox, Outbox};
 use glint_runtime::rpc::{CallOutcome, RangeClient};
-use glint_runtime::{Io, Output, Service, Setup, TopicStats};
+use glint_runtime::{checkpoint, Io, Output, Service, Setup, TopicStats};
 use shared_types::{
     Detections, DropReason, RangeRequest, RangeResponse, ServiceId, TopicId, Tracks,
 };
@@ -54,6 +54,21 @@ impl Service for TrackerNode {
 
     fn stats(&self) -> Vec<&TopicStats> {
         vec![&self.out.stats]
+    }
+
+    /// The tracks and their filters, and the laser's next request id.
+    fn checkpoint(&self) -> Result<Option<Vec<u8>>> {
+        let next_id = self.client.as_ref().map(|c| c.next_id());
+        checkpoint::encode(&(self.core.state(), next_id)).map(Some)
+    }
+
+    fn restore(&mut self, state: &[u8]) -> Result<()> {
+        let (tracks, next_id): (_, Option<u64>) = checkpoint::decode(state)?;
+        self.core.restore(tracks);
+        if let (Some(c), Some(id)) = (self.client.as_mut(), next_id) {
+            c.resume_ids_at(id);
+        }
+        Ok(())
     }
 
     fn rpc_wait_ns(&self) -> u64 {

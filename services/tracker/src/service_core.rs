@@ -62,6 +62,16 @@ pub struct TrackerCore {
 }
 
 impl TrackerCore {
+    /// Every track and its filters: what the tracker carries from frame to frame.
+    pub fn state(&self) -> std::collections::BTreeMap<u64, crate::track::Track> {
+        self.tm.state()
+    }
+
+    /// Carries `tracks` instead (a restored checkpoint).
+    pub fn restore(&mut self, tracks: std::collections::BTreeMap<u64, crate::track::Track>) {
+        self.tm.restore(tracks);
+    }
+
     pub fn new(cam: &CameraScenario) -> Result<Self, ConfigError> {
         let k = cam.exposure_s / (2.0 * (cam.exposure_s + cam.interval_s));
         Ok(TrackerCore {

@@ -139,7 +139,7 @@ pub struct FrameOutcome {
 }
 
 /// One track and its filters.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Track {
     pub track_id: u64,
     pub status: TrackStatus,
@@ -415,6 +415,16 @@ impl TrackManager {
 
     pub fn config(&self) -> &TrackManagerConfig {
         &self.config
+    }
+
+    /// Every track and its filters: what the manager carries from frame to frame.
+    pub fn state(&self) -> BTreeMap<u64, Track> {
+        self.tracks.clone()
+    }
+
+    /// Carries `tracks` instead (a restored checkpoint).
+    pub fn restore(&mut self, tracks: BTreeMap<u64, Track>) {
+        self.tracks = tracks;
     }
 
     pub fn track(&self, track_id: u64) -> Option<&Track> {

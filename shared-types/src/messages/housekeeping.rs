@@ -143,6 +143,9 @@ pub struct Ack {
     pub consumer: u32,
     /// Every message with `seq < next_seq` has been processed or counted as dropped.
     pub next_seq: u64,
+    /// Every message with `seq < checkpoint_seq` is in the consumer's checkpoint: a replay to
+    /// it never starts below, so its producer may forget them (a kept log stays bounded).
+    pub checkpoint_seq: u64,
 }
 
 /// Orchestrator → services commands.

@@ -121,7 +121,9 @@ fn unit(v: &[f64; 3], field: &'static str) -> Result<(), Reject> {
 /// Access to the common header, and the validation every consumer runs before trusting a peer.
 /// `NoUninit` (derived as `bytemuck::Pod`, which checks at compile time that a type has no
 /// padding) lets a consumer read a message as bytes safely, e.g. to hash it.
-pub trait Message: std::fmt::Debug + Copy + ZeroCopySend + bytemuck::NoUninit + 'static {
+pub trait Message:
+    std::fmt::Debug + Copy + ZeroCopySend + bytemuck::NoUninit + bytemuck::AnyBitPattern + 'static
+{
     fn meta(&self) -> &Meta;
     fn meta_mut(&mut self) -> &mut Meta;
     /// Called by the producer after the header is filled (e.g. to compute a content hash).

@@ -56,6 +56,12 @@ pub struct Supervision {
     pub backoff_ms: u64,
     /// Longest wait before a restart [ms], `backoff_ms`–600000 (default 2000).
     pub backoff_max_ms: u64,
+    /// A service checkpoints its state every this many inputs (a source: messages sent),
+    /// 1–10⁶ (default 256), or every `checkpoint_every_ms`, whichever comes first: a restart
+    /// replays at most that much. Sim-clock mode.
+    pub checkpoint_every_inputs: u64,
+    /// 10–600000 (default 1000).
+    pub checkpoint_every_ms: u64,
     /// Per-service overrides (`[supervision.services.detector]`).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub services: BTreeMap<String, ServiceSupervision>,
@@ -69,6 +75,8 @@ impl Default for Supervision {
             restart_window_s: 60.0,
             backoff_ms: 100,
             backoff_max_ms: 2000,
+            checkpoint_every_inputs: 256,
+            checkpoint_every_ms: 1000,
             services: BTreeMap::new(),
         }
     }
@@ -114,6 +122,18 @@ pub(super) fn check_supervision(c: &mut Checker, scenario: &super::Scenario) {
         86400.0,
     );
     c.range_u("supervision.backoff_ms", s.backoff_ms, 0, 60_000);
+    c.range_u(
+        "supervision.checkpoint_every_inputs",
+        s.checkpoint_every_inputs,
+        1,
+        1_000_000,
+    );
+    c.range_u(
+        "supervision.checkpoint_every_ms",
+        s.checkpoint_every_ms,
+        10,
+        600_000,
+    );
     c.range_u(
         "supervision.backoff_max_ms",
         s.backoff_max_ms,
