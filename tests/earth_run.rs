@@ -155,31 +155,56 @@ fn the_turntable_sweep_deployed_accounts_for_every_frame_and_ranks_the_methods()
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A killed earth service takes up its checkpoint (its answers are a function of each frame:
+/// the checkpoint is its input's accounting) and is fed again only the frames after it; its
+/// answers are the fault-free run's. The negative control, checkpoints too rare to be taken,
+/// replays from the first frame.
 #[test]
-fn a_killed_earth_service_is_restarted_and_its_answers_are_unchanged() {
+fn a_killed_earth_service_resumes_from_its_checkpoint_and_its_answers_are_unchanged() {
     let dir = temp_dir("earth-kill");
-    let short = turntable_variant(
-        &[(
-            "[earth]",
-            "[earth]\ntrajectory_deg = [-9.0, -4.5, -0.3, 0.0, 2.2, 7.7, 15.0, 33.0, 44.0, 49.0]",
-        )],
-        &dir,
+    let trajectory =
+        "[earth]\ntrajectory_deg = [-9.0, -4.5, -0.3, 0.0, 2.2, 7.7, 15.0, 33.0, 44.0, 49.0, \
+         -45.0, -38.0, -27.5, -20.0, -12.0, 4.0, 11.0, 22.0, 28.0, 39.0]";
+    let variant = |every: &str| {
+        let sub = dir.join(format!("every-{every}"));
+        std::fs::create_dir_all(&sub).unwrap();
+        let with = format!(
+            "[supervision]\ncheckpoint_every_inputs = {every}\ncheckpoint_every_ms = 600000\n\n{trajectory}"
+        );
+        turntable_variant(&[("[earth]", with.as_str())], &sub)
+    };
+    let (often, never) = (variant("4"), variant("1000000"));
+    let clean = run_ok(Some(&often), &dir.join("clean"), &[]);
+    let mut replayed = vec![];
+    for (file, name) in [(&often, "often"), (&never, "never")] {
+        let out = dir.join(format!("kill-{name}"));
+        let r = run_ok(Some(file), &out, &["--fault", "earth:kill@34"]);
+        let fault = &r.typed.faults[0];
+        assert_eq!(fault.service, "earth", "{fault:?}");
+        assert_eq!(fault.restarts, 1, "{fault:?}");
+        assert_eq!(fault.lost, Some(0), "{fault:?}");
+        assert_eq!(r.typed.results.science, clean.typed.results.science);
+        // Every method's answers, interval by interval (their compute times are in `timing`).
+        assert_eq!(r.typed.results.earth, clean.typed.results.earth);
+        assert!(r.typed.results.earth.is_some());
+        assert_eq!(r.typed.results.topics["earth_attitude"].expected, 40);
+        let log = std::fs::read_to_string(out.join("logs").join("earth.log")).unwrap();
+        replayed.push((
+            fault.replayed.unwrap(),
+            log.contains("restored its checkpoint"),
+        ));
+    }
+    let [(with, restored), (without, restored_without)] = replayed[..] else {
+        unreachable!()
+    };
+    assert!(restored && !restored_without, "{replayed:?}");
+    // The sensor runs at most a credit window (16 frames of 512²) ahead of the earth service:
+    // when the orchestrator has carried frame 34 it has taken at least 19. Without a
+    // checkpoint it is fed all of them again; with one, at most the 4 since the last.
+    assert!(
+        with <= 4 && without >= 19,
+        "replayed {with} with checkpoints, {without} without"
     );
-    let clean = run_ok(Some(&short), &dir.join("clean"), &[]);
-    let r = run_ok(
-        Some(&short),
-        &dir.join("kill"),
-        &["--fault", "earth:kill@8"],
-    );
-    let fault = &r.typed.faults[0];
-    assert_eq!(fault.service, "earth", "{fault:?}");
-    assert_eq!(fault.restarts, 1, "{fault:?}");
-    assert_eq!(fault.lost, Some(0), "{fault:?}");
-    assert_eq!(r.typed.results.science, clean.typed.results.science);
-    // Every method's answers, interval by interval (their compute times are in `timing`).
-    assert_eq!(r.typed.results.earth, clean.typed.results.earth);
-    assert!(r.typed.results.earth.is_some());
-    assert_eq!(r.typed.results.topics["earth_attitude"].expected, 20);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -76,6 +76,14 @@ impl Schedule {
         new > 0 && (new >= self.policy.every_inputs || self.last_at.elapsed() >= self.policy.every)
     }
 
+    /// Inputs to take, at `progress`, before a checkpoint is due by count (at least one): a
+    /// service takes its inputs in batches no longer than that, so that a checkpoint falls
+    /// every `every_inputs` inputs and not only where a batch happens to end.
+    pub fn remaining(&self, progress: u64) -> usize {
+        let new = progress.saturating_sub(self.last_progress);
+        self.policy.every_inputs.saturating_sub(new).max(1) as usize
+    }
+
     pub fn taken_at(&mut self, progress: u64) {
         self.last_at = Instant::now();
         self.last_progress = progress;

@@ -22,6 +22,8 @@ pub struct Housekeeping {
     acked: Vec<(TopicId, u64, u64)>,
     /// Replays ordered and not yet taken ([`Housekeeping::take_replays`]).
     replays: Vec<Replay>,
+    /// Stream ends ordered and not yet taken ([`Housekeeping::take_ends`]).
+    ends: Vec<(TopicId, u64)>,
     /// `Shutdown` has arrived (possibly while the service waited outside its loop).
     pub shutdown_requested: bool,
     /// Obey in-band fault commands (the scenario's `faults.enabled`); refused ones are counted.
@@ -71,6 +73,7 @@ impl Housekeeping {
                 acks,
                 acked: vec![],
                 replays: vec![],
+                ends: vec![],
                 shutdown_requested: false,
                 faults_enabled: false,
                 faults_refused: 0,
@@ -92,7 +95,11 @@ impl Housekeeping {
     pub fn poll_control(&mut self) -> Result<Vec<Command>> {
         let me = self.id as u32;
         let mut cmds = vec![];
-        let (replays, shutdown) = (&mut self.replays, &mut self.shutdown_requested);
+        let (replays, shutdown, ends) = (
+            &mut self.replays,
+            &mut self.shutdown_requested,
+            &mut self.ends,
+        );
         let mut faults = vec![];
         self.control.drain(|r| {
             if r.msg.target == me || r.msg.target == Control::ALL {
@@ -105,6 +112,9 @@ impl Housekeeping {
                 }
                 if let Some(f) = r.msg.as_fault() {
                     faults.push(f);
+                }
+                if let Some(end) = r.msg.as_end() {
+                    ends.push(end);
                 }
             }
             Ok(())
@@ -196,6 +206,11 @@ impl Housekeeping {
     /// Drop and corrupt orders to arm on this service's output.
     pub fn take_output_faults(&mut self) -> Vec<InBandFault> {
         std::mem::take(&mut self.output_faults)
+    }
+
+    /// The stream ends ordered since the last call: (topic, messages).
+    pub fn take_ends(&mut self) -> Vec<(TopicId, u64)> {
+        std::mem::take(&mut self.ends)
     }
 
     /// The replays ordered since the last call (a consumer of this service's output restarted).

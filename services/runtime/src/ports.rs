@@ -18,8 +18,6 @@ use shared_types::{DropReason, FrameHeader, Message, Meta, Reject, ServiceId, To
 use crate::clock::mono_ns;
 use crate::stats::{SeqVerdict, TopicStats};
 use crate::tamper::{Tamper, Verdict};
-use shared_types::scenario::Corruption;
-use shared_types::CONTRACT_VERSION;
 
 /// The listener a consumer attaches to its WaitSet for a topic.
 pub fn listener(node: &IpcNode, topic: TopicId) -> Result<Listener<Ipc>> {
@@ -427,11 +425,7 @@ impl FrameOutbox {
             }
             Verdict::Corrupt(how) => {
                 tracing::info!(seq, how = how.name(), "injected frame corruption");
-                match how {
-                    Corruption::Nan => header.exposure_ns = 0,
-                    Corruption::Count => header.width_px += 1,
-                    Corruption::Version => header.meta.contract_version = !CONTRACT_VERSION,
-                }
+                header.corrupt(how);
                 self.stats.drop_for(DropReason::Malformed);
             }
         }

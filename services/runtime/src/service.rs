@@ -364,6 +364,10 @@ pub trait Service: Sized {
         Ok(())
     }
 
+    /// `End`: `topic` (one of its outputs) ends after `messages` messages, or where it is if
+    /// it has sent more (a soak's end). Only producers of streams have anything to end.
+    fn on_end(&mut self, _topic: TopicId, _messages: u64) {}
+
     /// One input message, in seq order. `Ok(Err(reason))` drops it with a counted reason; an
     /// error ends the service.
     fn on_input(
@@ -475,6 +479,9 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
                 svc.on_command(&mut io, cmd)?;
             }
         }
+        for (topic, messages) in hk.take_ends() {
+            svc.on_end(topic, messages);
+        }
         if hk.shutdown_requested {
             hk.state = Heartbeat::STOPPING;
             timer.asleep(false);
@@ -544,6 +551,11 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
                 })
                 .min()
                 .unwrap_or(usize::MAX);
+            // No further than the next checkpoint by count.
+            let limit = match schedule.as_ref() {
+                Some(s) => limit.min(s.remaining(progress(&input, &mut svc))),
+                None => limit,
+            };
             let mut fatal: Option<anyhow::Error> = None;
             let mut io = Io {
                 hk: &mut hk,

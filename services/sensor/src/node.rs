@@ -29,6 +29,10 @@ trait Emitter {
     fn output(&mut self) -> &mut dyn Output;
     /// Publishes the next message (rendered into the loan, or made whole); its truth.
     fn emit(&mut self) -> Result<Truth>;
+    /// Messages it sends in all: the stream's, or fewer once ended ([`Emitter::end_at`]).
+    fn end(&self) -> u64;
+    /// Ends the stream after `messages` (or where it is, if it has sent more).
+    fn end_at(&mut self, messages: u64);
 
     fn topic(&self) -> TopicId {
         self.stream().topic()
@@ -43,7 +47,7 @@ trait Emitter {
     /// The simulated time of the next message, if the stream has one left.
     fn next_t_ns(&self) -> Option<u64> {
         let k = self.next_seq();
-        (k < self.stream().messages()).then(|| self.stream().t_ns(k))
+        (k < self.end()).then(|| self.stream().t_ns(k))
     }
     /// Realtime: when the next message is due after `Start` [ns].
     fn due_ns(&self) -> Option<u64> {
@@ -58,6 +62,7 @@ trait Emitter {
 struct Frames<S: FrameStream> {
     stream: S,
     out: FrameOutbox,
+    end: u64,
 }
 
 impl<S: FrameStream> Emitter for Frames<S> {
@@ -77,11 +82,18 @@ impl<S: FrameStream> Emitter for Frames<S> {
             .publish(stream.t_ns(k), |h, px| stream.render(k, h, px))?;
         Ok(stream.truth(k))
     }
+    fn end(&self) -> u64 {
+        self.end
+    }
+    fn end_at(&mut self, messages: u64) {
+        self.end = self.end.min(messages.max(self.out.next_seq()));
+    }
 }
 
 struct Messages<S: MessageStream> {
     stream: S,
     out: Outbox<S::Msg>,
+    end: u64,
 }
 
 impl<S: MessageStream> Emitter for Messages<S> {
@@ -100,6 +112,12 @@ impl<S: MessageStream> Emitter for Messages<S> {
         self.out.send(msg, self.stream.t_ns(k))?;
         Ok(truth)
     }
+    fn end(&self) -> u64 {
+        self.end
+    }
+    fn end_at(&mut self, messages: u64) {
+        self.end = self.end.min(messages.max(self.out.next_seq()));
+    }
 }
 
 /// Every stream of `sc` with its port, in table order (the tie-break of the emission order):
@@ -110,17 +128,20 @@ fn emitters(setup: &Setup<'_>, core: &SensorCore) -> Result<Vec<Box<dyn Emitter>
     let mut all: Vec<Box<dyn Emitter>> = vec![];
     if let Some(stream) = core.debris_stream() {
         let out = FrameOutbox::open(node, stream.topic(), sc)?;
-        all.push(Box::new(Frames { stream, out }));
+        let end = stream.messages();
+        all.push(Box::new(Frames { stream, out, end }));
     }
     if let Some(sp) = &sc.spectra {
         let stream = SpectraStream::new(sp, sc.seed)?;
         let out = Outbox::open(node, stream.topic(), id)?;
-        all.push(Box::new(Messages { stream, out }));
+        let end = stream.messages();
+        all.push(Box::new(Messages { stream, out, end }));
     }
     if let Some(e) = &sc.earth {
         let stream = EarthStream::new(e, sc.seed);
         let out = FrameOutbox::open(node, stream.topic(), sc)?;
-        all.push(Box::new(Frames { stream, out }));
+        let end = stream.messages();
+        all.push(Box::new(Frames { stream, out, end }));
     }
     all.sort_by_key(|e| e.topic());
     Ok(all)
@@ -188,6 +209,13 @@ impl Service for SensorNode {
             _ => {}
         }
         Ok(())
+    }
+
+    fn on_end(&mut self, topic: TopicId, messages: u64) {
+        for s in self.streams.iter_mut().filter(|s| s.topic() == topic) {
+            s.end_at(messages);
+            tracing::info!(topic = topic.name(), end = s.end(), "stream ended early");
+        }
     }
 
     fn on_input(&mut self, _io: &mut Io<'_>, _: ()) -> Result<Result<(), DropReason>> {

@@ -54,6 +54,20 @@ impl FrameHeader {
     }
 }
 
+impl FrameHeader {
+    /// Fault injection: makes the frame invalid as `how` says, so that
+    /// [`FrameHeader::validate`] rejects it (a frame has no float to make non-finite: `nan`
+    /// zeroes its exposure; `count` makes its size disagree with its pixels).
+    pub fn corrupt(&mut self, how: crate::scenario::Corruption) {
+        use crate::scenario::Corruption;
+        match how {
+            Corruption::Nan => self.exposure_ns = 0,
+            Corruption::Count => self.width_px += 1,
+            Corruption::Version => self.meta.contract_version = !CONTRACT_VERSION,
+        }
+    }
+}
+
 /// Maximum detections in one [`Detections`] message.
 pub const MAX_DETECTIONS: usize = 32;
 /// Maximum tracks in one [`Tracks`] message.

@@ -165,6 +165,8 @@ pub enum Command {
     /// An in-band fault (`arg`: see [`Control::fault`]); obeyed only where the scenario sets
     /// `faults.enabled = true`.
     Fault = 6,
+    /// End a stream early (the producer): a soak's end (`arg`: see [`Control::end`]).
+    End = 7,
 }
 
 impl Command {
@@ -176,6 +178,7 @@ impl Command {
             4 => Some(Command::Start),
             5 => Some(Command::Replay),
             6 => Some(Command::Fault),
+            7 => Some(Command::End),
             _ => None,
         }
     }
@@ -271,6 +274,26 @@ impl Control {
         })
     }
 
+    /// The order to `producer` to end `topic` after `messages` messages (or where it is, if
+    /// it has already sent more).
+    pub fn end(producer: crate::ServiceId, topic: crate::TopicId, messages: u64) -> Control {
+        Control {
+            command: Command::End as u32,
+            target: producer as u32,
+            arg: [u64::from(topic as u32), messages],
+            ..Default::default()
+        }
+    }
+
+    /// The (topic, messages) this message ends, if it is a well-formed [`Command::End`].
+    pub fn as_end(&self) -> Option<(crate::TopicId, u64)> {
+        if self.command != Command::End as u32 {
+            return None;
+        }
+        let topic = crate::TopicId::from_u32(u32::try_from(self.arg[0]).ok()?)?;
+        Some((topic, self.arg[1]))
+    }
+
     /// The replay order to `producer` for a restarted consumer.
     pub fn replay(producer: crate::ServiceId, r: Replay) -> Control {
         Control {
@@ -310,6 +333,9 @@ impl Control {
         if self.command == Command::Fault as u32 && self.as_fault().is_none() {
             return Err(Reject::new("control.arg", "an unknown in-band fault"));
         }
+        if self.command == Command::End as u32 && self.as_end().is_none() {
+            return Err(Reject::new("control.arg", "the end of an unknown topic"));
+        }
         Ok(())
     }
 }
@@ -344,5 +370,13 @@ mod tests {
         assert_eq!(bad.as_fault(), None);
         bad.meta.contract_version = crate::CONTRACT_VERSION;
         assert!(bad.validate().is_err());
+        // An end order names its topic and count; an unknown topic is rejected.
+        let mut end = Control::end(ServiceId::Sensor, TopicId::Frame, 12_345);
+        assert_eq!(end.as_end(), Some((TopicId::Frame, 12_345)));
+        end.meta.contract_version = crate::CONTRACT_VERSION;
+        assert!(end.validate().is_ok());
+        end.arg[0] = u64::from(u32::MAX);
+        assert_eq!(end.as_end(), None);
+        assert!(end.validate().is_err());
     }
 }

@@ -226,13 +226,15 @@ impl CameraScenario {
     }
 }
 
-pub(super) fn check_camera(c: &mut Checker, cam: &CameraScenario) {
+/// `soak`: the camera runs until a soak ends (its frame count is the soak's, unbounded).
+pub(super) fn check_camera(c: &mut Checker, cam: &CameraScenario, soak: bool) {
     c.range_u("camera.width_px", cam.width_px as u64, 16, 4096);
     c.range_u("camera.height_px", cam.height_px as u64, 16, 4096);
     c.range("camera.fov_deg", cam.fov_deg, 0.1, 90.0);
     c.range("camera.exposure_s", cam.exposure_s, 1e-5, 10.0);
     c.range("camera.interval_s", cam.interval_s, 0.0, 10.0);
-    c.range_u("camera.frames", cam.frames, 1, 10_000_000);
+    let frames_max = if soak { super::SOAK_FRAMES } else { 10_000_000 };
+    c.range_u("camera.frames", cam.frames, 1, frames_max);
     c.range("camera.background_dn", cam.background_dn, 0.0, 60000.0);
     c.range("camera.read_noise_dn", cam.read_noise_dn, 0.0, 5000.0);
     c.range_u("camera.saturation_dn", cam.saturation_dn as u64, 1, 65535);

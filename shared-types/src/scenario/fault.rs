@@ -68,6 +68,14 @@ impl FaultKind {
         !matches!(self, FaultKind::Kill | FaultKind::Stop)
     }
 
+    /// It ends the process or hangs it: supervision notices it and restarts the service.
+    pub fn ends_a_process(self) -> bool {
+        match self {
+            FaultKind::Kill | FaultKind::Stop | FaultKind::Panic => true,
+            FaultKind::Delay | FaultKind::Drop | FaultKind::Corrupt => false,
+        }
+    }
+
     /// Its wire code in [`crate::InBandFault`].
     pub fn code(self) -> u8 {
         Self::ALL.iter().position(|k| *k == self).unwrap_or(0) as u8

@@ -95,16 +95,19 @@ impl FaultMatrix {
     }
 }
 
-pub(super) fn check_matrix(c: &mut Checker, scenario: &super::Scenario) {
-    let Some(m) = &scenario.matrix else {
-        return;
-    };
+/// Every name in `section.services` is a service the scenario deploys.
+pub(super) fn check_services(
+    c: &mut Checker,
+    section: &str,
+    services: &[String],
+    scenario: &super::Scenario,
+) {
     let deployed = deployment::services(scenario);
     let names: Vec<&str> = deployed.iter().map(|s| s.name()).collect();
-    for (i, s) in m.services.iter().enumerate() {
+    for (i, s) in services.iter().enumerate() {
         if !names.contains(&s.as_str()) {
             c.fail(
-                &format!("matrix.services[{i}]"),
+                &format!("{section}.services[{i}]"),
                 format!(
                     "`{s}` is not a service this scenario deploys; allowed: {}",
                     names.join(", ")
@@ -112,6 +115,13 @@ pub(super) fn check_matrix(c: &mut Checker, scenario: &super::Scenario) {
             );
         }
     }
+}
+
+pub(super) fn check_matrix(c: &mut Checker, scenario: &super::Scenario) {
+    let Some(m) = &scenario.matrix else {
+        return;
+    };
+    check_services(c, "matrix", &m.services, scenario);
     if let Some(v) = m.stop_s {
         c.range("matrix.stop_s", v, 0.001, 3600.0);
     }

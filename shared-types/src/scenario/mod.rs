@@ -12,6 +12,7 @@ mod campaign;
 mod earth;
 mod fault;
 mod matrix;
+mod soak;
 mod spectra;
 mod supervision;
 
@@ -20,6 +21,7 @@ pub use campaign::*;
 pub use earth::*;
 pub use fault::*;
 pub use matrix::*;
+pub use soak::*;
 pub use spectra::*;
 pub use supervision::*;
 
@@ -104,6 +106,9 @@ pub struct Scenario {
     /// (service × kind).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub matrix: Option<FaultMatrix>,
+    /// A long run with faults on a schedule (`[soak]`; also `glint run --soak`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub soak: Option<Soak>,
     /// Whether in-band faults are obeyed (`[faults]`).
     #[serde(default)]
     pub faults: FaultsSection,
@@ -271,7 +276,7 @@ impl Scenario {
             check_earth(&mut c, e);
         }
         if let Some(cam) = &self.camera {
-            check_camera(&mut c, cam);
+            check_camera(&mut c, cam, self.soak.is_some());
         }
         if let Some(sp) = &self.spectra {
             check_spectra(&mut c, sp);
@@ -279,6 +284,7 @@ impl Scenario {
         fault::check_faults(&mut c, self);
         supervision::check_supervision(&mut c, self);
         matrix::check_matrix(&mut c, self);
+        soak::check_soak(&mut c, self);
         if let Some(camp) = &self.campaign {
             c.range_u("campaign.values (count)", camp.values.len() as u64, 1, 100);
             c.range_u("campaign.seeds", camp.seeds as u64, 1, 1000);

@@ -74,6 +74,19 @@ pub(super) fn check_rows(topics: &[TopicSpec], services: &[ServiceSpec]) -> Resu
                 ));
             }
         }
+        // Every producer subscribes to the acks (its credit), a restarted one beside the
+        // incarnation it replaces until that one's port is cleaned up.
+        if let (true, Pattern::Messages { subscribers, .. }) = (t.id == TopicId::Ack, t.pattern) {
+            let producers = services.iter().filter(|s| !s.outputs.is_empty()).count();
+            if subscribers < producers + 1 {
+                return Err(format!(
+                    "topic `{}` takes {subscribers} subscribers; its {producers} producers \
+                     and a restart need {}",
+                    t.name,
+                    producers + 1
+                ));
+            }
+        }
         let frames = matches!(t.pattern, Pattern::Frames { .. });
         if frames != visit(t.id, IsFrames) {
             return Err(format!(
@@ -145,5 +158,15 @@ mod tests {
         topics[TopicId::Tracks as usize].count = Count::PerInput(TopicId::Frame);
         let e = check_rows(&topics, &SERVICES).unwrap_err();
         assert!(e.contains("does not consume"), "{e}");
+        // Acks too few for every producer (five, with the earth service) and a restart.
+        let mut topics = TOPICS;
+        topics[TopicId::Ack as usize].pattern = Pattern::Messages {
+            publishers: 16,
+            subscribers: 4,
+            buffer: 256,
+            history: false,
+        };
+        let e = check_rows(&topics, &SERVICES).unwrap_err();
+        assert!(e.contains("subscribers"), "{e}");
     }
 }

@@ -282,7 +282,8 @@ pub const TOPICS: [TopicSpec; 12] = [
         name: "ack",
         pattern: Pattern::Messages {
             publishers: PEERS,
-            subscribers: 4,
+            // Every producer reads the acks of its consumers (the credit).
+            subscribers: PEERS,
             buffer: 256,
             history: false,
         },
