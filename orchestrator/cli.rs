@@ -310,6 +310,28 @@ pub(crate) struct RunArgs {
     /// (1.5 s after the start, for 0.3 s). Repeatable; added to the scenario's [[fault]].
     #[arg(long = "fault", value_name = "SERVICE:KIND@AT")]
     pub faults: Vec<String>,
+    /// Keep the chain running this long (`90s`, `10m`, `2h`; a number is seconds), a fault
+    /// every 10 s (the scenario's `[soak]` sets the schedule), and report every fault's
+    /// recovery and each process's memory over time.
+    #[arg(long, value_name = "DURATION", value_parser = parse_duration_s)]
+    pub soak: Option<f64>,
+}
+
+/// `90`, `90s`, `10m`, `1.5h` → seconds.
+fn parse_duration_s(text: &str) -> Result<f64, String> {
+    let t = text.trim();
+    let (number, unit_s) = match t.char_indices().last() {
+        Some((i, 's')) => (&t[..i], 1.0),
+        Some((i, 'm')) => (&t[..i], 60.0),
+        Some((i, 'h')) => (&t[..i], 3600.0),
+        _ => (t, 1.0),
+    };
+    match number.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v * unit_s),
+        _ => Err(format!(
+            "`{text}`: expected a duration such as 90s, 10m or 2h"
+        )),
+    }
 }
 
 #[derive(clap::Args)]

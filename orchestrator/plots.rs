@@ -118,28 +118,32 @@ pub fn line_chart(
 }
 
 /// Histogram of `values` over log10-spaced bins, drawn as bars (x in log10 units).
-pub fn log_histogram(path: &Path, title: &str, x_label: &str, values: &[f64]) -> Result<()> {
-    let logs: Vec<f64> = values
+pub fn log_histogram(path: &Path, title: &str, x_label: &str, values: &[(f64, u64)]) -> Result<()> {
+    let logs: Vec<(f64, u64)> = values
         .iter()
-        .filter(|v| **v > 0.0)
-        .map(|v| v.log10())
+        .filter(|(v, _)| *v > 0.0)
+        .map(|(v, n)| (v.log10(), *n))
         .collect();
     if logs.is_empty() {
         return Ok(());
     }
-    let lo = logs.iter().cloned().fold(f64::INFINITY, f64::min).floor();
+    let lo = logs
+        .iter()
+        .map(|l| l.0)
+        .fold(f64::INFINITY, f64::min)
+        .floor();
     let hi = logs
         .iter()
-        .cloned()
+        .map(|l| l.0)
         .fold(f64::NEG_INFINITY, f64::max)
         .ceil()
         .max(lo + 1.0);
     let bins = ((hi - lo) * 10.0).round().max(1.0) as usize;
     let width = (hi - lo) / bins as f64;
-    let mut counts = vec![0u32; bins];
-    for l in &logs {
+    let mut counts = vec![0u64; bins];
+    for (l, n) in &logs {
         let i = (((l - lo) / width) as usize).min(bins - 1);
-        counts[i] += 1;
+        counts[i] += n;
     }
     let max = *counts.iter().max().unwrap_or(&1) as f64;
     let root = SVGBackend::new(path, (900, 400)).into_drawing_area();

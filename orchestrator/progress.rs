@@ -14,6 +14,17 @@ pub fn bar(total: u64) -> ProgressBar {
     b
 }
 
+/// A bar over a soak's seconds.
+pub fn seconds_bar(total_s: u64) -> ProgressBar {
+    let b = ProgressBar::new(total_s);
+    b.set_style(
+        ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:40}] {pos}/{len} s soaked")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    b
+}
+
 /// A bar over the points of a sweep, the current point in its message.
 pub fn points_bar(total: u64) -> ProgressBar {
     if !std::io::IsTerminal::is_terminal(&std::io::stderr()) {

@@ -309,12 +309,12 @@ fn the_fault_matrix_passes_every_invariant() {
     assert!(output.status.success(), "{summary}");
     assert!(matrix.success);
     let cases = &matrix.cases;
-    assert_eq!(cases.len(), 24, "{cases:?}");
+    assert_eq!(cases.len(), 30, "5 services × 6 kinds: {cases:?}");
     for c in cases {
         assert!(c.passed, "{c:?}");
     }
     let faults = &matrix.faults;
-    assert_eq!(faults.len(), 24);
+    assert_eq!(faults.len(), 30);
     for case_fault in faults {
         let f = &case_fault.fault;
         assert_eq!(case_fault.case, format!("{}-{}", f.service, f.kind));
@@ -334,7 +334,7 @@ fn the_fault_matrix_passes_every_invariant() {
     }
     assert!(summary.contains("fault matrix: PASS"), "{summary}");
     // The grid: a row per service, a ✓ per kind (timing, "late", is this machine's figure).
-    for service in ["sensor", "detector", "tracker", "inversion"] {
+    for service in ["sensor", "detector", "tracker", "inversion", "earth"] {
         let row = summary
             .lines()
             .find(|l| l.starts_with(&format!("| {service} |")))
@@ -418,10 +418,44 @@ fn in_realtime_a_slowed_consumer_drops_counted_frames_and_the_run_still_ends() {
         Some(dropped),
         "{det:?}"
     );
+    // The fault's cost is the frames the detector never processed.
+    assert_eq!(fault(&r.typed).lost, Some(dropped), "{:?}", r.typed.faults);
     // One detections message per frame the detector took; the tracker took them all.
     let detections = &topics["detections"];
     assert_eq!(detections.expected, received, "{detections:?}");
     assert_eq!(detections.consumers["tracker"].received, Some(received));
+    assert!(r.typed.results.accounting.invariant_held);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Realtime mode: a killed detector is restarted and fed again, from the sensor (frames are
+/// remade), what it had not processed; its fault's `lost` is exactly the frames it never
+/// processed — none here, as the accounting shows (`received` 50 of 50). The delay test
+/// above is the case where frames are missed and `lost` counts them.
+#[test]
+fn in_realtime_a_restarted_consumer_loses_only_what_it_never_processed() {
+    let dir = temp_dir("fault-realtime-kill");
+    let file = scenario_variant(
+        "debris-geo.toml",
+        &[("seed = 2016\n", "seed = 2016\nclock = \"realtime\"\n")],
+        &dir,
+    );
+    let r = run_ok(
+        Some(&file),
+        &dir.join("kill"),
+        &["--fault", "detector:kill@10"],
+    );
+    let f = fault(&r.typed);
+    assert_eq!(f.detected_by.as_deref(), Some("exit"), "{f:?}");
+    assert_eq!(f.restarts, 1, "{f:?}");
+    let frames = &r.typed.results.topics["frame"];
+    let det = &frames.consumers["detector"];
+    let processed = det.received.unwrap();
+    assert_eq!(f.lost, Some(50 - processed), "{f:?} {det:?}");
+    assert!(
+        f.replayed.unwrap() >= 10,
+        "it was fed again from the first frame: {f:?}"
+    );
     assert!(r.typed.results.accounting.invariant_held);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -164,7 +164,9 @@ fn write_outputs(dir: &Path, rows: &[Row], r: &Ratios) -> Result<()> {
             )),
             &format!("{} one-way latency, {size} payloads", row.transport),
             "log10 latency [µs]",
-            &row.latencies_us,
+            &(row.latencies_us.iter())
+                .map(|v| (*v, 1))
+                .collect::<Vec<_>>(),
         )?;
     }
     Ok(())

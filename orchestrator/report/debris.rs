@@ -11,7 +11,7 @@ use nalgebra::Vector3;
 use shared_types::{Detections, Truth};
 
 use crate::plots::{line_chart, Series, BLUE, GREEN, RED};
-use crate::report::score_debris::DebrisScore;
+use crate::report::score_debris::{DebrisScore, SeriesPoint};
 
 pub fn markdown(score: &DebrisScore) -> String {
     let d = &score.detection;
@@ -76,22 +76,20 @@ pub fn plots(
     let mut series = vec![];
     for (i, s) in score.series.iter().enumerate() {
         let c = colors[i % colors.len()];
-        let err = |a: &[f64], b: &[f64]| -> Vec<(f64, f64)> {
-            s.t_s
-                .iter()
-                .zip(a.iter().zip(b))
-                .map(|(t, (x, y))| (*t, (x - y) * 3600.0))
+        let err = |a: fn(&SeriesPoint) -> f64, b: fn(&SeriesPoint) -> f64| -> Vec<(f64, f64)> {
+            (s.points.iter())
+                .map(|p| (p.t_s, (a(p) - b(p)) * 3600.0))
                 .collect()
         };
         series.push(Series {
             label: &labels[i].0,
-            points: err(&s.azimuth_meas_deg, &s.azimuth_true_deg),
+            points: err(|p| p.azimuth_meas_deg, |p| p.azimuth_true_deg),
             color: c,
             markers: true,
         });
         series.push(Series {
             label: &labels[i].1,
-            points: err(&s.azimuth_filt_deg, &s.azimuth_true_deg),
+            points: err(|p| p.azimuth_filt_deg, |p| p.azimuth_true_deg),
             color: c,
             markers: false,
         });
@@ -111,25 +109,18 @@ pub fn plots(
     let mut series = vec![];
     for (i, s) in score.series.iter().enumerate() {
         let c = colors[i % colors.len()];
-        let n = s.pos_err_m.len();
-        let t0 = s.t_s.len().saturating_sub(n);
+        let ekf: Vec<(f64, (f64, f64))> = (s.points.iter())
+            .filter_map(|p| Some((p.t_s, p.pos_err_m?)))
+            .collect();
         series.push(Series {
             label: &bound_labels[i].0,
-            points: s.t_s[t0..]
-                .iter()
-                .copied()
-                .zip(s.pos_err_m.iter().copied())
-                .collect(),
+            points: ekf.iter().map(|(t, (e, _))| (*t, *e)).collect(),
             color: c,
             markers: false,
         });
         series.push(Series {
             label: &bound_labels[i].1,
-            points: s.t_s[t0..]
-                .iter()
-                .copied()
-                .zip(s.pos_3sigma_m.iter().copied())
-                .collect(),
+            points: ekf.iter().map(|(t, (_, b))| (*t, *b)).collect(),
             color: c,
             markers: true,
         });

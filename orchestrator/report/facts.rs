@@ -8,6 +8,7 @@ use shared_types::{deployment, Scenario, ServiceId, TopicCounters, TopicId};
 use super::science;
 use crate::run::consume::Consumer;
 use crate::run::deploy::{Ending, ServiceProcess};
+use crate::run::latency::Latency;
 
 pub struct Outcome {
     pub startup_s: f64,
@@ -51,10 +52,11 @@ pub struct RunFacts {
     pub topics: BTreeMap<TopicId, TopicFact>,
     pub failure: Option<String>,
     pub outcome: Outcome,
-    pub frame_latency_ns: Vec<u64>,
-    pub spectrum_latency_ns: Vec<u64>,
-    /// Per pipeline stage, its latency per frame from the messages' send times ([`stages`]).
-    pub stage_latency_ns: Vec<(&'static str, Vec<u64>)>,
+    pub frame_latency: Latency,
+    pub spectrum_latency: Latency,
+    /// Per pipeline stage, its latency per frame from the messages' send times
+    /// ([`crate::run::taps::Stages`]).
+    pub stage_latency: Vec<(&'static str, Latency)>,
     /// The orchestrator's own CPU time at the end of the run [s].
     pub orchestrator_cpu_s: Option<f64>,
     /// Range requests the sensor served (its current incarnation; retries included).
@@ -77,6 +79,10 @@ pub struct RunFacts {
     /// sequencer noticed as unanswered and rejected as malformed.
     pub solve_tampered: [u64; 4],
     /// Nodes under the prefix that were not the deployment's ([`crate::run::membership`]).
+    /// Every process's resident memory over the run.
+    pub memory: BTreeMap<String, crate::run::memory::MemoryTrace>,
+    /// A soak's end ([`crate::run::live::SoakEnd`]).
+    pub soak_end: Option<crate::run::live::SoakEnd>,
     pub membership: super::MembershipReport,
 }
 
@@ -169,19 +175,15 @@ impl RunFacts {
             topics,
             failure,
             outcome,
-            frame_latency_ns: taps.latency_ns(TopicId::Frame).to_vec(),
-            stage_latency_ns: stages(taps),
+            frame_latency: taps.latency(TopicId::Frame),
+            stage_latency: taps.stages(),
             orchestrator_cpu_s: crate::run::deploy::cpu_seconds("self"),
-            spectrum_latency_ns: taps.latency_ns(TopicId::Spectrum).to_vec(),
+            spectrum_latency: taps.latency(TopicId::Spectrum),
             range_requests: deployment::producer(TopicId::Range)
                 .and_then(|p| consumer.reported(p, TopicId::Range))
                 .map_or(0, |c| c.received + c.dropped.iter().sum::<u64>()),
-            laser_shots: (taps
-                .messages::<shared_types::Tracks>(TopicId::Tracks)
-                .iter())
-            .flat_map(|m| m.items[..(m.n as usize).min(m.items.len())].iter())
-            .filter(|e| e.range_status != u32::MAX)
-            .count() as u64,
+            laser_shots: (taps.fold::<super::score_debris::DebrisScorer>())
+                .map_or(0, |s| s.laser_shots),
             science_digest: science,
             wall_s: 0.0,
             prefix: String::new(),
@@ -192,6 +194,8 @@ impl RunFacts {
             faults,
             solve_tampered: [0; 4],
             membership: Default::default(),
+            memory: BTreeMap::new(),
+            soak_end: None,
         }
     }
 
@@ -212,32 +216,4 @@ impl RunFacts {
             && self.shm_leftover.is_empty()
             && self.services.iter().all(|s| s.ending == Ending::Shutdown)
     }
-}
-
-/// Per-frame latencies of the debris pipeline's stages from the send times the messages carry
-/// (one CLOCK_MONOTONIC on this host): `detect` = frame sent → its detections sent (the hop,
-/// the checksum and the detection), `track` = detections sent → tracks sent (the hop, the
-/// filters and the laser round trip), `end_to_end` = frame sent → tracks sent.
-fn stages(taps: &crate::run::taps::Taps) -> Vec<(&'static str, Vec<u64>)> {
-    let sent = |t: TopicId| -> BTreeMap<u64, u64> {
-        taps.get(t).map_or(BTreeMap::new(), |tap| {
-            tap.send_ns().iter().copied().collect()
-        })
-    };
-    let frames = sent(TopicId::Frame);
-    let dets = sent(TopicId::Detections);
-    let gap = |a: &BTreeMap<u64, u64>, b: &BTreeMap<u64, u64>| -> Vec<u64> {
-        b.iter()
-            .filter_map(|(seq, t1)| a.get(seq).map(|t0| t1.saturating_sub(*t0)))
-            .collect()
-    };
-    if frames.is_empty() || dets.is_empty() {
-        return vec![];
-    }
-    let tracks = sent(TopicId::Tracks);
-    vec![
-        ("detect", gap(&frames, &dets)),
-        ("track", gap(&dets, &tracks)),
-        ("end_to_end", gap(&frames, &tracks)),
-    ]
 }

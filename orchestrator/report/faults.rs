@@ -13,7 +13,9 @@ use super::{FaultReport, RunFacts, TopicFact};
 use crate::plots::{BLUE, GREEN, ORANGE, RED};
 
 /// What the fault cost: for a consumer, the messages published on its inputs that it never
-/// processed (nor dropped with a counted reason); for the sensor, the messages it never
+/// processed — missed while it was down or behind (realtime: counted as gaps, late or stale)
+/// or never taken at all — less what other faults account for (inputs an upstream `corrupt`
+/// sent invalid, gaps an upstream `drop` made); for the sensor, the messages it never
 /// produced. `None` where nothing was reported.
 fn lost(f: &RunFacts, service: ServiceId) -> Option<u64> {
     let name = service.name();
@@ -35,8 +37,13 @@ fn lost(f: &RunFacts, service: ServiceId) -> Option<u64> {
     for t in inputs {
         let published = t.published?;
         let c = t.consumers.get(name)?.as_ref();
-        let taken = c.map_or(0, |c| c.received + c.dropped.iter().sum::<u64>());
-        sum += published.saturating_sub(taken);
+        let explained = c.map_or(0, |c| {
+            let gaps = c.dropped[DropReason::Overflow as usize];
+            c.received
+                + c.dropped[DropReason::Malformed as usize]
+                + gaps.min(t.producer_dropped[DropReason::Injected as usize])
+        });
+        sum += published.saturating_sub(explained);
     }
     Some(sum)
 }
@@ -65,7 +72,22 @@ fn tampered(f: &RunFacts, fault: &crate::run::faults::Fault) -> (u64, u64) {
         .map(|c| c.as_ref().map_or(0, |c| c.dropped[ours as usize]))
         .min()
         .unwrap_or(0);
-    (injected, counted)
+    // On a long run with several of them on one output, each is what came after its own
+    // injection and before the next's.
+    let base = fault.tamper_base.unwrap_or((0, 0));
+    let next = (f.faults.iter())
+        .filter(|g| g.output == fault.output && g.spec.kind == fault.spec.kind)
+        .filter(|g| g.injected_s > fault.injected_s)
+        .min_by(|a, b| {
+            let at = |g: &crate::run::faults::Fault| g.injected_s.unwrap_or(f64::INFINITY);
+            at(a).total_cmp(&at(b))
+        })
+        .and_then(|g| g.tamper_base);
+    let (end_made, end_counted) = next.unwrap_or((injected, counted));
+    (
+        end_made.saturating_sub(base.0),
+        end_counted.saturating_sub(base.1),
+    )
 }
 
 /// The report's entry per injected fault.

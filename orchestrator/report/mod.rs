@@ -24,10 +24,11 @@ pub mod model;
 mod science;
 pub mod score_debris;
 pub mod sections;
+pub mod soak;
 
 pub use facts::*;
 pub use model::*;
-pub use sections::snapshots;
+pub use sections::{folds, snapshots};
 
 /// The report of a finished run.
 pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
@@ -125,9 +126,11 @@ pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
         detection: None,
         tracking: None,
     };
+    let faults = faults::reports(f);
     let mut report = Report {
         results,
-        faults: faults::reports(f),
+        soak: soak::SoakReport::new(scenario, f, &faults),
+        faults,
         membership: f.membership.clone(),
         run: RunInfo {
             prefix: f.prefix.clone(),
@@ -144,10 +147,10 @@ pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
             frames_per_s: rate(frames),
             spectra_per_s: rate(spectra),
             earth_frames_per_s: rate(earth_frames),
-            frame_latency_us: Percentiles::of_ns(&f.frame_latency_ns),
-            spectrum_latency_us: Percentiles::of_ns(&f.spectrum_latency_ns),
-            stage_latency_us: (f.stage_latency_ns.iter())
-                .map(|(name, ns)| (name.to_string(), Percentiles::of_ns(ns)))
+            frame_latency_us: f.frame_latency.percentiles(),
+            spectrum_latency_us: f.spectrum_latency.percentiles(),
+            stage_latency_us: (f.stage_latency.iter())
+                .map(|(name, l)| (name.to_string(), l.percentiles()))
                 .collect(),
             cpu_s: (f.services.iter())
                 .map(|s| (s.name.clone(), s.cpu_s))
@@ -157,6 +160,7 @@ pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
                 .filter_map(|s| Some((s.name.clone(), service_timing(&s.time?))))
                 .collect(),
             earth_us_per_frame: BTreeMap::new(),
+            memory: f.memory.clone(),
         },
     };
     for section in &f.sections {
@@ -188,8 +192,8 @@ fn service_timing(t: &shared_types::ServiceTime) -> ServiceTiming {
 }
 
 /// A text histogram of latencies (log-spaced bins) for the summary.
-fn latency_histogram(ns: &[u64]) -> String {
-    if ns.is_empty() {
+fn latency_histogram(latency: &crate::run::latency::Latency) -> String {
+    if latency.is_empty() {
         return String::new();
     }
     let edges_us = [
@@ -206,13 +210,12 @@ fn latency_histogram(ns: &[u64]) -> String {
         f64::INFINITY,
     ];
     let mut counts = vec![0usize; edges_us.len()];
-    for &v in ns {
-        let us = v as f64 / 1e3;
+    for (us, n) in latency.counts_us() {
         let i = edges_us
             .iter()
             .position(|e| us < *e)
             .unwrap_or(edges_us.len() - 1);
-        counts[i] += 1;
+        counts[i] += n as usize;
     }
     let max = *counts.iter().max().unwrap_or(&1).max(&1);
     let mut s = String::from("```\n");
@@ -233,7 +236,8 @@ fn latency_histogram(ns: &[u64]) -> String {
 
 fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
     let mut s = String::new();
-    let verdict = if f.success() { "PASS" } else { "FAIL" };
+    let passed = f.success() && r.soak.as_ref().is_none_or(|s| s.passed);
+    let verdict = if passed { "PASS" } else { "FAIL" };
     let _ = writeln!(s, "# glint run: {} — {verdict}\n", scenario.name);
     if !scenario.description.is_empty() {
         let _ = writeln!(s, "{}\n", scenario.description.trim());
@@ -245,6 +249,9 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
     );
     if let Some(fail) = &f.failure {
         let _ = writeln!(s, "**Failure:** {fail}\n");
+    }
+    if let Some(soak) = &r.soak {
+        s.push_str(&soak.markdown());
     }
     // The answers first (each mission's result and its uncertainty), then the run's record.
     for section in &f.sections {
@@ -314,9 +321,9 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
         f.shm_removed,
         f.shm_leftover.len()
     );
-    for (label, ns, p) in [
-        ("Frame", &f.frame_latency_ns, &tm.frame_latency_us),
-        ("Spectrum", &f.spectrum_latency_ns, &tm.spectrum_latency_us),
+    for (label, latency, p) in [
+        ("Frame", &f.frame_latency, &tm.frame_latency_us),
+        ("Spectrum", &f.spectrum_latency, &tm.spectrum_latency_us),
     ] {
         let Some(p) = p else {
             continue;
@@ -330,7 +337,7 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
             p.max,
             p.count
         );
-        s.push_str(&latency_histogram(ns));
+        s.push_str(&latency_histogram(latency));
         let _ = writeln!(
             s,
             "\n![{label} latency](latency-{}.svg)",
@@ -347,14 +354,14 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<Report
     std::fs::write(dir.join("report.json"), text).context("writing report.json")?;
     std::fs::write(dir.join("summary.md"), summary_md(scenario, facts, &report))
         .context("writing summary.md")?;
-    for (name, ns) in [
-        ("frame", &facts.frame_latency_ns),
-        ("spectrum", &facts.spectrum_latency_ns),
+    for (name, latency) in [
+        ("frame", &facts.frame_latency),
+        ("spectrum", &facts.spectrum_latency),
     ] {
-        if ns.is_empty() {
+        if latency.is_empty() {
             continue;
         }
-        let us: Vec<f64> = ns.iter().map(|v| *v as f64 / 1e3).collect();
+        let us = latency.counts_us();
         crate::plots::log_histogram(
             &dir.join(format!("latency-{name}.svg")),
             &format!("{name} latency, sensor send → orchestrator receive"),
@@ -365,6 +372,7 @@ pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<Report
     if !facts.faults.is_empty() {
         faults::timeline(&dir.join("faults.svg"), facts)?;
     }
+    soak::memory_plot(dir, &facts.memory)?;
     for section in &facts.sections {
         section.plots(dir)?;
     }

@@ -30,6 +30,9 @@ pub struct Report {
     pub faults: Vec<FaultReport>,
     /// Nodes under the deployment's prefix that were not the deployment's.
     pub membership: MembershipReport,
+    /// A soak's verdict and figures (`[soak]`, `glint run --soak`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub soak: Option<super::soak::SoakReport>,
     /// This run's identity: its prefix, files, process ids.
     pub run: RunInfo,
     /// Where the time went, on this machine.
@@ -278,6 +281,9 @@ pub struct Timing {
     /// [003] each method's compute time per answered frame, the shared edges included [µs].
     #[serde(default)]
     pub earth_us_per_frame: BTreeMap<String, Option<f64>>,
+    /// Each process's resident memory over the run, sampled about once a second.
+    #[serde(default)]
+    pub memory: BTreeMap<String, crate::run::memory::MemoryTrace>,
 }
 
 impl Report {

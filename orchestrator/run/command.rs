@@ -5,7 +5,7 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use shared_types::scenario::ScenarioError;
+use shared_types::scenario::{ScenarioError, Soak};
 use shared_types::Scenario;
 
 use crate::cli::RunArgs;
@@ -125,15 +125,25 @@ pub(crate) fn command(args: RunArgs) -> ExitCode {
         force,
         seed,
         faults,
+        soak,
     } = args;
     glint_runtime::init_tracing("orchestrator");
     let (mut sc, file) = match load_with_seed(scenario.as_ref(), seed) {
         Ok(x) => x,
         Err(code) => return code,
     };
+    if let Some(duration_s) = soak {
+        let mut s = sc.soak.take().unwrap_or_else(|| Soak::new(duration_s));
+        s.duration_s = duration_s;
+        sc.soak = Some(s);
+    }
     if let Err(e) = add_faults(&mut sc, &faults) {
         eprintln!("error: {e}");
         return ExitCode::from(2);
+    }
+    // A soak deploys its camera unbounded, with its schedule's faults.
+    if let Some(s) = &sc.soak {
+        sc = s.deployed(&sc);
     }
     if sc.campaign.is_some() {
         eprintln!("error: {file}: a [campaign] scenario runs with `glint lab campaign {file}`");

@@ -18,7 +18,7 @@ use shared_types::{
     ServiceId, TopicCounters, TopicId,
 };
 
-use crate::run::taps::Taps;
+use crate::run::taps::{Fold, Taps};
 
 /// The last heartbeat of a service and when it arrived.
 pub struct Seen {
@@ -39,19 +39,21 @@ pub struct Consumer {
 
 impl Consumer {
     /// Opens the heartbeats, control, acks and a tap per consumed topic; `snapshots`: the
-    /// frame of a frame topic whose pixels the report draws. The listeners to wait on:
-    /// heartbeats first, then the taps'.
+    /// frame of a frame topic whose pixels the report draws; `folds`: the report sections'
+    /// folds the taps hand every message to. The listeners to wait on: heartbeats first, then
+    /// the taps'.
     pub fn open(
         node: &IpcNode,
         scenario: &Scenario,
         snapshots: &[(TopicId, u64)],
+        folds: Vec<Box<dyn Fold>>,
     ) -> Result<(Self, Vec<Listener<Ipc>>)> {
         let me = ServiceId::Orchestrator;
         let (mut heartbeats, hb_l) = Inbox::open(node, TopicId::Heartbeat)?;
         // A restarted service's heartbeats start again at seq 0.
         heartbeats.stats.peers_restart();
         let mut listeners = vec![hb_l];
-        let mut taps = Taps::default();
+        let mut taps = Taps::new(folds);
         let mut expected = BTreeMap::new();
         for t in deployment::inputs(scenario, me) {
             let want = snapshots.iter().find(|(s, _)| *s == t).map(|(_, k)| *k);
@@ -82,21 +84,35 @@ impl Consumer {
         Ok(())
     }
 
+    /// Orders `producer` to end `topic` after `messages` (a soak's end).
+    pub fn end_stream(&mut self, producer: ServiceId, topic: TopicId, messages: u64) -> Result<()> {
+        self.control
+            .send(Control::end(producer, topic, messages), 0)?;
+        Ok(())
+    }
+
+    /// What the run must account for, from `scenario` (a soak's, once its stream was ended).
+    pub fn expect(&mut self, scenario: &Scenario) {
+        for (topic, n) in self.expected.iter_mut() {
+            *n = deployment::expected_messages(scenario, *topic);
+        }
+    }
+
     /// Sends an in-band fault command to `service`.
     pub fn order_fault(&mut self, service: ServiceId, f: InBandFault) -> Result<()> {
         self.control.send(Control::fault(service, f), 0)?;
         Ok(())
     }
 
-    /// Whether the orchestrator, a consumer of `topic`, has counted every output its producer
-    /// reported dropping (`Drop`: as sequence gaps) or sending invalid (`Corrupt`: as
-    /// malformed) on purpose.
-    pub fn counted(&self, topic: TopicId, kind: FaultKind) -> bool {
+    /// Outputs of `topic` its producer reported dropping (`Drop`) or sending invalid
+    /// (`Corrupt`) on purpose, and how many of them the orchestrator, a consumer of `topic`,
+    /// counted (as sequence gaps, or as `malformed`): (made, counted).
+    pub fn tampered(&self, topic: TopicId, kind: FaultKind) -> (u64, u64) {
         let (theirs, ours) = match kind {
             FaultKind::Drop => (DropReason::Injected, DropReason::Overflow),
             _ => (DropReason::Malformed, DropReason::Malformed),
         };
-        let injected = deployment::producer(topic)
+        let made = deployment::producer(topic)
             .and_then(|p| self.reported(p, topic))
             .map_or(0, |c| c.dropped[theirs as usize]);
         let seen = self
@@ -104,7 +120,15 @@ impl Consumer {
             .iter()
             .find(|s| s.topic == topic)
             .map_or(0, |s| s.dropped[ours as usize]);
-        injected > 0 && seen >= injected
+        (made, seen)
+    }
+
+    /// Whether the orchestrator has counted every output the producer of `topic` reported
+    /// tampering with since `base` ([`Consumer::tampered`] when the fault was injected).
+    pub fn counted(&self, topic: TopicId, kind: FaultKind, base: (u64, u64)) -> bool {
+        let (made, seen) = self.tampered(topic, kind);
+        let made = made.saturating_sub(base.0);
+        made > 0 && seen.saturating_sub(base.1) >= made
     }
 
     /// Acknowledges again everything acknowledged so far: a restarted producer learns where
@@ -129,12 +153,7 @@ impl Consumer {
     /// Reads every input, accounts for it, and acknowledges it (the producers' credit).
     pub fn poll(&mut self) -> Result<()> {
         self.poll_heartbeats()?;
-        let mut taken = vec![];
-        for (topic, tap) in self.taps.iter_mut() {
-            tap.poll()?;
-            taken.push((*topic, tap.stats().next_seq));
-        }
-        for (topic, next) in taken {
+        for (topic, next) in self.taps.poll()? {
             self.ack(topic, next)?;
         }
         Ok(())

@@ -254,3 +254,46 @@ pub fn cpu_seconds(pid: impl std::fmt::Display) -> Option<f64> {
     let hz = rustix::param::clock_ticks_per_second() as f64;
     Some((utime + stime) as f64 / hz)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stop ladder on real processes and signals: one that ends within the grace after
+    /// `Shutdown` is labelled `shutdown`, one that ignores it ends on SIGTERM (`sigterm`), one
+    /// that ignores SIGTERM too ends on SIGKILL (`sigkill`). The `Shutdown` rung is the
+    /// orchestrator's control message; here the stand-ins ignore it, as a hung service would.
+    #[test]
+    fn the_stop_ladder_climbs_from_shutdown_to_sigterm_to_sigkill() {
+        let dir = std::env::temp_dir().join(format!("glint-ladder-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let exe = dir.join("stand-in.sh");
+        // Called as `stand-in.sh service <name> --prefix … --scenario …`.
+        std::fs::write(
+            &exe,
+            "#!/bin/sh\ncase \"$2\" in\n  sensor) exec sleep 0.3 ;;\n  detector) exec sleep 30 ;;\n  \
+             *) trap '' TERM; exec sleep 30 ;;\nesac\n",
+        )
+        .unwrap();
+        std::fs::set_permissions(&exe, std::os::unix::fs::PermissionsExt::from_mode(0o755))
+            .unwrap();
+        let spawn = |id| ServiceProcess::spawn(&exe, id, "p", &exe, &dir, 0).unwrap();
+        let mut children = [
+            spawn(ServiceId::Sensor),
+            spawn(ServiceId::Detector),
+            spawn(ServiceId::Tracker),
+        ];
+        let mut shutdowns = 0;
+        stop_ladder(
+            &mut children,
+            Duration::from_millis(1000),
+            &mut || shutdowns += 1,
+            &mut || {},
+        );
+        assert_eq!(shutdowns, 1);
+        let endings: Vec<String> = children.iter().map(|c| c.ending.label()).collect();
+        assert_eq!(endings, ["shutdown", "sigterm", "sigkill"]);
+        assert!(children.iter_mut().all(|c| c.poll_exit()));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

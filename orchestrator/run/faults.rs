@@ -75,6 +75,21 @@ pub struct Fault {
     pub trigger: Option<TopicId>,
     /// The output an in-band drop or corruption hits (the service's main output).
     pub output: Option<TopicId>,
+    /// A drop or corruption: the output's (made, counted) tampered messages when it was
+    /// injected; what it made and its consumers counted is what came after.
+    pub tamper_base: Option<(u64, u64)>,
+}
+
+/// A drop or corrupt fault injected and not yet seen counted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Awaiting {
+    /// Its index in [`Injector::faults`].
+    pub index: usize,
+    /// The output it hits.
+    pub output: Option<TopicId>,
+    pub kind: FaultKind,
+    /// The output's (made, counted) tampered messages when it was injected.
+    pub base: (u64, u64),
 }
 
 /// What the loop sends to a service.
@@ -125,6 +140,7 @@ impl Injector {
                     replayed: None,
                     not_reached: None,
                     restarts: 0,
+                    tamper_base: None,
                 })
             })
             .collect();
@@ -150,8 +166,14 @@ impl Injector {
     }
 
     /// The signals and orders due at `now_s`; `carried(topic)` is how many messages of a
-    /// fault's trigger topic have been seen.
-    pub fn step(&mut self, now_s: f64, carried: impl Fn(TopicId) -> u64) -> Vec<Action> {
+    /// fault's trigger topic have been seen, `tampered(output, kind)` how many drops or
+    /// corruptions an output's producer has made and its consumers counted so far.
+    pub fn step(
+        &mut self,
+        now_s: f64,
+        carried: impl Fn(TopicId) -> u64,
+        tampered: impl Fn(TopicId, FaultKind) -> (u64, u64),
+    ) -> Vec<Action> {
         let mut actions = vec![];
         for i in 0..self.faults.len() {
             let f = &self.faults[i];
@@ -169,6 +191,9 @@ impl Injector {
                     let order = kind.in_band().then(|| self.ordered(service));
                     let f = &mut self.faults[i];
                     f.injected_s = Some(now_s);
+                    if matches!(kind, FaultKind::Drop | FaultKind::Corrupt) {
+                        f.tamper_base = f.output.map(|o| tampered(o, kind));
+                    }
                     let until_s = now_s + f.spec.duration_s.unwrap_or(0.0);
                     let (act, next) = match kind {
                         FaultKind::Kill => (Act::Signal(Signal::KILL), State::Injected),
@@ -207,7 +232,10 @@ impl Injector {
 
     /// Supervision noticed `service` (`how`: "exit", "heartbeat deadline") at `now_s`.
     pub fn detected(&mut self, service: ServiceId, how: &'static str, now_s: f64) {
-        for f in self.faults.iter_mut().filter(|f| f.service == service) {
+        // Supervision notices what ends or hangs a process; a drop or a corruption injected
+        // into the same service is counted, not noticed.
+        let noticed = |f: &&mut Fault| f.service == service && supervised(f.spec.kind);
+        for f in self.faults.iter_mut().filter(noticed) {
             if f.injected_s.is_some() && f.detected_s.is_none() && f.state != State::Done {
                 f.detected_s = Some(now_s);
                 f.detected_by = Some(how);
@@ -289,12 +317,20 @@ impl Injector {
         let found_at = (self.furthest.iter())
             .find(|(s, _)| *s == service)
             .map_or(0, |(_, p)| *p);
-        for f in self.faults.iter_mut().filter(|f| f.service == service) {
-            // Supervision acted on it: noticed, or not yet over.
-            let acted_on = f.state != State::Done || (f.detected_s.is_some() && f.restarts == 0);
-            if f.injected_s.is_none() || !acted_on {
-                continue;
-            }
+        // The restart is the latest fault's that supervision acts on (noticed, or not yet
+        // over): on a long run, the earlier faults into the service are over.
+        let latest = (self.faults.iter().enumerate())
+            .filter(|(_, f)| f.service == service && supervised(f.spec.kind))
+            .filter(|(_, f)| {
+                f.injected_s.is_some()
+                    && (f.state != State::Done || (f.detected_s.is_some() && f.restarts == 0))
+            })
+            .max_by(|a, b| {
+                let at = |f: &Fault| f.injected_s.unwrap_or(0.0);
+                at(a.1).total_cmp(&at(b.1))
+            })
+            .map(|(i, _)| i);
+        if let Some(f) = latest.and_then(|i| self.faults.get_mut(i)) {
             f.restarts += 1;
             f.replayed = Some(found_at.saturating_sub(resumed_at));
             f.recovered_s = None;
@@ -306,9 +342,8 @@ impl Injector {
         }
     }
 
-    /// The drop and corrupt faults injected and not yet seen counted: (index, the output
-    /// they hit, kind).
-    pub fn awaiting_count(&self) -> Vec<(usize, Option<TopicId>, FaultKind)> {
+    /// The drop and corrupt faults injected and not yet seen counted.
+    pub fn awaiting_count(&self) -> Vec<Awaiting> {
         self.faults
             .iter()
             .enumerate()
@@ -316,7 +351,12 @@ impl Injector {
                 matches!(f.spec.kind, FaultKind::Drop | FaultKind::Corrupt)
                     && f.state == State::Injected
             })
-            .map(|(i, f)| (i, f.output, f.spec.kind))
+            .map(|(i, f)| Awaiting {
+                index: i,
+                output: f.output,
+                kind: f.spec.kind,
+                base: f.tamper_base.unwrap_or((0, 0)),
+            })
             .collect()
     }
 
@@ -358,6 +398,12 @@ impl Injector {
         }
         actions
     }
+}
+
+/// Faults supervision may notice and restart the service for: those that end or hang its
+/// process, and a delay (long enough, it misses the heartbeat deadline).
+fn supervised(kind: FaultKind) -> bool {
+    kind.ends_a_process() || kind == FaultKind::Delay
 }
 
 impl Fault {
@@ -437,7 +483,7 @@ mod tests {
     #[test]
     fn a_delay_by_messages_ends_when_the_service_says_so_and_recovers_once_caught_up() {
         let mut inj = injector(&["detector:delay@10,delay_ms=5,count=8"]);
-        let a = inj.step(0.5, |_| 11);
+        let a = inj.step(0.5, |_| 11, |_, _| (0, 0));
         assert!(matches!(a[0].act, Act::Order(f) if f.count == 8 && f.duration_ms == 0));
         // Before the service obeyed: a heartbeat saying it is not slowed ends nothing.
         inj.heard_from(ServiceId::Detector, heard(0.52, 11));
@@ -474,7 +520,7 @@ mod tests {
     #[test]
     fn a_delay_the_run_outlasted_is_not_reached_and_a_fault_that_never_fired_fails_the_run() {
         let mut inj = injector(&["detector:delay@10,delay_ms=5,count=8", "tracker:kill@40"]);
-        inj.step(0.5, |_| 11);
+        inj.step(0.5, |_| 11, |_, _| (0, 0));
         let slowed = Heard {
             faults_obeyed: 1,
             delaying: true,
@@ -499,7 +545,10 @@ mod tests {
     fn a_restarted_service_recovers_once_it_has_taken_the_input_the_kill_found_it_at() {
         let mut inj = injector(&["detector:kill@20"]);
         inj.heard_from(ServiceId::Detector, heard(0.4, 21));
-        assert_eq!(inj.step(0.45, |_| 21)[0].act, Act::Signal(Signal::KILL));
+        assert_eq!(
+            inj.step(0.45, |_| 21, |_, _| (0, 0))[0].act,
+            Act::Signal(Signal::KILL)
+        );
         inj.detected(ServiceId::Detector, "exit", 0.46);
         inj.restarted(ServiceId::Detector, 0.6, 16);
         assert_eq!(inj.faults[0].recovered_s, None, "resumed is not recovered");
@@ -514,11 +563,56 @@ mod tests {
         assert!((f.catch_up_s.unwrap() - 0.1).abs() < 1e-12);
     }
 
+    /// A long run: a kill, then a drop, then a kill again, all into the detector. Each restart
+    /// is the latest kill's; the drop is counted from its own injection, never restarted, and
+    /// the first kill's recovery stands.
+    #[test]
+    fn on_a_long_run_each_restart_and_count_is_its_own_faults() {
+        let mut inj = injector(&[
+            "detector:kill@1s",
+            "detector:drop@2s,count=2",
+            "detector:kill@3s",
+        ]);
+        let tampered = |made: u64| move |_: TopicId, _: FaultKind| (made, made);
+        inj.heard_from(ServiceId::Detector, heard(0.9, 40));
+        assert_eq!(inj.step(1.0, |_| 40, tampered(0)).len(), 1);
+        inj.detected(ServiceId::Detector, "exit", 1.01);
+        inj.restarted(ServiceId::Detector, 1.2, 32);
+        inj.heard_from(ServiceId::Detector, heard(1.3, 41));
+        assert_eq!(inj.faults[0].recovered_s, Some(1.3));
+        // The drop: 3 drops were made (and counted) before it, by an earlier fault.
+        assert_eq!(inj.step(2.0, |_| 80, tampered(3)).len(), 1);
+        assert_eq!(inj.faults[1].tamper_base, Some((3, 3)));
+        let awaiting = inj.awaiting_count();
+        assert_eq!(awaiting.len(), 1);
+        assert_eq!(awaiting[0].base, (3, 3));
+        inj.counted(1, 2.1);
+        // The second kill: its restart is its own.
+        inj.heard_from(ServiceId::Detector, heard(2.9, 120));
+        assert_eq!(inj.step(3.0, |_| 120, tampered(5)).len(), 1);
+        inj.detected(ServiceId::Detector, "exit", 3.01);
+        inj.restarted(ServiceId::Detector, 3.2, 112);
+        inj.heard_from(ServiceId::Detector, heard(3.4, 121));
+        let [first, drop, second] = &inj.faults[..] else {
+            unreachable!()
+        };
+        assert_eq!((first.restarts, first.recovered_s), (1, Some(1.3)));
+        assert_eq!((first.detected_s, first.replayed), (Some(1.01), Some(8)));
+        assert_eq!((drop.restarts, drop.recovered_s), (0, Some(2.1)));
+        assert_eq!(drop.detected_by, Some("sequence gap"));
+        assert_eq!((second.restarts, second.recovered_s), (1, Some(3.4)));
+        assert_eq!((second.detected_s, second.replayed), (Some(3.01), Some(8)));
+        assert!(inj.finish().is_empty());
+    }
+
     #[test]
     fn a_stop_fires_at_its_message_and_continues_after_its_duration() {
         let mut inj = injector(&["detector:stop@5,duration_s=0.5"]);
-        assert!(inj.step(1.0, |_| 5).is_empty(), "message 5 not yet carried");
-        let a = inj.step(1.1, |_| 6);
+        assert!(
+            inj.step(1.0, |_| 5, |_, _| (0, 0)).is_empty(),
+            "message 5 not yet carried"
+        );
+        let a = inj.step(1.1, |_| 6, |_, _| (0, 0));
         assert_eq!(
             a,
             [Action {
@@ -526,8 +620,8 @@ mod tests {
                 act: Act::Signal(Signal::STOP)
             }]
         );
-        assert!(inj.step(1.5, |_| 6).is_empty());
-        let a = inj.step(1.6, |_| 6);
+        assert!(inj.step(1.5, |_| 6, |_, _| (0, 0)).is_empty());
+        let a = inj.step(1.6, |_| 6, |_, _| (0, 0));
         assert_eq!(
             a,
             [Action {
@@ -548,14 +642,20 @@ mod tests {
             (f.injected_s, f.ended_s, f.recovered_s),
             (Some(1.1), Some(1.6), Some(1.7))
         );
-        assert!(inj.step(9.0, |_| 50).is_empty(), "fired once");
+        assert!(
+            inj.step(9.0, |_| 50, |_, _| (0, 0)).is_empty(),
+            "fired once"
+        );
     }
 
     #[test]
     fn a_kill_at_a_time_is_detected_once() {
         let mut inj = injector(&["tracker:kill@0.25s"]);
-        assert!(inj.step(0.2, |_| 100).is_empty());
-        assert_eq!(inj.step(0.25, |_| 0)[0].act, Act::Signal(Signal::KILL));
+        assert!(inj.step(0.2, |_| 100, |_, _| (0, 0)).is_empty());
+        assert_eq!(
+            inj.step(0.25, |_| 0, |_, _| (0, 0))[0].act,
+            Act::Signal(Signal::KILL)
+        );
         inj.detected(ServiceId::Tracker, "exit", 0.27);
         inj.detected(ServiceId::Tracker, "heartbeat deadline", 5.0);
         let f = &inj.faults[0];

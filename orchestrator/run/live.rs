@@ -21,6 +21,7 @@ use crate::run::consume::Consumer;
 use crate::run::deploy::{stop_ladder, Ending, ServiceProcess};
 use crate::run::faults::{Act, Heard, Injector};
 use crate::run::membership::Membership;
+use crate::run::memory::Memory;
 use crate::run::sequence::Sequencer;
 use crate::run::supervise::{Action, Noticed, Observation, Supervisor};
 
@@ -78,6 +79,17 @@ pub struct Live<'a> {
     acks_refreshed: Instant,
     scanned: Instant,
     bar: Option<indicatif::ProgressBar>,
+    /// Every process's resident memory over the run.
+    memory: Memory,
+    /// A soak's end: when the camera's stream was ended, and after how many frames.
+    soak_end: Option<SoakEnd>,
+}
+
+/// When a soak's time was up: the camera's stream ended after `frames`.
+#[derive(Debug, Clone, Copy)]
+pub struct SoakEnd {
+    pub at_s: f64,
+    pub frames: u64,
 }
 
 impl<'a> Live<'a> {
@@ -106,7 +118,10 @@ impl<'a> Live<'a> {
             Duration::from_millis(limits.heartbeat_deadline_ms),
             Duration::from_millis(limits.startup_timeout_ms),
         );
-        let bar = progress.then(|| crate::progress::bar(consumer.progress().1));
+        let bar = progress.then(|| match &scenario.soak {
+            Some(soak) => crate::progress::seconds_bar(soak.duration_s.ceil() as u64),
+            None => crate::progress::bar(consumer.progress().1),
+        });
         let now = Instant::now();
         Ok(Live {
             scenario,
@@ -127,6 +142,8 @@ impl<'a> Live<'a> {
             acks_refreshed: now,
             scanned: now,
             bar,
+            memory: Memory::new(now),
+            soak_end: None,
         })
     }
 
@@ -147,9 +164,13 @@ impl<'a> Live<'a> {
         self.consumer.poll()?;
         if self.phase == Phase::Running {
             self.inject_faults()?;
+            self.end_soak_when_due()?;
         }
         if let Some(b) = &self.bar {
-            b.set_position(self.consumer.progress().0);
+            b.set_position(match self.scenario.soak {
+                Some(_) => self.since_start(Instant::now()) as u64,
+                None => self.consumer.progress().0,
+            });
         }
         if self.phase == Phase::Starting {
             if let Some(stop) = self.start_when_ready()? {
@@ -180,7 +201,12 @@ impl<'a> Live<'a> {
     fn inject_faults(&mut self) -> Result<()> {
         let now_s = self.since_start(Instant::now());
         let consumer = &self.consumer;
-        for a in self.injector.step(now_s, |t| consumer.carried(t)) {
+        let due = self.injector.step(
+            now_s,
+            |t| consumer.carried(t),
+            |t, kind| consumer.tampered(t, kind),
+        );
+        for a in due {
             tracing::info!(service = a.service.name(), act = ?a.act, "fault injected");
             match a.act {
                 Act::Signal(sig) => {
@@ -192,15 +218,15 @@ impl<'a> Live<'a> {
             }
         }
         // Drops and corruptions are noticed where they are counted.
-        for (i, output, kind) in self.injector.awaiting_count() {
+        for a in self.injector.awaiting_count() {
             // The solve answers' one client is the sequencer.
-            let counted = match (output, &self.sequencer) {
-                (Some(TopicId::Solve), Some(seq)) => seq.counted(kind),
-                (Some(topic), _) => self.consumer.counted(topic, kind),
+            let counted = match (a.output, &self.sequencer) {
+                (Some(TopicId::Solve), Some(seq)) => seq.counted(a.kind),
+                (Some(topic), _) => self.consumer.counted(topic, a.kind, a.base),
                 (None, _) => false,
             };
             if counted {
-                self.injector.counted(i, now_s);
+                self.injector.counted(a.index, now_s);
             }
         }
         self.hear_from_services();
@@ -338,13 +364,53 @@ impl<'a> Live<'a> {
             self.consumer.refresh_acks()?;
             self.acks_refreshed = now;
         }
-        let timeout_s = self.scenario.run.timeout_s;
+        let children = self
+            .children
+            .iter()
+            .map(|c| (c.id.name().to_string(), c.pid));
+        self.memory.sample(now, children);
+        // A soak's time is added to the run's limit.
+        let soak_s = self.scenario.soak.as_ref().map_or(0.0, |s| s.duration_s);
+        let timeout_s = self.scenario.run.timeout_s + soak_s;
         if self.t_start.elapsed().as_secs_f64() > timeout_s {
             return Ok(Some(
                 self.fail(format!("run exceeded run.timeout_s = {timeout_s} s")),
             ));
         }
         Ok(None)
+    }
+
+    /// A soak whose time is up ends the camera's stream where it safely can: past every frame
+    /// the sensor may have sent (the orchestrator's own count, plus the credit it may run ahead
+    /// by, plus a second of frames in realtime); the run then accounts for that many.
+    fn end_soak_when_due(&mut self) -> Result<()> {
+        let Some(soak) = &self.scenario.soak else {
+            return Ok(());
+        };
+        let at_s = self.since_start(Instant::now());
+        if self.soak_end.is_some() || at_s < soak.duration_s {
+            return Ok(());
+        }
+        let Some(cam) = &self.scenario.camera else {
+            return Ok(());
+        };
+        let realtime_frames = match self.scenario.clock {
+            Clock::Realtime => (1e9 / cam.frame_period_ns().max(1) as f64).ceil() as u64,
+            Clock::Sim => 0,
+        };
+        let ahead = shared_types::topics::credit_window(TopicId::Frame, self.scenario) as u64
+            + realtime_frames;
+        let frames = self.consumer.carried(TopicId::Frame) + ahead;
+        self.consumer
+            .end_stream(ServiceId::Sensor, TopicId::Frame, frames)?;
+        let mut ended = self.scenario.clone();
+        if let Some(cam) = &mut ended.camera {
+            cam.frames = frames;
+        }
+        self.consumer.expect(&ended);
+        tracing::info!(frames, at_s, "soak: the camera's stream ends");
+        self.soak_end = Some(SoakEnd { at_s, frames });
+        Ok(())
     }
 
     /// One step of supervision, and what its actions ask of the run.
@@ -485,7 +551,8 @@ impl<'a> Live<'a> {
     }
 
     /// What the report needs of the stopped run.
-    pub fn facts(self) -> RunFacts {
+    pub fn facts(mut self) -> RunFacts {
+        self.consumer.taps.finish();
         let t_stopped = self.t_stopped.unwrap_or_else(Instant::now);
         // A run that failed produced until it stopped: its rates are over that time.
         let production_s = (self.t_running).map_or(0.0, |a| {
@@ -520,6 +587,8 @@ impl<'a> Live<'a> {
         );
         facts.solve_tampered = solve_tampered;
         facts.membership = self.membership.report();
+        facts.memory = self.memory.traces();
+        facts.soak_end = self.soak_end;
         facts
     }
 }

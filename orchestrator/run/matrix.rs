@@ -180,6 +180,24 @@ struct CaseRun {
     fault: Option<FaultReport>,
 }
 
+/// One fault of a longer run (a soak) against the matrix's targets, its science not compared
+/// (no baseline): what it broke, and the time targets it missed on this machine.
+pub(crate) fn fault_verdict(
+    service: ServiceId,
+    kind: FaultKind,
+    fault: &FaultReport,
+    deadline_s: f64,
+) -> (Vec<String>, Vec<String>) {
+    let run = CaseRun {
+        success: true,
+        failure: None,
+        science_equal: true,
+        fault: Some(fault.clone()),
+    };
+    let case = judge("", service, kind, run, deadline_s);
+    (case.misses, case.late)
+}
+
 /// A case against the targets: detected in time, recovered in time, nothing lost and the
 /// science equal (kill, stop, panic, delay), or exact counts (drop, corrupt). A verdict the
 /// run ended before reaching is a miss that says so.

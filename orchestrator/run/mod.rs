@@ -6,9 +6,11 @@ pub mod command;
 pub mod consume;
 pub mod deploy;
 pub mod faults;
+pub mod latency;
 pub mod live;
 pub mod matrix;
 pub mod membership;
+pub mod memory;
 pub mod run_dir;
 pub mod sequence;
 pub mod supervise;
@@ -90,7 +92,9 @@ pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
         (facts.orchestrator_cpu_s.zip(cpu0_s)).map(|(c, c0)| (c - c0).max(0.0));
     facts.prefix = prefix;
     facts.scenario_file = opts.scenario_file.clone();
-    let ok = report::write(&out_dir, scenario, &facts)?.results.success;
+    let report = report::write(&out_dir, scenario, &facts)?;
+    // A soak also holds its own verdict: every fault recovered, memory flat.
+    let ok = report.results.success && report.soak.as_ref().is_none_or(|s| s.passed);
     drop(dir);
     Ok((out_dir, ok))
 }
@@ -109,7 +113,8 @@ fn deploy_and_run(
     let node = open_node(prefix, "orchestrator")?;
     let _services = shared_types::topics::create_all(&node, scenario)?;
     let snapshots = report::snapshots(scenario);
-    let (consumer, listeners) = Consumer::open(&node, scenario, &snapshots)?;
+    let (consumer, listeners) =
+        Consumer::open(&node, scenario, &snapshots, report::folds(scenario))?;
     let sequencer = crate::run::sequence::Sequencer::open(&node, scenario)?;
     let mut inputs: Vec<_> = listeners.iter().map(|l| (l, None)).collect();
     // Solve answers wake the loop (the sequencer polls its call in flight).

@@ -398,4 +398,94 @@ mod tests {
         let a = s.step(t0, &[obs(Some(true), None)]);
         assert!(matches!(&a[1], Action::GiveUp { .. }), "{a:?}");
     }
+
+    #[test]
+    fn always_restarts_a_clean_exit_that_on_failure_gives_up_on() {
+        let always = Supervision {
+            restart: Restart::Always,
+            ..Default::default()
+        };
+        let (mut s, t0) = supervisor(always);
+        let ms = |n| t0 + Duration::from_millis(n);
+        let a = s.step(ms(0), &[obs(Some(true), None)]);
+        assert_eq!(
+            a,
+            [Action::Noticed {
+                id: D,
+                how: Noticed::Exit
+            }]
+        );
+        assert_eq!(
+            s.step(ms(101), &[obs(Some(true), None)]),
+            [Action::Respawn(D)]
+        );
+        // The negative control: the same clean exit under on-failure is not restarted.
+        let (mut s, t0) = supervisor(Supervision::default());
+        let a = s.step(t0, &[obs(Some(true), None)]);
+        assert!(
+            matches!(&a[1], Action::GiveUp { why, .. } if why.contains("on-failure")),
+            "{a:?}"
+        );
+    }
+
+    #[test]
+    fn restarts_older_than_the_window_no_longer_count_against_the_budget() {
+        let spec = Supervision {
+            max_restarts: 1,
+            restart_window_s: 1.0,
+            ..Default::default()
+        };
+        let (mut s, t0) = supervisor(spec);
+        let ms = |n| t0 + Duration::from_millis(n);
+        s.step(ms(0), &[obs(Some(false), None)]);
+        assert_eq!(
+            s.step(ms(100), &[obs(Some(false), None)]),
+            [Action::Respawn(D)]
+        );
+        s.step(ms(110), &[obs(None, Some((ms(105), 1)))]);
+        // 1.5 s after that restart it is out of the 1 s window: one more is allowed.
+        s.step(ms(1600), &[obs(Some(false), None)]);
+        assert_eq!(
+            s.step(ms(1700), &[obs(Some(false), None)]),
+            [Action::Respawn(D)]
+        );
+        s.step(ms(1710), &[obs(None, Some((ms(1705), 1)))]);
+        // Within the window of the second restart: the budget of one is spent.
+        let a = s.step(ms(1800), &[obs(Some(false), None)]);
+        assert!(
+            matches!(&a[1], Action::GiveUp { why, .. } if why.contains("restart_window_s = 1")),
+            "{a:?}"
+        );
+    }
+
+    #[test]
+    fn a_restart_not_ready_within_the_startup_timeout_is_killed_and_restarted() {
+        let (mut s, t0) = supervisor(Supervision::default());
+        let ms = |n| t0 + Duration::from_millis(n);
+        s.step(ms(0), &[obs(Some(false), None)]);
+        assert_eq!(
+            s.step(ms(100), &[obs(Some(false), None)]),
+            [Action::Respawn(D)]
+        );
+        // Starting heartbeats but never ready: within the 5 s startup timeout, nothing.
+        let starting = obs(None, Some((ms(4000), 0)));
+        assert!(s.step(ms(5100), &[starting]).is_empty());
+        let a = s.step(ms(5101), &[starting]);
+        assert_eq!(
+            a,
+            [
+                Action::Noticed {
+                    id: D,
+                    how: Noticed::RestartTimeout
+                },
+                Action::Kill(D)
+            ]
+        );
+        // Once it has exited it is restarted (the second restart waits twice the backoff).
+        assert!(s.step(ms(5110), &[obs(Some(false), None)]).is_empty());
+        assert_eq!(
+            s.step(ms(5311), &[obs(Some(false), None)]),
+            [Action::Respawn(D)]
+        );
+    }
 }

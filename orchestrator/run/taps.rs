@@ -1,8 +1,9 @@
 //! The orchestrator's taps: one per data topic it reads (the table's orchestrator row), each
 //! accounting for every message, folding its content into the topic's digest so two runs
-//! compare byte for byte, timing it, and keeping what the report needs. A tap is opened for a
-//! topic generically ([`open`]); the report asks a tap for its messages by type
-//! ([`Taps::messages`]) or for the frame a section wants drawn ([`Taps::snapshot`]).
+//! compare byte for byte, timing it, and handing it to the report sections' folds
+//! ([`Fold`]), which score while the run goes: nothing here grows with the run's length. A tap
+//! is opened for a topic generically ([`open`]); a section reads its fold back by type
+//! ([`Taps::fold`]) and the frame it wants drawn ([`Taps::snapshot`]).
 
 use std::any::Any;
 use std::collections::BTreeMap;
@@ -16,6 +17,8 @@ use shared_types::topics::{Ipc, IpcNode};
 use shared_types::{deployment, Message, Scenario, ServiceId, TopicId};
 use xxhash_rust::xxh3::Xxh3;
 
+use crate::run::latency::Latency;
+
 /// The pixels of one frame, kept for a picture.
 #[derive(Debug, Clone)]
 pub struct Snapshot {
@@ -25,47 +28,63 @@ pub struct Snapshot {
     pub pixels: Vec<u16>,
 }
 
-/// What every tap records of the messages it takes: their digest, latencies and send times.
+/// What every tap records of the messages it takes: their digest and latencies, in constant
+/// memory.
 #[derive(Default)]
 pub struct Record {
     digest: Xxh3,
-    latency_ns: Vec<u64>,
-    send_ns: Vec<(u64, u64)>,
+    latency: Latency,
 }
 
-impl Record {
-    fn take(&mut self, seq: u64, send_mono_ns: u64, latency_ns: u64) {
-        self.latency_ns.push(latency_ns);
-        self.send_ns.push((seq, send_mono_ns));
+/// Where a tap hands what it takes: the report sections' folds and the stages' join.
+pub struct Takers<'a> {
+    folds: &'a mut [Box<dyn Fold>],
+    stages: &'a mut Stages,
+}
+
+impl Takers<'_> {
+    fn take(&mut self, topic: TopicId, seq: u64, send_mono_ns: u64, msg: &dyn Any) {
+        self.stages.take(topic, seq, send_mono_ns);
+        for f in self.folds.iter_mut() {
+            f.take(topic, msg);
+        }
     }
+}
+
+/// What a report section folds of the messages the taps take while the run goes: its score
+/// in constant memory (the debris chain), or the few messages its scenario bounds (an Earth
+/// sweep's answers, a solve's spectra). A section reads its fold back by type
+/// ([`Taps::fold`]) once the run has ended.
+pub trait Fold: Any {
+    /// One message taken on `topic`; a fold downcasts to the types it reads.
+    fn take(&mut self, topic: TopicId, msg: &dyn Any);
+    /// Everything taken: the run has ended.
+    fn finish(&mut self) {}
+    fn as_any(&self) -> &dyn Any;
 }
 
 /// One tapped topic.
 pub trait Tap {
     fn stats(&self) -> &TopicStats;
     fn record(&self) -> &Record;
-    /// Receives everything queued; accounts for, digests and keeps each message.
-    fn poll(&mut self) -> Result<()>;
+    /// Receives everything queued; accounts for and digests each message and hands it on.
+    fn poll(&mut self, takers: &mut Takers<'_>) -> Result<()>;
     fn as_any(&self) -> &dyn Any;
 
     fn digest(&self) -> u64 {
         self.record().digest.digest()
     }
-    /// Send → receive latency of every message taken [ns].
-    fn latency_ns(&self) -> &[u64] {
-        &self.record().latency_ns
-    }
-    /// Per message taken: (seq, the producer's send time [ns, CLOCK_MONOTONIC]).
-    fn send_ns(&self) -> &[(u64, u64)] {
-        &self.record().send_ns
+    /// Send → receive latencies of the messages taken.
+    fn latency(&self) -> &Latency {
+        &self.record().latency
     }
 }
 
-/// A message topic: every message kept.
+/// A message topic.
 pub struct MessageTap<T: Message> {
+    topic: TopicId,
     inbox: Inbox<T>,
     record: Record,
-    pub kept: Vec<T>,
 }
 
 impl<T: Message> Tap for MessageTap<T> {
@@ -75,12 +94,13 @@ impl<T: Message> Tap for MessageTap<T> {
     fn record(&self) -> &Record {
         &self.record
     }
-    fn poll(&mut self) -> Result<()> {
-        let (record, kept) = (&mut self.record, &mut self.kept);
+    fn poll(&mut self, takers: &mut Takers<'_>) -> Result<()> {
+        let (record, topic) = (&mut self.record, self.topic);
         self.inbox.drain(|r| {
             r.msg.fold_digest(&mut record.digest);
-            record.take(r.msg.meta().seq, r.msg.meta().send_mono_ns, r.latency_ns);
-            kept.push(*r.msg);
+            record.latency.record(r.latency_ns);
+            let meta = r.msg.meta();
+            takers.take(topic, meta.seq, meta.send_mono_ns, r.msg);
             Ok(())
         })?;
         Ok(())
@@ -93,6 +113,7 @@ impl<T: Message> Tap for MessageTap<T> {
 /// A frame topic: headers digested (seq and pixel checksum), one frame's pixels kept when a
 /// report section asked for it.
 pub struct FrameTap {
+    topic: TopicId,
     inbox: FrameInbox,
     record: Record,
     want: Option<u64>,
@@ -106,12 +127,14 @@ impl Tap for FrameTap {
     fn record(&self) -> &Record {
         &self.record
     }
-    fn poll(&mut self) -> Result<()> {
-        let (record, snap, want) = (&mut self.record, &mut self.snapshot, self.want);
+    fn poll(&mut self, takers: &mut Takers<'_>) -> Result<()> {
+        let (record, snap, want, topic) =
+            (&mut self.record, &mut self.snapshot, self.want, self.topic);
         self.inbox.drain(|h, pixels, latency_ns| {
             record.digest.update(&h.meta.seq.to_le_bytes());
             record.digest.update(&h.pixels_xxh3.to_le_bytes());
-            record.take(h.meta.seq, h.meta.send_mono_ns, latency_ns);
+            record.latency.record(latency_ns);
+            takers.take(topic, h.meta.seq, h.meta.send_mono_ns, h);
             if Some(h.frame_index) == want {
                 *snap = Some(Snapshot {
                     frame_index: h.frame_index,
@@ -126,6 +149,65 @@ impl Tap for FrameTap {
     }
     fn as_any(&self) -> &dyn Any {
         self
+    }
+}
+
+/// The debris pipeline's stages, each between the send times of two topics' messages of the
+/// same seq (one CLOCK_MONOTONIC on this host): `detect` = frame sent → its detections sent
+/// (the hop, the checksum and the detection), `track` = detections sent → tracks sent (the
+/// hop, the filters and the laser round trip), `end_to_end` = frame sent → tracks sent.
+const STAGES: [(&str, TopicId, TopicId); 3] = [
+    ("detect", TopicId::Frame, TopicId::Detections),
+    ("track", TopicId::Detections, TopicId::Tracks),
+    ("end_to_end", TopicId::Frame, TopicId::Tracks),
+];
+
+/// Seqs whose stages are still open, at most: a seq a dropped message left open is forgotten
+/// past this many (memory stays bounded in realtime mode).
+const STAGES_OPEN_MAX: usize = 4096;
+
+/// The stages' latencies, joined by seq as the messages arrive.
+#[derive(Default)]
+pub struct Stages {
+    /// Per open seq: the send time on each of [`STAGES`]'s three topics.
+    sent: BTreeMap<u64, [Option<u64>; 3]>,
+    latency: [Latency; 3],
+}
+
+impl Stages {
+    const TOPICS: [TopicId; 3] = [TopicId::Frame, TopicId::Detections, TopicId::Tracks];
+
+    fn take(&mut self, topic: TopicId, seq: u64, send_ns: u64) {
+        let Some(slot) = Self::TOPICS.iter().position(|t| *t == topic) else {
+            return;
+        };
+        let sent = self.sent.entry(seq).or_default();
+        sent[slot] = Some(send_ns);
+        let at = |t: TopicId| sent[Self::TOPICS.iter().position(|x| *x == t).unwrap_or(0)];
+        for ((_, from, to), latency) in STAGES.iter().zip(&mut self.latency) {
+            if *from != topic && *to != topic {
+                continue;
+            }
+            if let (Some(t0), Some(t1)) = (at(*from), at(*to)) {
+                latency.record(t1.saturating_sub(t0));
+            }
+        }
+        if sent.iter().all(Option::is_some) {
+            self.sent.remove(&seq);
+        }
+        while self.sent.len() > STAGES_OPEN_MAX {
+            self.sent.pop_first();
+        }
+    }
+
+    /// Each stage's latencies (none if the run had no detections).
+    pub fn latencies(&self) -> Vec<(&'static str, Latency)> {
+        if self.latency[0].is_empty() {
+            return vec![];
+        }
+        (STAGES.iter().zip(&self.latency))
+            .map(|((name, _, _), l)| (*name, l.clone()))
+            .collect()
     }
 }
 
@@ -151,6 +233,7 @@ pub fn open(
             let services = deployment::consumers(self.scenario, spec.id);
             inbox.verify_checksum = services.iter().all(|s| *s == ServiceId::Orchestrator);
             let tap = FrameTap {
+                topic: spec.id,
                 inbox,
                 record: Record::default(),
                 want: self.snapshot,
@@ -161,9 +244,9 @@ pub fn open(
         fn messages<T: Message>(self, spec: &'static TopicSpec) -> Opened {
             let (inbox, l) = Inbox::<T>::open(self.node, spec.id)?;
             let tap = MessageTap {
+                topic: spec.id,
                 inbox,
                 record: Record::default(),
-                kept: vec![],
             };
             Ok((Box::new(tap), l))
         }
@@ -184,13 +267,22 @@ pub fn open(
     )
 }
 
-/// Every tap of a deployment, by topic.
+/// Every tap of a deployment, by topic, and what they hand on to.
 #[derive(Default)]
 pub struct Taps {
     taps: BTreeMap<TopicId, Box<dyn Tap>>,
+    folds: Vec<Box<dyn Fold>>,
+    stages: Stages,
 }
 
 impl Taps {
+    pub fn new(folds: Vec<Box<dyn Fold>>) -> Self {
+        Taps {
+            folds,
+            ..Default::default()
+        }
+    }
+
     pub fn insert(&mut self, topic: TopicId, tap: Box<dyn Tap>) {
         self.taps.insert(topic, tap);
     }
@@ -199,19 +291,36 @@ impl Taps {
         self.taps.get(&topic).map(|t| t.as_ref())
     }
 
-    pub fn iter_mut(&mut self) -> impl Iterator<Item = (&TopicId, &mut Box<dyn Tap>)> {
-        self.taps.iter_mut()
-    }
-
     pub fn iter(&self) -> impl Iterator<Item = (&TopicId, &Box<dyn Tap>)> {
         self.taps.iter()
     }
 
-    /// The messages taken on `topic` (none if it is not tapped or carries another type).
-    pub fn messages<T: Message>(&self, topic: TopicId) -> &[T] {
-        self.get(topic)
-            .and_then(|t| t.as_any().downcast_ref::<MessageTap<T>>())
-            .map_or(&[], |t| &t.kept)
+    /// Polls every tap; returns each topic's next expected seq (what to acknowledge).
+    pub fn poll(&mut self) -> Result<Vec<(TopicId, u64)>> {
+        let mut takers = Takers {
+            folds: &mut self.folds,
+            stages: &mut self.stages,
+        };
+        let mut taken = vec![];
+        for (topic, tap) in self.taps.iter_mut() {
+            tap.poll(&mut takers)?;
+            taken.push((*topic, tap.stats().next_seq));
+        }
+        Ok(taken)
+    }
+
+    /// Tells every fold the run has ended.
+    pub fn finish(&mut self) {
+        for f in &mut self.folds {
+            f.finish();
+        }
+    }
+
+    /// The fold of type `F` (a section's), if the run has one.
+    pub fn fold<F: Fold>(&self) -> Option<&F> {
+        self.folds
+            .iter()
+            .find_map(|f| f.as_any().downcast_ref::<F>())
     }
 
     /// The frame kept on `topic` for a picture.
@@ -221,8 +330,15 @@ impl Taps {
             .and_then(|t| t.snapshot.as_ref())
     }
 
-    /// Latencies of `topic` (empty if not tapped).
-    pub fn latency_ns(&self, topic: TopicId) -> &[u64] {
-        self.get(topic).map_or(&[], |t| t.latency_ns())
+    /// Latencies of `topic` (none if not tapped).
+    pub fn latency(&self, topic: TopicId) -> Latency {
+        self.get(topic)
+            .map(|t| t.latency().clone())
+            .unwrap_or_default()
+    }
+
+    /// The debris pipeline's stages' latencies.
+    pub fn stages(&self) -> Vec<(&'static str, Latency)> {
+        self.stages.latencies()
     }
 }

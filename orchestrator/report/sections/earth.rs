@@ -6,9 +6,31 @@ use anyhow::Result;
 use shared_types::scenario::EarthScenario;
 use shared_types::{Scenario, TopicId, Truth};
 
-use super::{truths, Material, Section};
+use super::{Material, Section};
 use crate::report::{earth, earth_frame, Results, Timing};
-use crate::run::taps::Snapshot;
+use crate::run::taps::{Fold, Snapshot};
+
+/// The Earth sensor's truths and answers, every one: the scenario's sweep bounds them.
+#[derive(Default)]
+pub(super) struct EarthFold {
+    truths: Vec<Truth>,
+    answers: Vec<shared_types::EarthAttitude>,
+}
+
+impl Fold for EarthFold {
+    fn take(&mut self, _topic: TopicId, msg: &dyn std::any::Any) {
+        if let Some(t) = msg.downcast_ref::<Truth>() {
+            if t.kind == Truth::KIND_EARTH {
+                self.truths.push(*t);
+            }
+        } else if let Some(a) = msg.downcast_ref::<shared_types::EarthAttitude>() {
+            self.answers.push(*a);
+        }
+    }
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+}
 
 /// [003] the infrared Earth sensor: each method's error per interval, its pictures.
 pub(super) struct EarthSection {
@@ -34,10 +56,14 @@ impl EarthSection {
         vec![(TopicId::EarthFrame, best as u64 * e.images_per_angle as u64)]
     }
 
+    pub(super) fn fold(scenario: &Scenario) -> Option<EarthFold> {
+        scenario.earth.as_ref().map(|_| EarthFold::default())
+    }
+
     pub(super) fn collect(m: &Material<'_>) -> Option<Self> {
         let section = m.scenario.earth.clone()?;
-        let truths = truths(m.taps, Truth::KIND_EARTH);
-        let answers = m.taps.messages(TopicId::EarthAttitude).to_vec();
+        let fold = m.taps.fold::<EarthFold>()?;
+        let (truths, answers) = (fold.truths.clone(), fold.answers.clone());
         Some(EarthSection {
             section,
             score: earth::score(&truths, &answers),

@@ -4,10 +4,31 @@ use std::path::Path;
 
 use anyhow::Result;
 use shared_types::scenario::SpectraScenario;
-use shared_types::{SolveResponse, Spectrum, TopicId};
+use shared_types::{Scenario, SolveResponse, Spectrum, TopicId};
 
 use super::{Material, Section};
 use crate::report::{fit, inversion, Results, Timing};
+use crate::run::taps::Fold;
+
+/// Every spectrum: the scenario's windows bound them (the observation file and the light
+/// curve are made of all of them).
+#[derive(Default)]
+pub(super) struct SpectraFold {
+    spectra: Vec<Spectrum>,
+}
+
+impl Fold for SpectraFold {
+    fn take(&mut self, topic: TopicId, msg: &dyn std::any::Any) {
+        if topic == TopicId::Spectrum {
+            if let Some(s) = msg.downcast_ref::<Spectrum>() {
+                self.spectra.push(*s);
+            }
+        }
+    }
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+}
 
 /// [000] the attitude solve: its answer, the observation file, the light curve, the fits.
 pub(super) struct InversionSection {
@@ -17,11 +38,15 @@ pub(super) struct InversionSection {
 }
 
 impl InversionSection {
+    pub(super) fn fold(scenario: &Scenario) -> Option<SpectraFold> {
+        scenario.spectra.as_ref().map(|_| SpectraFold::default())
+    }
+
     pub(super) fn collect(m: &Material<'_>) -> Option<Self> {
         Some(InversionSection {
             spectra_section: m.scenario.spectra.clone()?,
             solve: m.solve.to_vec(),
-            spectra: m.taps.messages(TopicId::Spectrum).to_vec(),
+            spectra: m.taps.fold::<SpectraFold>()?.spectra.clone(),
         })
     }
 

@@ -1,15 +1,16 @@
-//! The report's mission sections: each takes its facts from the run's taps once the run ended,
-//! writes its typed part of `report.json`, its part of `summary.md` (the answers lead the
+//! The report's mission sections: each folds the messages it scores while the run goes (its
+//! [`Fold`], handed every message the taps take), and once the run has ended writes its typed part of `report.json`, its part of `summary.md` (the answers lead the
 //! summary, in the order of [`SECTIONS`]) and its pictures. A new service's section is one
-//! file here implementing [`Section`], one field in [`Results`] and one row of [`SECTIONS`].
+//! file here implementing [`Section`] and its fold, one field in [`Results`] and one row of
+//! [`SECTIONS`].
 
 use std::path::Path;
 
 use anyhow::Result;
-use shared_types::{Scenario, SolveResponse, TopicId, Truth};
+use shared_types::{Scenario, SolveResponse, TopicId};
 
 use super::{Results, Timing};
-use crate::run::taps::Taps;
+use crate::run::taps::{Fold, Taps};
 
 mod debris;
 mod earth;
@@ -38,6 +39,9 @@ pub trait Section {
 
 /// A row of [`SECTIONS`].
 pub struct SectionRow {
+    /// What it folds of the taps' messages during the run (`None`: the scenario has no such
+    /// mission).
+    pub fold: fn(&Scenario) -> Option<Box<dyn Fold>>,
     /// The frames whose pixels it draws, per frame topic (asked of the taps before the run).
     pub snapshots: fn(&Scenario) -> Vec<(TopicId, u64)>,
     /// The section of a finished run (`None`: the scenario has no such mission).
@@ -47,14 +51,17 @@ pub struct SectionRow {
 /// Every mission section, in the order summary.md shows them.
 pub const SECTIONS: [SectionRow; 3] = [
     SectionRow {
+        fold: |s| Some(Box::new(InversionSection::fold(s)?)),
         snapshots: |_| vec![],
         collect: |m| Some(Box::new(InversionSection::collect(m)?)),
     },
     SectionRow {
+        fold: |s| Some(Box::new(EarthSection::fold(s)?)),
         snapshots: EarthSection::snapshots,
         collect: |m| Some(Box::new(EarthSection::collect(m)?)),
     },
     SectionRow {
+        fold: |s| Some(Box::new(DebrisSection::fold(s)?)),
         snapshots: DebrisSection::snapshots,
         collect: |m| Some(Box::new(DebrisSection::collect(m)?)),
     },
@@ -76,10 +83,7 @@ pub fn collect(material: &Material<'_>) -> Vec<Box<dyn Section>> {
         .collect()
 }
 
-/// The truths of one kind.
-pub(super) fn truths(taps: &Taps, kind: u32) -> Vec<Truth> {
-    (taps.messages::<Truth>(TopicId::Truth).iter())
-        .filter(|t| t.kind == kind)
-        .copied()
-        .collect()
+/// The folds of every section the scenario has.
+pub fn folds(scenario: &Scenario) -> Vec<Box<dyn Fold>> {
+    SECTIONS.iter().filter_map(|s| (s.fold)(scenario)).collect()
 }
