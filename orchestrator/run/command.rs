@@ -138,7 +138,7 @@ pub(crate) fn command(args: RunArgs) -> ExitCode {
         sc.soak = Some(s);
     }
     if let Err(e) = add_faults(&mut sc, &faults) {
-        eprintln!("error: {e}");
+        eprintln!("error: {file}: {e}");
         return ExitCode::from(2);
     }
     // A soak deploys its camera unbounded, with its schedule's faults.
