@@ -428,16 +428,22 @@ fn in_realtime_a_slowed_consumer_drops_counted_frames_and_the_run_still_ends() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Realtime mode: a killed detector is restarted and fed again, from the sensor (frames are
-/// remade), what it had not processed; its fault's `lost` is exactly the frames it never
-/// processed — none here, as the accounting shows (`received` 50 of 50). The delay test
-/// above is the case where frames are missed and `lost` counts them.
+/// Realtime mode: nothing is replayed to a restarted detector. It is held down 1 s (its restart
+/// backoff) while frames keep coming at 25 frames/s, more than its queue keeps; the new
+/// incarnation continues its accounting where the last one left it and resumes at the newest
+/// frames. Its fault's `lost` is exactly the frames it never processed, counted as dropped;
+/// its detections continue at the next seq, one per frame it processed, so none takes the seq
+/// of one already sent (before, the new incarnation's first detections were skipped by the
+/// tracker as duplicates of the old one's).
 #[test]
-fn in_realtime_a_restarted_consumer_loses_only_what_it_never_processed() {
+fn in_realtime_a_restarted_consumer_resumes_at_the_newest_frame_and_counts_what_it_missed() {
     let dir = temp_dir("fault-realtime-kill");
     let file = scenario_variant(
         "debris-geo.toml",
-        &[("seed = 2016\n", "seed = 2016\nclock = \"realtime\"\n")],
+        &[(
+            "seed = 2016\n",
+            "seed = 2016\nclock = \"realtime\"\n\n[supervision]\nbackoff_ms = 1000\n",
+        )],
         &dir,
     );
     let r = run_ok(
@@ -447,15 +453,34 @@ fn in_realtime_a_restarted_consumer_loses_only_what_it_never_processed() {
     );
     let f = fault(&r.typed);
     assert_eq!(f.detected_by.as_deref(), Some("exit"), "{f:?}");
-    assert_eq!(f.restarts, 1, "{f:?}");
-    let frames = &r.typed.results.topics["frame"];
-    let det = &frames.consumers["detector"];
-    let processed = det.received.unwrap();
-    assert_eq!(f.lost, Some(50 - processed), "{f:?} {det:?}");
-    assert!(
-        f.replayed.unwrap() >= 10,
-        "it was fed again from the first frame: {f:?}"
+    assert_eq!(
+        (f.restarts, f.replayed),
+        (1, Some(0)),
+        "nothing replayed: {f:?}"
     );
+    let topics = &r.typed.results.topics;
+    let det = &topics["frame"].consumers["detector"];
+    let (processed, dropped) = (det.received.unwrap(), det.dropped.unwrap());
+    assert_eq!(processed + dropped, 50, "{det:?}");
+    assert!(
+        dropped > 0,
+        "1 s down at 25 frames/s overflows a 16-frame queue: {det:?}"
+    );
+    assert_eq!(
+        f.lost,
+        Some(dropped),
+        "lost is what it never processed: {f:?}"
+    );
+    let detections = &topics["detections"];
+    assert_eq!(detections.published, Some(processed), "{detections:?}");
+    for (name, c) in &detections.consumers {
+        assert_eq!(c.received, Some(processed), "{name}: {c:?}");
+        assert_eq!(
+            c.duplicates.unwrap_or(0),
+            0,
+            "{name}: no seq taken twice: {c:?}"
+        );
+    }
     assert!(r.typed.results.accounting.invariant_held);
     let _ = std::fs::remove_dir_all(&dir);
 }

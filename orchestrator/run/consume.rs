@@ -84,6 +84,20 @@ impl Consumer {
         Ok(())
     }
 
+    /// Orders `service`, restarted in realtime mode, to continue `topic`'s accounting at
+    /// `next_seq` (`received` of them processed, on an input).
+    pub fn continue_at(
+        &mut self,
+        service: ServiceId,
+        topic: TopicId,
+        next_seq: u64,
+        received: u64,
+    ) -> Result<()> {
+        let order = Control::continue_at(service, topic, next_seq, received);
+        self.control.send(order, 0)?;
+        Ok(())
+    }
+
     /// Orders `producer` to end `topic` after `messages` (a soak's end).
     pub fn end_stream(&mut self, producer: ServiceId, topic: TopicId, messages: u64) -> Result<()> {
         self.control

@@ -83,6 +83,8 @@ pub struct Live<'a> {
     memory: Memory,
     /// A soak's end: when the camera's stream was ended, and after how many frames.
     soak_end: Option<SoakEnd>,
+    /// Each restarted service's last heartbeat before its restart.
+    last_heard: std::collections::BTreeMap<ServiceId, Heartbeat>,
 }
 
 /// When a soak's time was up: the camera's stream ended after `frames`.
@@ -144,6 +146,7 @@ impl<'a> Live<'a> {
             bar,
             memory: Memory::new(now),
             soak_end: None,
+            last_heard: Default::default(),
         })
     }
 
@@ -380,6 +383,35 @@ impl<'a> Live<'a> {
         Ok(None)
     }
 
+    /// Realtime mode replays nothing to a restarted service: it resumes at the newest input.
+    /// Each of its inputs whose output counts one message per input continues its accounting
+    /// where the last incarnation left it, as the orchestrator saw it — that output's messages
+    /// are the inputs it processed, its last heartbeat's drops the rest — so the gap it
+    /// missed while down is counted as dropped, and the output continues at its next seq, so
+    /// that no new message takes the seq of one already sent. The main input's seq it resumes
+    /// at, if any was continued.
+    fn continue_in_realtime(&mut self, id: ServiceId) -> Result<Option<u64>> {
+        let mut main = None;
+        let outputs = deployment::outputs(self.scenario, id);
+        for input in deployment::inputs(self.scenario, id) {
+            let per_input =
+                |o: &&TopicId| matches!(o.spec().count, Count::PerInput(t) if t == input);
+            let Some(output) = outputs.iter().find(per_input).copied() else {
+                continue;
+            };
+            let processed = self.consumer.carried(output);
+            let dropped = (self.last_heard.get(&id))
+                .and_then(|hb| hb.topics.iter().find(|c| c.topic == input as u32))
+                .map_or(0, |c| c.dropped.iter().sum::<u64>());
+            let next = processed + dropped;
+            self.consumer.continue_at(id, input, next, processed)?;
+            self.consumer
+                .continue_at(id, output, processed, processed)?;
+            main.get_or_insert(next);
+        }
+        Ok(main)
+    }
+
     /// A soak whose time is up ends the camera's stream where it safely can: past every frame
     /// the sensor may have sent (the orchestrator's own count, plus the credit it may run ahead
     /// by, plus a second of frames in realtime); the run then accounts for that many.
@@ -444,6 +476,11 @@ impl<'a> Live<'a> {
             }
             Action::Kill(_) => self.children[i].signal(rustix::process::Signal::KILL),
             Action::Respawn(id) => {
+                // What the dead incarnation last said of itself (a realtime restart continues
+                // its accounting).
+                if let Some(seen) = self.consumer.seen.get(&id) {
+                    self.last_heard.insert(id, seen.heartbeat);
+                }
                 // The dead process's ports go before the new one opens its own.
                 self.node.try_cleanup_dead_nodes();
                 let n = self.supervisor.restarts(id);
@@ -451,6 +488,10 @@ impl<'a> Live<'a> {
                 self.children[i] = self.spawner.spawn(id, n)?;
             }
             Action::Resume(id) => {
+                let continued = match self.scenario.clock {
+                    Clock::Realtime => self.continue_in_realtime(id)?,
+                    Clock::Sim => None,
+                };
                 if self.scenario.clock == Clock::Sim {
                     for topic in deployment::inputs(self.scenario, id) {
                         // From where its restored checkpoint left it (its ready heartbeat
@@ -467,7 +508,8 @@ impl<'a> Live<'a> {
                     }
                 }
                 self.consumer.command(Command::Start, id as u32)?;
-                let resumed_at = self.progress(id, &self.consumer.seen[&id].heartbeat);
+                let resumed_at = continued
+                    .unwrap_or_else(|| self.progress(id, &self.consumer.seen[&id].heartbeat));
                 self.injector.restarted(id, now_s, resumed_at);
                 let serves_solve = deployment::producer(TopicId::Solve) == Some(id);
                 if let (true, Some(seq)) = (serves_solve, self.sequencer.as_mut()) {

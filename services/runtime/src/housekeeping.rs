@@ -24,6 +24,8 @@ pub struct Housekeeping {
     replays: Vec<Replay>,
     /// Stream ends ordered and not yet taken ([`Housekeeping::take_ends`]).
     ends: Vec<(TopicId, u64)>,
+    /// Continue orders not yet taken ([`Housekeeping::take_continues`]).
+    continues: Vec<(TopicId, u64, u64)>,
     /// `Shutdown` has arrived (possibly while the service waited outside its loop).
     pub shutdown_requested: bool,
     /// Obey in-band fault commands (the scenario's `faults.enabled`); refused ones are counted.
@@ -74,6 +76,7 @@ impl Housekeeping {
                 acked: vec![],
                 replays: vec![],
                 ends: vec![],
+                continues: vec![],
                 shutdown_requested: false,
                 faults_enabled: false,
                 faults_refused: 0,
@@ -95,10 +98,11 @@ impl Housekeeping {
     pub fn poll_control(&mut self) -> Result<Vec<Command>> {
         let me = self.id as u32;
         let mut cmds = vec![];
-        let (replays, shutdown, ends) = (
+        let (replays, shutdown, ends, continues) = (
             &mut self.replays,
             &mut self.shutdown_requested,
             &mut self.ends,
+            &mut self.continues,
         );
         let mut faults = vec![];
         self.control.drain(|r| {
@@ -115,6 +119,9 @@ impl Housekeeping {
                 }
                 if let Some(end) = r.msg.as_end() {
                     ends.push(end);
+                }
+                if let Some(c) = r.msg.as_continue() {
+                    continues.push(c);
                 }
             }
             Ok(())
@@ -206,6 +213,11 @@ impl Housekeeping {
     /// Drop and corrupt orders to arm on this service's output.
     pub fn take_output_faults(&mut self) -> Vec<InBandFault> {
         std::mem::take(&mut self.output_faults)
+    }
+
+    /// The continue orders since the last call: (topic, next_seq, received).
+    pub fn take_continues(&mut self) -> Vec<(TopicId, u64, u64)> {
+        std::mem::take(&mut self.continues)
     }
 
     /// The stream ends ordered since the last call: (topic, messages).

@@ -482,6 +482,9 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
         for (topic, messages) in hk.take_ends() {
             svc.on_end(topic, messages);
         }
+        for (topic, next_seq, received) in hk.take_continues() {
+            continue_at(&mut input, &mut svc, topic, next_seq, received)?;
+        }
         if hk.shutdown_requested {
             hk.state = Heartbeat::STOPPING;
             timer.asleep(false);
@@ -534,7 +537,9 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
                 hold_input |= out.replaying();
             }
         }
-        // 4. Inputs, within the outputs' credit.
+        // 4. Inputs, within the outputs' credit; none before `Start` (a restarted service
+        // first takes the orchestrator's replay or continue orders).
+        hold_input |= hk.state == Heartbeat::READY;
         let mut last_t_ns = 0;
         if !hold_input {
             let limit = svc
@@ -675,6 +680,46 @@ fn take_checkpoint<S: Service>(
         "checkpoint"
     );
     Ok(true)
+}
+
+/// A service restarted in realtime mode continues `topic`'s accounting where its last
+/// incarnation left it, as the orchestrator saw it: on its input, `received` processed and
+/// the rest of `next_seq` dropped (its next message counts the gap it missed while down, as
+/// overflow); on an output, the next seq (so none collides with what the last one sent).
+fn continue_at<S: Service>(
+    input: &mut S::Input,
+    svc: &mut S,
+    topic: TopicId,
+    next_seq: u64,
+    received: u64,
+) -> Result<()> {
+    if let Some(stats) = input.stats_mut().filter(|s| s.topic == topic) {
+        let mut dropped = [0; shared_types::DROP_REASONS];
+        dropped[DropReason::Overflow as usize] = next_seq - received;
+        stats.restore(&crate::stats::StatsSnapshot {
+            topic: topic as u32,
+            published: 0,
+            received,
+            dropped,
+            next_seq,
+            duplicates: 0,
+            // Its producer, first heard from, starts at `next_seq`.
+            per_producer: vec![],
+        });
+        tracing::info!(topic = topic.name(), next_seq, received, "input continues");
+    }
+    for out in svc.outputs() {
+        if out.stats().topic == topic {
+            let mut snap = out.snapshot();
+            snap.stats.published = next_seq;
+            snap.stats.next_seq = next_seq;
+            snap.log_base = next_seq;
+            snap.log.clear();
+            out.restore(&snap)?;
+            tracing::info!(topic = topic.name(), next_seq, "output continues");
+        }
+    }
+    Ok(())
 }
 
 /// A restarted service takes up its last checkpoint.

@@ -135,7 +135,13 @@ impl TopicStats {
         let slot = match self.per_producer.iter().position(|(p, _)| *p == producer) {
             Some(i) => i,
             None => {
-                let first = if self.peers_restart { seq } else { 0 };
+                // A producer first heard from starts where the topic's accounting stands (0, or
+                // where a restart's continue order put it).
+                let first = if self.peers_restart {
+                    seq
+                } else {
+                    self.next_seq
+                };
                 self.per_producer.push((producer, first));
                 self.per_producer.len() - 1
             }

@@ -167,6 +167,9 @@ pub enum Command {
     Fault = 6,
     /// End a stream early (the producer): a soak's end (`arg`: see [`Control::end`]).
     End = 7,
+    /// A service restarted in realtime mode (nothing is replayed to it) continues a topic's
+    /// accounting where its last incarnation left it (`arg`: see [`Control::continue_at`]).
+    Continue = 8,
 }
 
 impl Command {
@@ -179,6 +182,7 @@ impl Command {
             5 => Some(Command::Replay),
             6 => Some(Command::Fault),
             7 => Some(Command::End),
+            8 => Some(Command::Continue),
             _ => None,
         }
     }
@@ -294,6 +298,36 @@ impl Control {
         Some((topic, self.arg[1]))
     }
 
+    /// The order to a service restarted in realtime mode: its input `topic` continues at
+    /// `next_seq`, of which its last incarnation processed `received` (the rest it dropped);
+    /// or its output `topic` continues at `next_seq` (`received` = `next_seq`).
+    pub fn continue_at(
+        service: crate::ServiceId,
+        topic: crate::TopicId,
+        next_seq: u64,
+        received: u64,
+    ) -> Control {
+        Control {
+            command: Command::Continue as u32,
+            target: service as u32,
+            arg: [
+                (u64::from(topic as u32) << 56) | (next_seq & ((1 << 56) - 1)),
+                received,
+            ],
+            ..Default::default()
+        }
+    }
+
+    /// (topic, next_seq, received), if this is a well-formed [`Command::Continue`].
+    pub fn as_continue(&self) -> Option<(crate::TopicId, u64, u64)> {
+        if self.command != Command::Continue as u32 {
+            return None;
+        }
+        let topic = crate::TopicId::from_u32((self.arg[0] >> 56) as u32)?;
+        let next_seq = self.arg[0] & ((1 << 56) - 1);
+        (self.arg[1] <= next_seq).then_some((topic, next_seq, self.arg[1]))
+    }
+
     /// The replay order to `producer` for a restarted consumer.
     pub fn replay(producer: crate::ServiceId, r: Replay) -> Control {
         Control {
@@ -335,6 +369,12 @@ impl Control {
         }
         if self.command == Command::End as u32 && self.as_end().is_none() {
             return Err(Reject::new("control.arg", "the end of an unknown topic"));
+        }
+        if self.command == Command::Continue as u32 && self.as_continue().is_none() {
+            return Err(Reject::new(
+                "control.arg",
+                "an unknown topic, or more received than its next seq",
+            ));
         }
         Ok(())
     }
@@ -378,5 +418,12 @@ mod tests {
         end.arg[0] = u64::from(u32::MAX);
         assert_eq!(end.as_end(), None);
         assert!(end.validate().is_err());
+        // A continue order: where the restarted service's accounting of a topic resumes.
+        let mut c = Control::continue_at(ServiceId::Detector, TopicId::Frame, 1_234, 1_200);
+        assert_eq!(c.as_continue(), Some((TopicId::Frame, 1_234, 1_200)));
+        c.meta.contract_version = crate::CONTRACT_VERSION;
+        assert!(c.validate().is_ok());
+        c.arg[1] = 1_235;
+        assert!(c.validate().is_err(), "more received than sent");
     }
 }
