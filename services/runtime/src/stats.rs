@@ -135,12 +135,12 @@ impl TopicStats {
         let slot = match self.per_producer.iter().position(|(p, _)| *p == producer) {
             Some(i) => i,
             None => {
-                // A producer first heard from starts where the topic's accounting stands (0, or
-                // where a restart's continue order put it).
-                let first = if self.peers_restart {
-                    seq
-                } else {
-                    self.next_seq
+                // The first producer heard from starts where the topic's accounting stands (0,
+                // or where a restart's continue order put it); another one at 0.
+                let first = match (self.peers_restart, self.per_producer.is_empty()) {
+                    (true, _) => seq,
+                    (false, true) => self.next_seq,
+                    (false, false) => 0,
                 };
                 self.per_producer.push((producer, first));
                 self.per_producer.len() - 1
