@@ -16,6 +16,16 @@ pub struct Series<'a> {
     pub markers: bool,
 }
 
+/// Drops every other element of a series (the first is kept): how a long run's series
+/// stay bounded while spanning the whole run.
+pub fn thin_by_half<T>(v: &mut Vec<T>) {
+    let mut k = 0;
+    v.retain(|_| {
+        k += 1;
+        k % 2 == 1
+    });
+}
+
 pub const BLUE: RGBColor = RGBColor(31, 119, 180);
 pub const GREEN: RGBColor = RGBColor(44, 160, 44);
 pub const RED: RGBColor = RGBColor(214, 39, 40);

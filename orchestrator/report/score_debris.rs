@@ -118,11 +118,7 @@ impl TargetSeries {
         if self.offered % stride == 0 {
             self.points.push(p);
             if self.points.len() >= 2 * SERIES_POINTS {
-                let mut k = 0;
-                self.points.retain(|_| {
-                    k += 1;
-                    k % 2 == 1
-                });
+                crate::plots::thin_by_half(&mut self.points);
                 self.stride = stride * 2;
             }
         }

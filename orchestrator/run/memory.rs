@@ -87,15 +87,10 @@ impl Memory {
             trace.push(bytes as f64 / 1e6);
         }
         if self.t_s.len() >= SAMPLES_MAX {
-            let keep_even = |v: &mut Vec<f64>| {
-                let mut k = 0;
-                v.retain(|_| {
-                    k += 1;
-                    k % 2 == 1
-                });
-            };
-            keep_even(&mut self.t_s);
-            self.rss_mb.values_mut().for_each(keep_even);
+            crate::plots::thin_by_half(&mut self.t_s);
+            self.rss_mb
+                .values_mut()
+                .for_each(crate::plots::thin_by_half);
             self.stride *= 2;
         }
     }
