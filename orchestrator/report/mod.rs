@@ -14,6 +14,7 @@ use anyhow::{Context, Result};
 use shared_types::{DropReason, Scenario, TopicId};
 
 pub mod debris;
+mod debris_scorer;
 pub mod earth;
 mod earth_frame;
 mod facts;
