@@ -29,12 +29,20 @@ pub struct MemoryTrace {
     /// Resident set size [MB] (10⁶ bytes), per sample.
     pub rss_mb: Vec<f64>,
     /// After the warm-up: the median between 10 % and 20 % of the run [MB].
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub warm_mb: f64,
     /// At the end: the median over the last 10 % of the run [MB].
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub end_mb: f64,
     /// The largest sample after the warm-up (a dying process's panic report included) [MB].
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub peak_mb: f64,
     /// (end − warm) / warm [%]: what the process grew after its warm-up.
+    #[serde(deserialize_with = "crate::report::model::f64_or_nan")]
+    #[schemars(with = "Option<f64>")]
     pub growth_pct: f64,
 }
 
@@ -82,7 +90,7 @@ impl Memory {
         {
             let trace = self.rss_mb.entry(name).or_default();
             // A process first seen late (or missed while restarting) repeats its last value.
-            let fill = trace.last().copied().unwrap_or(f64::NAN);
+            let fill = trace.last().copied().unwrap_or(0.0);
             trace.resize(n, fill);
             trace.push(bytes as f64 / 1e6);
         }
@@ -133,9 +141,9 @@ impl Memory {
     }
 }
 
-/// The median of `v` (NaN if empty; NaN samples, a process not yet seen, are left out).
+/// The median of `v` (NaN if empty; zero samples, a process not yet seen, are left out).
 fn median(v: &[f64]) -> f64 {
-    let mut s: Vec<f64> = v.iter().copied().filter(|x| !x.is_nan()).collect();
+    let mut s: Vec<f64> = v.iter().copied().filter(|x| *x > 0.0).collect();
     if s.is_empty() {
         return f64::NAN;
     }
