@@ -485,6 +485,62 @@ fn in_realtime_a_restarted_consumer_resumes_at_the_newest_frame_and_counts_what_
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Realtime mode: a restarted sensor does not make the run again from its first frame. Held down
+/// 1 s (its restart backoff) at 25 frames/s, it continues at the frame the run's clock has come
+/// to: the ~25 frames that came due while it was down were never made — its fault's `lost`,
+/// one gap at every consumer, its truth skipping as many — and no frame is sent twice (before,
+/// the new incarnation rendered frames 0… again at the run's pace, which every consumer skipped
+/// as duplicates, and the run took the outage's length longer).
+#[test]
+fn in_realtime_a_restarted_sensor_continues_at_the_frame_due_and_counts_what_it_never_made() {
+    let dir = temp_dir("fault-realtime-sensor");
+    let file = scenario_variant(
+        "debris-geo.toml",
+        &[(
+            "seed = 2016\n",
+            "seed = 2016\nclock = \"realtime\"\n\n[supervision]\nbackoff_ms = 1000\n",
+        )],
+        &dir,
+    );
+    let r = run_ok(
+        Some(&file),
+        &dir.join("kill"),
+        &["--fault", "sensor:kill@10"],
+    );
+    let f = fault(&r.typed);
+    assert_eq!(
+        (f.detected_by.as_deref(), f.restarts),
+        (Some("exit"), 1),
+        "{f:?}"
+    );
+    let lost = f.lost.expect("a sensor fault says what it never made");
+    assert!(
+        (10..=40).contains(&lost),
+        "about 1 s of frames at 25 frames/s came due while it was down: {f:?}"
+    );
+    let topics = &r.typed.results.topics;
+    for topic in ["frame", "truth"] {
+        let t = &topics[topic];
+        assert_eq!(t.published, Some(50), "{topic}: {t:?}");
+        for (name, c) in &t.consumers {
+            let (received, dropped) = (c.received.unwrap(), c.dropped.unwrap());
+            assert_eq!(received + dropped, 50, "{topic} at {name}: {c:?}");
+            assert_eq!(
+                c.duplicates.unwrap_or(0),
+                0,
+                "{topic} at {name}: nothing sent twice"
+            );
+            // The truth may miss one more: a frame sent just before the kill, its truth not.
+            assert!(
+                (lost..=lost + 1).contains(&dropped),
+                "{topic} at {name}: the gap is what it never made: {c:?}, lost {lost}"
+            );
+        }
+    }
+    assert!(r.typed.results.accounting.invariant_held);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// A restarted service takes up its last checkpoint and is fed again only the inputs after
 /// it: the detector, the tracker (whose input the detector replays from a log trimmed to the
 /// tracker's checkpoints) and the sensor, each killed late in the run. The science is the

@@ -7,6 +7,7 @@ use std::path::Path;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use shared_types::scenario::FaultKind;
+use shared_types::table::Count;
 use shared_types::{deployment, DropReason, ServiceId, TopicId};
 
 use super::{FaultReport, RunFacts, TopicFact};
@@ -15,8 +16,8 @@ use crate::plots::{BLUE, GREEN, ORANGE, RED};
 /// What the fault cost: for a consumer, the messages published on its inputs that it never
 /// processed — missed while it was down or behind (realtime: counted as gaps, late or stale)
 /// or never taken at all — less what other faults account for (inputs an upstream `corrupt`
-/// sent invalid, gaps an upstream `drop` made); for the sensor, the messages it never
-/// produced. `None` where nothing was reported.
+/// sent invalid, gaps an upstream `drop` made); for the sensor, the messages of its streams it
+/// never produced (realtime: those that came due while it was down). `None` where nothing was reported.
 fn lost(f: &RunFacts, service: ServiceId) -> Option<u64> {
     let name = service.name();
     let inputs: Vec<&TopicFact> = f
@@ -29,7 +30,11 @@ fn lost(f: &RunFacts, service: ServiceId) -> Option<u64> {
             f.topics
                 .iter()
                 .filter(|(t, _)| deployment::producer(**t) == Some(ServiceId::Sensor))
-                .map(|(_, t)| t.expected - t.published.unwrap_or(0).min(t.expected))
+                .filter(|(t, _)| matches!(t.spec().count, Count::Stream { .. }))
+                .map(|(_, t)| {
+                    let made = t.published.unwrap_or(0).min(t.expected);
+                    t.expected - made + t.producer_dropped[DropReason::Overflow as usize]
+                })
                 .sum(),
         );
     }

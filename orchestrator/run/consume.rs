@@ -240,7 +240,7 @@ impl Consumer {
                     .map_or(0, |c| c.dropped.iter().sum::<u64>());
                 upstream.saturating_sub(dropped)
             }
-            Count::Stream(_) | Count::Truth | Count::Open => want,
+            Count::Stream { .. } | Count::Truth | Count::Open => want,
         }
     }
 

@@ -409,6 +409,40 @@ impl<'a> Live<'a> {
                 .continue_at(id, output, processed, processed)?;
             main.get_or_insert(next);
         }
+        if main.is_none() {
+            main = self.continue_streams(id)?;
+        }
+        Ok(main)
+    }
+
+    /// A source restarted in realtime mode continues each stream where the run's clock has
+    /// come to: a paced stream at the message due now (those that came due while it was down
+    /// were never made: its consumers count the gap, its fault counts them lost), one paced by
+    /// its consumers where it stopped; its truth (one per message of every stream) continues
+    /// at their sum. The first stream's seq it resumes at, if it has any.
+    fn continue_streams(&mut self, id: ServiceId) -> Result<Option<u64>> {
+        let elapsed_ns = (self.since_start(Instant::now()) * 1e9) as u64;
+        let (mut main, mut made) = (None, 0);
+        let outputs = deployment::outputs(self.scenario, id);
+        for &topic in &outputs {
+            let Count::Stream { .. } = topic.spec().count else {
+                continue;
+            };
+            let sent = self.consumer.carried(topic);
+            let end = deployment::expected_messages(self.scenario, topic).max(sent);
+            let due = deployment::realtime_period_ns(self.scenario, topic)
+                .map_or(sent, |period| elapsed_ns.div_ceil(period).clamp(sent, end));
+            made += due;
+            self.consumer.continue_at(id, topic, due, sent)?;
+            main.get_or_insert(due);
+        }
+        for &topic in outputs
+            .iter()
+            .filter(|t| matches!(t.spec().count, Count::Truth))
+        {
+            let sent = self.consumer.carried(topic);
+            self.consumer.continue_at(id, topic, made.max(sent), sent)?;
+        }
         Ok(main)
     }
 

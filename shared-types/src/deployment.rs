@@ -43,7 +43,7 @@ pub fn expected_messages(scenario: &Scenario, topic: TopicId) -> u64 {
         return 0;
     }
     match spec.count {
-        Count::Stream(n) => n(scenario),
+        Count::Stream { messages, .. } => messages(scenario),
         Count::PerInput(input) => expected_messages(scenario, input),
         Count::Truth => TOPICS
             .iter()
@@ -51,6 +51,16 @@ pub fn expected_messages(scenario: &Scenario, topic: TopicId) -> u64 {
             .map(|t| expected_messages(scenario, t.id))
             .sum(),
         Count::Open => 0,
+    }
+}
+
+/// In realtime mode, how often the sensor sends message `k + 1` of `topic` after message `k`
+/// [ns]: message `k` is due `k · period` after `Start`. `None`: a stream paced by its
+/// consumers alone, or not a stream.
+pub fn realtime_period_ns(scenario: &Scenario, topic: TopicId) -> Option<u64> {
+    match topic.spec().count {
+        Count::Stream { period_ns, .. } => period_ns(scenario),
+        Count::PerInput(_) | Count::Truth | Count::Open => None,
     }
 }
 

@@ -685,7 +685,9 @@ fn take_checkpoint<S: Service>(
 /// A service restarted in realtime mode continues `topic`'s accounting where its last
 /// incarnation left it, as the orchestrator saw it: on its input, `received` processed and
 /// the rest of `next_seq` dropped (its next message counts the gap it missed while down, as
-/// overflow); on an output, the next seq (so none collides with what the last one sent).
+/// overflow); on an output, the next seq at `next_seq` (so none collides with what the last
+/// one sent), of which it sent `received` (a realtime source skips what came due while it was
+/// down: dropped as overflow).
 fn continue_at<S: Service>(
     input: &mut S::Input,
     svc: &mut S,
@@ -711,12 +713,19 @@ fn continue_at<S: Service>(
     for out in svc.outputs() {
         if out.stats().topic == topic {
             let mut snap = out.snapshot();
+            // Those it skips it never made: dropped at the source, a gap its consumers count.
+            snap.stats.dropped[DropReason::Overflow as usize] += next_seq - received;
             snap.stats.published = next_seq;
             snap.stats.next_seq = next_seq;
             snap.log_base = next_seq;
             snap.log.clear();
             out.restore(&snap)?;
-            tracing::info!(topic = topic.name(), next_seq, "output continues");
+            tracing::info!(
+                topic = topic.name(),
+                next_seq,
+                skipped = next_seq - received,
+                "output continues"
+            );
         }
     }
     Ok(())

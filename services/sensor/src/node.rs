@@ -1,9 +1,12 @@
 //! The sensor on the service skeleton: after `Start` it emits every stream of the scenario
 //! ([`crate::streams`]) — in sim-clock mode as fast as the consumers' acknowledgements allow
 //! (lockstep, nothing dropped), in strict simulated-time order over the streams; in realtime
-//! mode paced by the wall clock — while answering laser-range requests. A restarted sensor
-//! produces everything again from the start (every message is a function of its index), and
-//! its consumers skip what they already have as duplicates.
+//! mode paced by the wall clock — while answering laser-range requests. Message `k` of a stream
+//! is a function of `k`, so a restarted sensor needs no state: in sim-clock mode it continues
+//! from its checkpoint's accounting and makes again what a restarted consumer is replayed; in
+//! realtime mode it continues each stream at the message the run's clock has come to (the
+//! orchestrator's [`Command::Continue`]): what came due while it was down was never made, and
+//! its consumers count the gap.
 
 use std::time::Duration;
 
@@ -12,6 +15,7 @@ use glint_runtime::ports::{FrameOutbox, Outbox};
 use glint_runtime::rpc::RangeServer;
 use glint_runtime::waitloop::{Step, Wake};
 use glint_runtime::{Io, NoInput, Output, Service, Setup, TopicStats};
+use shared_types::deployment::realtime_period_ns;
 use shared_types::{Command, DropReason, Scenario, ServiceId, TopicId, Truth};
 
 use crate::service_core::SensorCore;
@@ -33,6 +37,8 @@ trait Emitter {
     fn end(&self) -> u64;
     /// Ends the stream after `messages` (or where it is, if it has sent more).
     fn end_at(&mut self, messages: u64);
+    /// Realtime mode: the period of its messages ([`deployment::realtime_period_ns`]).
+    fn period_ns(&self) -> Option<u64>;
 
     fn topic(&self) -> TopicId {
         self.stream().topic()
@@ -49,9 +55,10 @@ trait Emitter {
         let k = self.next_seq();
         (k < self.end()).then(|| self.stream().t_ns(k))
     }
-    /// Realtime: when the next message is due after `Start` [ns].
+    /// Realtime: when the next message is due after `Start` [ns]; `None`: as soon as it is
+    /// its turn.
     fn due_ns(&self) -> Option<u64> {
-        self.stream().due_ns(self.next_seq())
+        self.period_ns().map(|p| p * self.next_seq())
     }
     /// Whether the next message is a replay (a consumer restarted).
     fn replaying(&self) -> bool {
@@ -63,6 +70,7 @@ struct Frames<S: FrameStream> {
     stream: S,
     out: FrameOutbox,
     end: u64,
+    period_ns: Option<u64>,
 }
 
 impl<S: FrameStream> Emitter for Frames<S> {
@@ -88,12 +96,16 @@ impl<S: FrameStream> Emitter for Frames<S> {
     fn end_at(&mut self, messages: u64) {
         self.end = self.end.min(messages.max(self.out.next_seq()));
     }
+    fn period_ns(&self) -> Option<u64> {
+        self.period_ns
+    }
 }
 
 struct Messages<S: MessageStream> {
     stream: S,
     out: Outbox<S::Msg>,
     end: u64,
+    period_ns: Option<u64>,
 }
 
 impl<S: MessageStream> Emitter for Messages<S> {
@@ -118,6 +130,9 @@ impl<S: MessageStream> Emitter for Messages<S> {
     fn end_at(&mut self, messages: u64) {
         self.end = self.end.min(messages.max(self.out.next_seq()));
     }
+    fn period_ns(&self) -> Option<u64> {
+        self.period_ns
+    }
 }
 
 /// Every stream of `sc` with its port, in table order (the tie-break of the emission order):
@@ -128,20 +143,35 @@ fn emitters(setup: &Setup<'_>, core: &SensorCore) -> Result<Vec<Box<dyn Emitter>
     let mut all: Vec<Box<dyn Emitter>> = vec![];
     if let Some(stream) = core.debris_stream() {
         let out = FrameOutbox::open(node, stream.topic(), sc)?;
-        let end = stream.messages();
-        all.push(Box::new(Frames { stream, out, end }));
+        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
+        all.push(Box::new(Frames {
+            stream,
+            out,
+            end,
+            period_ns,
+        }));
     }
     if let Some(sp) = &sc.spectra {
         let stream = SpectraStream::new(sp, sc.seed)?;
         let out = Outbox::open(node, stream.topic(), id)?;
-        let end = stream.messages();
-        all.push(Box::new(Messages { stream, out, end }));
+        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
+        all.push(Box::new(Messages {
+            stream,
+            out,
+            end,
+            period_ns,
+        }));
     }
     if let Some(e) = &sc.earth {
         let stream = EarthStream::new(e, sc.seed);
         let out = FrameOutbox::open(node, stream.topic(), sc)?;
-        let end = stream.messages();
-        all.push(Box::new(Frames { stream, out, end }));
+        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
+        all.push(Box::new(Frames {
+            stream,
+            out,
+            end,
+            period_ns,
+        }));
     }
     all.sort_by_key(|e| e.topic());
     Ok(all)
@@ -153,6 +183,9 @@ pub struct SensorNode {
     truth: Outbox<Truth>,
     range: RangeServer,
     started_ns: Option<u64>,
+    /// Realtime mode, a restarted incarnation: its clock is still to be set so that the
+    /// message it continues at ([`Command::Continue`]) is due now.
+    rejoin: bool,
     paused: bool,
 }
 
@@ -177,6 +210,8 @@ impl Service for SensorNode {
             truth,
             range,
             started_ns: None,
+            rejoin: setup.restarted
+                && setup.scenario.clock == shared_types::scenario::Clock::Realtime,
             paused: false,
         };
         Ok((sensor, NoInput))
@@ -225,9 +260,17 @@ impl Service for SensorNode {
     fn on_tick(&mut self, io: &mut Io<'_>, _wakes: &[Wake]) -> Result<Step> {
         let core = &self.core;
         self.range.serve(|req| core.answer_range(req))?;
-        let (Some(t0_ns), false) = (self.started_ns, self.paused) else {
+        let (Some(mut t0_ns), false) = (self.started_ns, self.paused) else {
             return Ok(Step::Wait);
         };
+        if std::mem::take(&mut self.rejoin) {
+            // The orchestrator continued each paced stream at the message due by the run's
+            // clock (the ones due while it was down were never made): that one is due now,
+            // and the rest keep the run's pace.
+            let behind = (self.streams.iter()).filter_map(|s| s.due_ns()).min();
+            t0_ns = io.now_ns().saturating_sub(behind.unwrap_or(0));
+            self.started_ns = Some(t0_ns);
+        }
         let mut next_wake_ns: Option<u64> = None;
         let mut produced = 0;
         for _ in 0..BATCH {

@@ -27,9 +27,6 @@ pub trait Stream {
     fn messages(&self) -> u64;
     /// The simulated time of message `k` [ns]: the end of a frame's exposure, a sample's time.
     fn t_ns(&self, k: u64) -> u64;
-    /// Realtime mode: message `k` is due this long after `Start` [ns]; `None`: as soon as it
-    /// is its turn.
-    fn due_ns(&self, k: u64) -> Option<u64>;
 }
 
 /// A stream of frames, rendered in place.
@@ -53,7 +50,6 @@ pub struct DebrisStream {
     frames: u64,
     exposure_ns: u64,
     interval_ns: u64,
-    period_ns: u64,
 }
 
 impl DebrisStream {
@@ -63,7 +59,6 @@ impl DebrisStream {
             frames: cam.frames,
             exposure_ns: (cam.exposure_s * 1e9).round() as u64,
             interval_ns: (cam.interval_s * 1e9).round() as u64,
-            period_ns: cam.frame_period_ns(),
         }
     }
 }
@@ -77,9 +72,6 @@ impl Stream for DebrisStream {
     }
     fn t_ns(&self, k: u64) -> u64 {
         (self.scene.exposure_end_s(k) * 1e9).round() as u64
-    }
-    fn due_ns(&self, k: u64) -> Option<u64> {
-        Some(self.period_ns * k)
     }
 }
 
@@ -121,9 +113,6 @@ impl Stream for SpectraStream {
     fn t_ns(&self, k: u64) -> u64 {
         self.scene.t_ns(k)
     }
-    fn due_ns(&self, _k: u64) -> Option<u64> {
-        None
-    }
 }
 
 impl MessageStream for SpectraStream {
@@ -137,14 +126,12 @@ impl MessageStream for SpectraStream {
 /// The [003] infrared Earth sensor's fisheye frames (`[earth]`).
 pub struct EarthStream {
     scene: EarthScene,
-    period_ns: u64,
 }
 
 impl EarthStream {
     pub fn new(e: &EarthScenario, seed: u64) -> Self {
         EarthStream {
             scene: EarthScene::new(e, seed),
-            period_ns: e.exposure_end_ns(0),
         }
     }
 }
@@ -158,9 +145,6 @@ impl Stream for EarthStream {
     }
     fn t_ns(&self, k: u64) -> u64 {
         self.scene.t_ns(k)
-    }
-    fn due_ns(&self, k: u64) -> Option<u64> {
-        Some(self.period_ns * k)
     }
 }
 

@@ -8,7 +8,8 @@ use super::*;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(usize)]
 pub enum DropReason {
-    /// A sequence gap: the transport overwrote samples the consumer had not read (realtime mode).
+    /// A sequence gap (realtime mode): the transport overwrote samples the consumer had not
+    /// read; at a source, messages that came due while it was down and were never made.
     Overflow = 0,
     /// The message failed validation.
     Malformed = 1,

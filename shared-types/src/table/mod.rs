@@ -127,8 +127,13 @@ pub enum From {
 /// How many messages a topic carries over a run.
 #[derive(Debug, Clone, Copy)]
 pub enum Count {
-    /// A stream the sensor produces; the scenario says how many.
-    Stream(fn(&Scenario) -> u64),
+    /// A stream the sensor produces: the scenario says how many messages, and in realtime
+    /// mode how often (message `k` is due `k · period` after `Start`; `None`: as fast as
+    /// its consumers take them).
+    Stream {
+        messages: fn(&Scenario) -> u64,
+        period_ns: fn(&Scenario) -> Option<u64>,
+    },
     /// One message per message of `input` its producer processed (a dropped input makes none).
     PerInput(TopicId),
     /// One per message of every stream that carries truth ([`TopicSpec::truth`]).
@@ -216,7 +221,10 @@ pub const TOPICS: [TopicSpec; 12] = [
         },
         section: Section::Camera,
         from: From::One(ServiceId::Sensor),
-        count: Count::Stream(|sc| sc.camera.as_ref().map_or(0, |c| c.frames)),
+        count: Count::Stream {
+            messages: |sc| sc.camera.as_ref().map_or(0, |c| c.frames),
+            period_ns: |sc| sc.camera.as_ref().map(|c| c.frame_period_ns().max(1)),
+        },
         replay: Replay::Remade,
         truth: true,
         about: "debris camera frames ([u16] in place)",
@@ -227,9 +235,10 @@ pub const TOPICS: [TopicSpec; 12] = [
         pattern: data(32, true),
         section: Section::Spectra,
         from: From::One(ServiceId::Sensor),
-        count: Count::Stream(|sc| {
-            (sc.spectra.as_ref()).map_or(0, |s| s.stable_samples + s.motion_frames)
-        }),
+        count: Count::Stream {
+            messages: |sc| (sc.spectra.as_ref()).map_or(0, |s| s.stable_samples + s.motion_frames),
+            period_ns: |_| None,
+        },
         replay: Replay::Remade,
         truth: true,
         about: "the satellite's spectrum, one per sample of the stable and motion windows",
@@ -354,7 +363,10 @@ pub const TOPICS: [TopicSpec; 12] = [
         },
         section: Section::Earth,
         from: From::One(ServiceId::Sensor),
-        count: Count::Stream(|sc| sc.earth.as_ref().map_or(0, |e| e.frames())),
+        count: Count::Stream {
+            messages: |sc| sc.earth.as_ref().map_or(0, |e| e.frames()),
+            period_ns: |sc| sc.earth.as_ref().map(|e| e.exposure_end_ns(0).max(1)),
+        },
         replay: Replay::Remade,
         truth: true,
         about: "fisheye infrared Earth frames ([u16] in place)",
