@@ -2,7 +2,7 @@
 //!
 //! No I/O, no clock, no randomness in the models (`rng` is the seeded generator that tests and
 //! offline synthesis draw from); f64 SI units throughout (angles in radians unless a name says
-//! otherwise). Every module states its math and cites docs/math.md (seeds 000 and 002) or
+//! otherwise). Every module states its math and cites docs/math.md or
 //! docs/materials.md.
 //!
 //! - [`frames`]: elementary rotations, cross-product matrix, RSW ↔ LVLH_N (§0, §6.3)
@@ -16,6 +16,8 @@
 //! - [`materials`]: spectral BRDF parameters and solar irradiance (materials.md §3)
 //! - [`satellite`]: facet model of the seed-000 satellite and its spectral flux (§1.2, §1.7)
 //! - [`hover`]: the seed-000 GEO hover geometry (§1.7)
+//! - [`rigid_body`]: Euler's equations and the tanh inertia parametrisation (§5.4)
+//! - [`stereo`]: rectified stereo projection and triangulation (§5.5)
 
 pub mod brdf;
 pub mod camera;
@@ -25,7 +27,9 @@ pub mod frames;
 pub mod hover;
 pub mod materials;
 pub mod orbit;
+pub mod rigid_body;
 pub mod rng;
 pub mod satellite;
+pub mod stereo;
 pub mod sun;
 pub mod two_facet;

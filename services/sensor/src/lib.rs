@@ -16,4 +16,5 @@ pub mod node;
 pub mod render;
 pub mod service_core;
 pub mod spectra_scene;
+pub mod stereo_scene;
 pub mod streams;

@@ -14,6 +14,7 @@ mod fault;
 mod matrix;
 mod soak;
 mod spectra;
+mod stereo;
 mod supervision;
 
 pub use camera::*;
@@ -23,6 +24,7 @@ pub use fault::*;
 pub use matrix::*;
 pub use soak::*;
 pub use spectra::*;
+pub use stereo::*;
 pub use supervision::*;
 
 /// A scenario problem: where it is and what is allowed.
@@ -97,6 +99,9 @@ pub struct Scenario {
     /// The infrared Earth sensor ([003]); absent = no Earth frames.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub earth: Option<EarthScenario>,
+    /// The chaser's stereo camera and the tumbling target ([004]); absent = no stereo epochs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stereo: Option<StereoScenario>,
     /// Sweep one parameter: one full deployment per value, results tabulated.
     pub campaign: Option<Campaign>,
     /// Faults to inject (`[[fault]]`; also `glint run --fault`).
@@ -266,11 +271,19 @@ impl Scenario {
                 "must be at least twice run.heartbeat_period_ms".into(),
             );
         }
-        if self.camera.is_none() && self.spectra.is_none() && self.earth.is_none() {
+        if self.camera.is_none()
+            && self.spectra.is_none()
+            && self.earth.is_none()
+            && self.stereo.is_none()
+        {
             c.fail(
                 "camera",
-                "a scenario needs a [camera], [spectra] or [earth] section (or several)".into(),
+                "a scenario needs a [camera], [spectra], [earth] or [stereo] section (or several)"
+                    .into(),
             );
+        }
+        if let Some(s) = &self.stereo {
+            check_stereo(&mut c, s);
         }
         if let Some(e) = &self.earth {
             check_earth(&mut c, e);
