@@ -276,6 +276,17 @@ pub(crate) enum ToolCmd {
         #[arg(long)]
         out: PathBuf,
     },
+    /// The [004] relative-navigation filter on a file of stereo measurements (`t_s, feature,
+    /// x_l, y_l, x_r, y_r`) and its rig (RIG.toml); writes DIR/relnav.csv, prints a JSON
+    /// summary. docs/relnav.md fixes both formats.
+    Relnav {
+        meas: PathBuf,
+        #[arg(long)]
+        rig: PathBuf,
+        /// Directory for relnav.csv.
+        #[arg(long, default_value = ".")]
+        out: PathBuf,
+    },
     /// Render one camera frame of a scenario into a 16-bit PGM.
     Render {
         scenario: PathBuf,

@@ -6,9 +6,12 @@
 //! - `glint tool tfit SAMPLES`: the t location-scale MLE of a sample file as JSON.
 //! - `glint tool earth FRAME.pgm --f-px F --center X,Y`: β from a fisheye Earth image by every
 //!   [003] method, as JSON.
+//! - `glint tool relnav MEAS.csv --rig RIG.toml [--out DIR]`: the [004] filter on a file of
+//!   stereo measurements.
 
 pub mod invert;
 pub mod observations;
+pub mod relnav;
 
 use std::path::Path;
 
@@ -327,6 +330,9 @@ pub(crate) fn command(tool: crate::cli::ToolCmd) -> std::process::ExitCode {
             )),
         },
         ToolCmd::Tfit { samples } => tfit(&samples).map(|json| println!("{json}")),
+        ToolCmd::Relnav { meas, rig, out } => {
+            relnav::run(&meas, &rig, &out).map(|json| println!("{json}"))
+        }
         ToolCmd::Render {
             scenario,
             frame,

@@ -4,9 +4,13 @@
 
 use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
 
-use crate::model::{
-    ix, measure, symmetrise, ErrMat, ErrVec, FeatureJacobian, Nominal, Propagator, Rig, N_ERR,
-};
+use crate::model::{ix, measure, symmetrise, ErrMat, ErrVec, Nominal, Propagator, Rig, N_ERR};
+
+/// Most Gauss–Newton iterations of one update.
+const MAX_ITERATIONS: usize = 6;
+/// An iteration whose correction moved no component by more than this many of its prior σ
+/// ends the update.
+const SETTLED_SIGMAS: f64 = 1e-3;
 
 /// One feature seen at one epoch: its index in the rig's features and `[x_l, y_l, x_r, y_r]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -79,7 +83,8 @@ impl Filter {
     ) -> Result<UpdateOutcome, NumericalFailure> {
         let r = rig.sigma_norm * rig.sigma_norm;
         let mut out = UpdateOutcome::default();
-        let mut accepted: Vec<(Vector4<f64>, FeatureJacobian)> = Vec::with_capacity(features.len());
+        let mut accepted: Vec<(Vector4<f64>, &nalgebra::Vector3<f64>)> =
+            Vec::with_capacity(features.len());
         for f in features {
             let Some(r_t) = rig.features_m.get(f.feature) else {
                 out.rejected += 1;
@@ -89,14 +94,15 @@ impl Filter {
                 out.rejected += 1;
                 continue;
             };
-            let nu = Vector4::from(f.z) - z_hat;
+            let z = Vector4::from(f.z);
+            let nu = z - z_hat;
             let s = h * self.p * h.transpose() + Matrix4::identity() * r;
             let Some(chol) = s.cholesky() else {
                 return Err(NumericalFailure::Innovation);
             };
             let d2 = nu.dot(&chol.solve(&nu));
             if d2.is_finite() && d2 <= gate_chi2 {
-                accepted.push((nu, h));
+                accepted.push((z, r_t));
             } else {
                 out.rejected += 1;
             }
@@ -105,27 +111,57 @@ impl Filter {
             return Ok(out);
         }
         let m = 4 * accepted.len();
-        let mut h = DMatrix::<f64>::zeros(m, N_ERR);
-        let mut nu = DVector::<f64>::zeros(m);
-        for (i, (n, hi)) in accepted.iter().enumerate() {
-            h.view_mut((4 * i, 0), (4, N_ERR)).copy_from(hi);
-            nu.rows_mut(4 * i, 4).copy_from(n);
-        }
         let p = DMatrix::from_column_slice(N_ERR, N_ERR, self.p.as_slice());
-        let hp = &h * &p;
-        let mut s = &hp * h.transpose();
-        for i in 0..m {
-            s[(i, i)] += r;
+        let sig = self.sigmas();
+        // Iterated update (Gauss–Newton on the measurement): relinearise h at the updated
+        // state, δᵢ₊₁ = Kᵢ (z − h(xᵢ) + Hᵢ δᵢ), until the correction settles. One iteration is
+        // the plain EKF; more matter when the prior is wide (a start, after a gap).
+        let mut dx = ErrVec::zeros();
+        let mut last: Option<(DMatrix<f64>, DMatrix<f64>)> = None;
+        for iteration in 0..MAX_ITERATIONS {
+            let xi = self.x.inject(&dx);
+            let mut h = DMatrix::<f64>::zeros(m, N_ERR);
+            let mut y = DVector::<f64>::zeros(m);
+            let mut behind = false;
+            for (i, (z, r_t)) in accepted.iter().enumerate() {
+                let Some((z_hat, hi)) = measure(rig, &xi, r_t) else {
+                    behind = true;
+                    break;
+                };
+                h.view_mut((4 * i, 0), (4, N_ERR)).copy_from(&hi);
+                y.rows_mut(4 * i, 4).copy_from(&(z - z_hat + hi * dx));
+            }
+            if behind {
+                break; // keep the last iterate that saw every feature
+            }
+            let hp = &h * &p;
+            let mut s = &hp * h.transpose();
+            for i in 0..m {
+                s[(i, i)] += r;
+            }
+            let chol = s.cholesky().ok_or(NumericalFailure::Innovation)?;
+            // K = P Hᵀ S⁻¹ = (S⁻¹ H P)ᵀ
+            let k = chol.solve(&hp).transpose();
+            if iteration == 0 {
+                out.nis = y.dot(&chol.solve(&y));
+            }
+            let next = ErrVec::from_column_slice((&k * &y).as_slice());
+            let change = (next - dx)
+                .iter()
+                .zip(sig.iter())
+                .map(|(d, s)| d.abs() / s.max(1e-300))
+                .fold(0.0, f64::max);
+            dx = next;
+            last = Some((k, h));
+            if change < SETTLED_SIGMAS {
+                break;
+            }
         }
-        let chol = s.cholesky().ok_or(NumericalFailure::Innovation)?;
-        // K = P Hᵀ S⁻¹ = (S⁻¹ H P)ᵀ
-        let k = chol.solve(&hp).transpose();
-        let s_inv_nu = chol.solve(&nu);
-        out.nis = nu.dot(&s_inv_nu);
+        let Some((k, h)) = last else {
+            return Err(NumericalFailure::State);
+        };
         out.dof = m;
         out.used = accepted.len();
-        let dx_dyn = &k * &nu;
-        let dx = ErrVec::from_column_slice(dx_dyn.as_slice());
         let i_kh = DMatrix::<f64>::identity(N_ERR, N_ERR) - &k * &h;
         let p_new = &i_kh * &p * i_kh.transpose() + (&k * k.transpose()) * r;
         let mut p_new = ErrMat::from_column_slice(p_new.as_slice());
