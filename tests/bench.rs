@@ -127,9 +127,10 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
     let wall_s = report.timing.wall_s;
     for stage in ["sensor", "detector", "tracker", "orchestrator"] {
         let s = &p["stages"][stage];
+        // /proc counts CPU time in clock ticks (10 ms): a short stage may read 0 on a fast host.
         let cpu = f(&s["cpu_s"]);
         assert!(
-            cpu > 0.0 && cpu <= wall_s + 0.05,
+            (0.0..=wall_s + 0.05).contains(&cpu),
             "{stage}: {s}, wall {wall_s} s"
         );
         assert!(f(&s["p50_us"]) <= f(&s["p99_us"]), "{stage}: {s}");
