@@ -13,6 +13,7 @@ pub fn run(id: ServiceId, args: ServiceArgs<'_>) -> Result<()> {
         ServiceId::Tracker => run_service::<glint_tracker::node::TrackerNode>(args),
         ServiceId::Inversion => run_service::<glint_inversion::node::InversionNode>(args),
         ServiceId::Earth => run_service::<glint_earth::node::EarthNode>(args),
+        ServiceId::RelNav => run_service::<glint_relnav::node::RelNavNode>(args),
         ServiceId::Orchestrator => bail!("the orchestrator is `glint run`, not a service"),
     }
 }

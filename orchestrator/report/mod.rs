@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use shared_types::{DropReason, Scenario, TopicId};
+use shared_types::{DropReason, Scenario, ServiceId, TopicId};
 
 pub mod debris;
 mod debris_scorer;
@@ -126,6 +126,7 @@ pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
         earth: None,
         detection: None,
         tracking: None,
+        relnav: None,
     };
     let faults = faults::reports(f);
     let mut report = Report {
@@ -309,15 +310,23 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
         }
     }
     let tm = &r.timing;
+    // The sensor's streams that carried messages, each per second of production (the table
+    // names them; truth rides beside every one of them).
+    let rates: Vec<String> = (f.topics.iter())
+        .filter(|(t, _)| t.spec().producer() == Some(ServiceId::Sensor) && **t != TopicId::Truth)
+        .filter_map(|(t, tf)| Some((t, tf.published.filter(|&n| n > 0)?)))
+        .map(|(t, n)| {
+            let per_s = n as f64 / f.outcome.production_s.max(1e-9);
+            format!("`{}` {per_s:.1}/s", t.name())
+        })
+        .collect();
     let _ = writeln!(
         s,
-        "\n## Timing (this machine; not part of the deterministic results)\n\n- wall time {:.3} s (startup {:.3} s, production {:.3} s)\n- frames/s {:.1}, spectra/s {:.1}, Earth frames/s {:.1}\n- laser requests served: {}\n- shared memory: {} entries removed, {} left over",
+        "\n## Timing (this machine; not part of the deterministic results)\n\n- wall time {:.3} s (startup {:.3} s, production {:.3} s)\n- sensor output: {}\n- laser requests served: {}\n- shared memory: {} entries removed, {} left over",
         f.wall_s,
         f.outcome.startup_s,
         f.outcome.production_s,
-        tm.frames_per_s,
-        tm.spectra_per_s,
-        tm.earth_frames_per_s,
+        if rates.is_empty() { "none".to_string() } else { rates.join(", ") },
         f.range_requests,
         f.shm_removed,
         f.shm_leftover.len()

@@ -66,6 +66,9 @@ pub struct Results {
     pub detection: Option<DetectionScore>,
     /// [002] tracks against truth.
     pub tracking: Option<TrackingReport>,
+    /// [004] relative navigation against truth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub relnav: Option<super::sections::RelNavReport>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

@@ -49,7 +49,10 @@ fn spectrum_layout() {
 
 #[test]
 fn truth_layout() {
-    assert_eq!((size_of::<Truth>(), align_of::<Truth>()), (1192, 8));
+    assert_eq!(
+        (size_of::<Truth>(), align_of::<Truth>()),
+        (1192 + 15 * 8, 8)
+    );
     assert_eq!(offset_of!(Truth, kind), 32);
     assert_eq!(offset_of!(Truth, n_debris), 36);
     assert_eq!(offset_of!(Truth, frame_index), 40);
@@ -61,6 +64,7 @@ fn truth_layout() {
     assert_eq!(offset_of!(Truth, false_targets_px), 920);
     assert_eq!(offset_of!(Truth, earth_beta_deg), 1176);
     assert_eq!(offset_of!(Truth, earth_tilt_deg), 1184);
+    assert_eq!(offset_of!(Truth, stereo_state), 1192);
 }
 
 #[test]
@@ -81,6 +85,32 @@ fn earth_attitude_layout() {
     assert_eq!(offset_of!(EarthAttitude, fit_mu_deg), 48);
     assert_eq!(offset_of!(EarthAttitude, methods), 72);
     assert_eq!(offset_of!(EarthAttitude, samples_hist), 72 + 3 * 32);
+}
+
+#[test]
+fn stereo_and_relnav_layout() {
+    assert_eq!(
+        (size_of::<StereoFeature>(), align_of::<StereoFeature>()),
+        (40, 8)
+    );
+    assert_eq!(offset_of!(StereoFeature, z), 8);
+    assert_eq!(
+        (size_of::<Stereo>(), align_of::<Stereo>()),
+        (48 + 16 * 40, 8)
+    );
+    assert_eq!(offset_of!(Stereo, epoch_index), 32);
+    assert_eq!(offset_of!(Stereo, n_features), 40);
+    assert_eq!(offset_of!(Stereo, features), 48);
+    assert_eq!(
+        (size_of::<RelNavEstimate>(), align_of::<RelNavEstimate>()),
+        (64 + 15 * 8 + 105 * 8 + 16, 8)
+    );
+    assert_eq!(offset_of!(RelNavEstimate, epoch_index), 32);
+    assert_eq!(offset_of!(RelNavEstimate, status), 40);
+    assert_eq!(offset_of!(RelNavEstimate, nis), 56);
+    assert_eq!(offset_of!(RelNavEstimate, q_ct), 64);
+    assert_eq!(offset_of!(RelNavEstimate, covariance), 64 + 15 * 8);
+    assert_eq!(offset_of!(RelNavEstimate, starts), 64 + 120 + 840);
 }
 
 #[test]
@@ -197,6 +227,9 @@ fn type_names_carry_the_contract_version() {
             <SolveResponse as ZeroCopySend>::type_name(),
             <EarthMethod as ZeroCopySend>::type_name(),
             <EarthAttitude as ZeroCopySend>::type_name(),
+            <StereoFeature as ZeroCopySend>::type_name(),
+            <Stereo as ZeroCopySend>::type_name(),
+            <RelNavEstimate as ZeroCopySend>::type_name(),
         ]
     };
     for name in names {

@@ -15,10 +15,13 @@ use crate::run::taps::{Fold, Taps};
 mod debris;
 mod earth;
 mod inversion;
+mod relnav;
 
 use debris::DebrisSection;
 use earth::EarthSection;
 use inversion::InversionSection;
+pub use relnav::RelNavReport;
+use relnav::RelNavSection;
 
 /// What a section is made from: the run's taps and the solve's answers.
 pub struct Material<'a> {
@@ -49,7 +52,7 @@ pub struct SectionRow {
 }
 
 /// Every mission section, in the order summary.md shows them.
-pub const SECTIONS: [SectionRow; 3] = [
+pub const SECTIONS: [SectionRow; 4] = [
     SectionRow {
         fold: |s| Some(Box::new(InversionSection::fold(s)?)),
         snapshots: |_| vec![],
@@ -59,6 +62,11 @@ pub const SECTIONS: [SectionRow; 3] = [
         fold: |s| Some(Box::new(EarthSection::fold(s)?)),
         snapshots: EarthSection::snapshots,
         collect: |m| Some(Box::new(EarthSection::collect(m)?)),
+    },
+    SectionRow {
+        fold: |s| Some(Box::new(RelNavSection::fold(s)?)),
+        snapshots: |_| vec![],
+        collect: |m| Some(Box::new(RelNavSection::collect(m)?)),
     },
     SectionRow {
         fold: |s| Some(Box::new(DebrisSection::fold(s)?)),

@@ -18,6 +18,15 @@ use nalgebra::{Matrix3, RowVector3, Vector3};
 /// Earth's gravitational parameter μ [m³ s⁻²] (§7.1).
 pub const MU_EARTH_M3_S2: f64 = 3.986004418e14;
 
+/// Earth's equatorial radius [m] (WGS 84).
+pub const EARTH_RADIUS_M: f64 = 6_378_137.0;
+
+/// Mean motion [rad/s] of a circular orbit `altitude_km` above the equatorial radius.
+pub fn mean_motion_at_altitude_rad_s(altitude_km: f64) -> f64 {
+    let a_m = EARTH_RADIUS_M + altitude_km * 1e3;
+    (MU_EARTH_M3_S2 / (a_m * a_m * a_m)).sqrt()
+}
+
 /// A circular orbit; all angles in radians, ECI (≈ J2000) frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CircularOrbit {

@@ -10,7 +10,13 @@
 //!
 //! so `y_l` and `y_r` measure the same quantity and each point gives three independent numbers.
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
+
+/// `C_CO` of a chaser holding its orbit frame O (RSW) and looking along-track (+y_O): rows
+/// x_C = x_O, y_C = −z_O, z_C = y_O (math.md §5.1).
+pub fn c_co_along_track() -> Matrix3<f64> {
+    Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0)
+}
 
 /// Normalised coordinates `[x_l, y_l, x_r, y_r]` of a point `p_c` [m] in C, for a baseline
 /// `baseline_m`; `None` unless the point is in front of the cameras (`z > 0`).

@@ -10,9 +10,14 @@
 //! - [`start`]: the start from the measurements alone (triangulation, absolute orientation)
 //! - [`service_core`]: epochs in, estimates out; divergence and numerical failure as events
 //! - [`score`]: RTMSE per group over the last minutes, NEES
+//! - [`scenario`]: the rig, settings and start of a `[stereo]` section
+//! - `node`: the service on glint's runtime (feature `node`)
 
 pub mod filter;
 pub mod model;
+#[cfg(feature = "node")]
+pub mod node;
+pub mod scenario;
 pub mod score;
 pub mod service_core;
 pub mod start;

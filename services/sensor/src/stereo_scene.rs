@@ -11,23 +11,15 @@
 //! `k` alone, as a restarted consumer needs (`Replay::Remade`).
 
 use glint_physics::cw::{cw_stm_rsw, propagate_rsw};
-use glint_physics::orbit::MU_EARTH_M3_S2;
+use glint_physics::orbit::mean_motion_at_altitude_rad_s;
 use glint_physics::rigid_body::{k_from_inertia, RigidBody, Spin};
 use glint_physics::rng::SeededRng;
-use glint_physics::stereo::project;
+use glint_physics::stereo::{c_co_along_track, project};
 use nalgebra::{Matrix3, UnitQuaternion, Vector2, Vector3, Vector6};
 use shared_types::scenario::StereoScenario;
 
-/// Earth's equatorial radius [m] for the chaser's orbit.
-const EARTH_RADIUS_M: f64 = 6_378_137.0;
 /// Longest truth substep [s].
 const MAX_TRUTH_STEP_S: f64 = 0.05;
-
-/// The camera holding the orbit frame and looking along +y_O: rows x_C = x_O, y_C = −z_O,
-/// z_C = y_O (math.md §5.1).
-pub fn c_co() -> Matrix3<f64> {
-    Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0)
-}
 
 /// The target's true state at one epoch.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -75,11 +67,10 @@ fn epoch_rng(seed: u64, k: u64) -> SeededRng {
 impl StereoScene {
     /// The scene of a validated `[stereo]` section.
     pub fn new(s: &StereoScenario, seed: u64) -> Self {
-        let a_m = EARTH_RADIUS_M + s.altitude_km * 1e3;
-        let n = (MU_EARTH_M3_S2 / (a_m * a_m * a_m)).sqrt();
+        let n = mean_motion_at_altitude_rad_s(s.altitude_km);
         let j = Vector3::from(s.inertia_kg_m2);
         let body = RigidBody { inertia_kg_m2: j };
-        let c_co = c_co();
+        let c_co = c_co_along_track();
         let q_co = UnitQuaternion::from_matrix(&c_co);
         let q_ct0 = UnitQuaternion::from_scaled_axis(
             Vector3::from(s.attitude0_rotvec_deg).map(f64::to_radians),

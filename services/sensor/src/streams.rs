@@ -12,12 +12,15 @@
 use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use shared_types::scenario::{CameraScenario, EarthScenario, SpectraScenario};
-use shared_types::{FrameHeader, Message, Scenario, Spectrum, TopicId, Truth};
+use shared_types::scenario::{CameraScenario, EarthScenario, SpectraScenario, StereoScenario};
+use shared_types::{
+    FrameHeader, Message, Scenario, Spectrum, Stereo, StereoFeature, TopicId, Truth,
+};
 
 use crate::debris_scene::DebrisScene;
 use crate::earth_scene::EarthScene;
 use crate::spectra_scene::SpectraScene;
+use crate::stereo_scene::StereoScene;
 
 /// What every stream says about itself.
 pub trait Stream {
@@ -154,6 +157,69 @@ impl FrameStream for EarthStream {
     }
     fn truth(&self, k: u64) -> Truth {
         self.scene.truth(k)
+    }
+}
+
+/// The [004] stereo rig's epochs (`[stereo]`).
+pub struct StereoStream {
+    pub scene: StereoScene,
+}
+
+impl StereoStream {
+    pub fn new(s: &StereoScenario, seed: u64) -> Self {
+        StereoStream {
+            scene: StereoScene::new(s, seed),
+        }
+    }
+}
+
+impl Stream for StereoStream {
+    fn topic(&self) -> TopicId {
+        TopicId::Stereo
+    }
+    fn messages(&self) -> u64 {
+        self.scene.len()
+    }
+    fn t_ns(&self, k: u64) -> u64 {
+        self.scene.t_ns(k)
+    }
+}
+
+impl MessageStream for StereoStream {
+    type Msg = Stereo;
+    fn make(&self, k: u64) -> Result<(Stereo, Truth)> {
+        let mut msg = Stereo {
+            epoch_index: k,
+            ..Stereo::default()
+        };
+        for (slot, f) in msg.features.iter_mut().zip(self.scene.observe(k)) {
+            *slot = StereoFeature {
+                feature: f.feature,
+                _pad: 0,
+                z: f.z,
+            };
+            msg.n_features += 1;
+        }
+        let t = self.scene.truth(k);
+        let q = t.q_ct.into_inner();
+        let q = if q.w < 0.0 { -q } else { q };
+        let mut state = [0.0; 15];
+        let values = [q.w, q.i, q.j, q.k]
+            .into_iter()
+            .chain(t.w_t.iter().copied())
+            .chain(self.scene.k.iter().copied())
+            .chain(t.rho_o.iter().copied())
+            .chain(t.v_o.iter().copied());
+        for (slot, v) in state.iter_mut().zip(values) {
+            *slot = v;
+        }
+        let truth = Truth {
+            kind: Truth::KIND_STEREO,
+            frame_index: k,
+            stereo_state: state,
+            ..Truth::default()
+        };
+        Ok((msg, truth))
     }
 }
 

@@ -9,7 +9,7 @@ use super::*;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v6.EarthMethod")]
+#[type_name("glint.v7.EarthMethod")]
 #[repr(C)]
 pub struct EarthMethod {
     /// β, the angle between the optical axis and nadir [deg], ≥ 0.
@@ -29,7 +29,7 @@ pub struct EarthMethod {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v6.EarthAttitude")]
+#[type_name("glint.v7.EarthAttitude")]
 #[repr(C)]
 pub struct EarthAttitude {
     pub meta: Meta,

@@ -22,6 +22,7 @@ mod earth;
 mod housekeeping;
 mod range;
 mod spectrum;
+mod stereo;
 mod truth;
 
 pub use camera::*;
@@ -29,6 +30,7 @@ pub use earth::*;
 pub use housekeeping::*;
 pub use range::*;
 pub use spectrum::*;
+pub use stereo::*;
 pub use truth::*;
 
 /// Maximum number of spectral bands in one [`Spectrum`].
@@ -46,7 +48,7 @@ pub const MAX_TOPICS: usize = 8;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v6.Meta")]
+#[type_name("glint.v7.Meta")]
 #[repr(C)]
 pub struct Meta {
     /// Per-producer, per-topic sequence number, starting at 0, without gaps.
@@ -223,7 +225,7 @@ impl Message for Truth {
         self.validate()
     }
     /// Its seq and time, the debris states, the satellite's attitude and rate, the Earth
-    /// sensor's angles.
+    /// sensor's angles, the stereo target's state.
     fn fold_digest(&self, digest: &mut xxhash_rust::xxh3::Xxh3) {
         digest.update(&self.meta.seq.to_le_bytes());
         digest.update(&self.meta.t_ns.to_le_bytes());
@@ -238,6 +240,11 @@ impl Message for Truth {
             .chain([self.earth_beta_deg, self.earth_tilt_deg].iter())
         {
             digest.update(&v.to_le_bytes());
+        }
+        if self.kind == Truth::KIND_STEREO {
+            for v in &self.stereo_state {
+                digest.update(&v.to_le_bytes());
+            }
         }
     }
 }
@@ -296,6 +303,32 @@ message!(Tracks, |m: &Tracks| m.validate(), |m: &mut Tracks, how| {
         Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
     }
 });
+message!(Stereo, |m: &Stereo| m.validate(), |m: &mut Stereo, how| {
+    use crate::scenario::Corruption;
+    match how {
+        Corruption::Nan => {
+            m.n_features = m.n_features.max(1);
+            m.features[0].z[0] = f64::NAN;
+        }
+        Corruption::Count => m.n_features = crate::scenario::MAX_STEREO_FEATURES as u32 + 1,
+        Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
+    }
+});
+message!(
+    RelNavEstimate,
+    |m: &RelNavEstimate| m.validate(),
+    |m: &mut RelNavEstimate, how| {
+        use crate::scenario::Corruption;
+        match how {
+            Corruption::Nan => {
+                m.status = RelNavEstimate::RUNNING;
+                m.q_ct[0] = f64::NAN;
+            }
+            Corruption::Count => m.status = RelNavEstimate::STARTED + 1,
+            Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
+        }
+    }
+);
 message!(SolveRequest, |m: &SolveRequest| m.validate());
 message!(
     SolveResponse,

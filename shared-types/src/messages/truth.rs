@@ -6,12 +6,12 @@ use super::*;
 
 /// Ground truth for scoring; read only by the orchestrator.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v6.Truth")]
+#[type_name("glint.v7.Truth")]
 #[repr(C)]
 pub struct Truth {
     pub meta: Meta,
     /// Which stream this truth belongs to: 0 = camera frame, 1 = spectrum sample, 2 = Earth
-    /// frame.
+    /// frame, 3 = stereo epoch.
     pub kind: u32,
     /// Number of valid debris entries.
     pub n_debris: u32,
@@ -34,6 +34,9 @@ pub struct Truth {
     /// tilt about the turntable axis [deg].
     pub earth_beta_deg: f64,
     pub earth_tilt_deg: f64,
+    /// Stereo epoch ([004]): the target's `[q_ct (w, x, y, z; Hamilton, R = C_CT), ω_t in T
+    /// (rad/s), k, ρ in O (m), v in O (m/s)]`.
+    pub stereo_state: [f64; 15],
 }
 
 impl Default for Truth {
@@ -51,6 +54,7 @@ impl Default for Truth {
             false_targets_px: [[0.0; 2]; MAX_DEBRIS],
             earth_beta_deg: 0.0,
             earth_tilt_deg: 0.0,
+            stereo_state: [0.0; 15],
         }
     }
 }
@@ -59,11 +63,15 @@ impl Truth {
     pub const KIND_FRAME: u32 = 0;
     pub const KIND_SPECTRUM: u32 = 1;
     pub const KIND_EARTH: u32 = 2;
+    pub const KIND_STEREO: u32 = 3;
 
     pub fn validate(&self) -> Result<(), Reject> {
         self.meta.validate()?;
-        if self.kind > 2 {
-            return Err(Reject::new("truth.kind", "not 0, 1 or 2"));
+        if self.kind > Self::KIND_STEREO {
+            return Err(Reject::new("truth.kind", "not 0, 1, 2 or 3"));
+        }
+        for v in self.stereo_state {
+            finite(v, "truth.stereo_state")?;
         }
         finite(self.earth_beta_deg, "truth.earth_beta_deg")?;
         finite(self.earth_tilt_deg, "truth.earth_tilt_deg")?;

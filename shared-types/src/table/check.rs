@@ -123,16 +123,18 @@ mod tests {
         assert_eq!(TopicId::from_name("earth_frame"), Some(TopicId::EarthFrame));
         assert_eq!(ServiceId::from_name("tracker"), Some(ServiceId::Tracker));
         assert_eq!(ServiceId::from_u32(5), Some(ServiceId::Earth));
-        assert_eq!(ServiceId::from_u32(6), None);
+        assert_eq!(ServiceId::from_u32(6), Some(ServiceId::RelNav));
+        assert_eq!(ServiceId::from_u32(7), None);
+        assert_eq!(TopicId::from_name("relnav"), Some(TopicId::RelNav));
         assert_eq!(TopicId::from_u32(11), Some(TopicId::EarthAttitude));
-        assert_eq!(payload_type_name(TopicId::Tracks), "glint.v6.Tracks");
+        assert_eq!(payload_type_name(TopicId::Tracks), "glint.v7.Tracks");
         assert_eq!(
             payload_type_name(TopicId::EarthFrame),
-            "glint.v6.FrameHeader"
+            "glint.v7.FrameHeader"
         );
         assert_eq!(
             ServiceId::names(),
-            "sensor, detector, tracker, inversion, earth"
+            "sensor, detector, tracker, inversion, earth, relnav"
         );
     }
 

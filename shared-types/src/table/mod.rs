@@ -31,6 +31,7 @@ pub enum ServiceId {
     Tracker = 3,
     Inversion = 4,
     Earth = 5,
+    RelNav = 6,
 }
 
 /// Topics of the chain. The numeric value travels in [`Ack::topic`] and the heartbeats' counters.
@@ -49,6 +50,8 @@ pub enum TopicId {
     Solve = 9,
     EarthFrame = 10,
     EarthAttitude = 11,
+    Stereo = 12,
+    RelNav = 13,
 }
 
 /// The scenario section a service or topic exists with.
@@ -62,6 +65,8 @@ pub enum Section {
     Spectra,
     /// `[earth]`: the infrared Earth sensor ([003]).
     Earth,
+    /// `[stereo]`: the stereo rig and the tumbling target ([004]).
+    Stereo,
 }
 
 impl Section {
@@ -72,6 +77,7 @@ impl Section {
             Section::Camera => scenario.camera.is_some(),
             Section::Spectra => scenario.spectra.is_some(),
             Section::Earth => scenario.earth.is_some(),
+            Section::Stereo => scenario.stereo.is_some(),
         }
     }
 
@@ -82,6 +88,7 @@ impl Section {
             Section::Camera => "[camera]",
             Section::Spectra => "[spectra]",
             Section::Earth => "[earth]",
+            Section::Stereo => "[stereo]",
         }
     }
 }
@@ -212,7 +219,7 @@ const fn data(buffer: usize, history: bool) -> Pattern {
 }
 
 /// Every topic, in [`TopicId`] order.
-pub const TOPICS: [TopicSpec; 12] = [
+pub const TOPICS: [TopicSpec; 14] = [
     TopicSpec {
         id: TopicId::Frame,
         name: "frame",
@@ -382,10 +389,37 @@ pub const TOPICS: [TopicSpec; 12] = [
         truth: false,
         about: "each Earth frame's attitude angle β and tilt, per method",
     },
+    TopicSpec {
+        id: TopicId::Stereo,
+        name: "stereo",
+        pattern: data(32, true),
+        section: Section::Stereo,
+        from: From::One(ServiceId::Sensor),
+        count: Count::Stream {
+            messages: |sc| sc.stereo.as_ref().map_or(0, |s| s.epochs()),
+            period_ns: |sc| {
+                (sc.stereo.as_ref()).map(|s| ((s.epoch_period_s * 1e9).round() as u64).max(1))
+            },
+        },
+        replay: Replay::Remade,
+        truth: true,
+        about: "the stereo rig's epochs: every feature seen, normalised image coordinates",
+    },
+    TopicSpec {
+        id: TopicId::RelNav,
+        name: "relnav",
+        pattern: data(16, false),
+        section: Section::Stereo,
+        from: From::One(ServiceId::RelNav),
+        count: Count::PerInput(TopicId::Stereo),
+        replay: Replay::OrchestratorOnly,
+        truth: false,
+        about: "each epoch's relative pose, rates, inertia ratios and covariance",
+    },
 ];
 
 /// Every service, in [`ServiceId`] order (also the order they are started in).
-pub const SERVICES: [ServiceSpec; 6] = [
+pub const SERVICES: [ServiceSpec; 7] = [
     ServiceSpec {
         id: ServiceId::Orchestrator,
         name: "orchestrator",
@@ -399,6 +433,8 @@ pub const SERVICES: [ServiceSpec; 6] = [
             TopicId::Tracks,
             TopicId::EarthFrame,
             TopicId::EarthAttitude,
+            TopicId::Stereo,
+            TopicId::RelNav,
         ],
         outputs: &[TopicId::Control],
         calls: &[TopicId::Solve],
@@ -414,6 +450,7 @@ pub const SERVICES: [ServiceSpec; 6] = [
             TopicId::Frame,
             TopicId::Spectrum,
             TopicId::EarthFrame,
+            TopicId::Stereo,
             TopicId::Truth,
             TopicId::Range,
         ],
@@ -461,11 +498,21 @@ pub const SERVICES: [ServiceSpec; 6] = [
         code: "glint-earth",
         about: "[003] attitude angle from infrared Earth frames",
     },
+    ServiceSpec {
+        id: ServiceId::RelNav,
+        name: "relnav",
+        section: Section::Stereo,
+        inputs: &[TopicId::Stereo],
+        outputs: &[TopicId::RelNav],
+        calls: &[],
+        code: "glint-relnav",
+        about: "[004] relative pose, rates and inertia ratios of a tumbling target",
+    },
 ];
 
 impl ServiceId {
-    pub const ALL: [ServiceId; 6] = {
-        let mut all = [ServiceId::Orchestrator; 6];
+    pub const ALL: [ServiceId; 7] = {
+        let mut all = [ServiceId::Orchestrator; 7];
         let mut i = 0;
         while i < SERVICES.len() {
             all[i] = SERVICES[i].id;
@@ -507,8 +554,8 @@ impl ServiceId {
 }
 
 impl TopicId {
-    pub const ALL: [TopicId; 12] = {
-        let mut all = [TopicId::Frame; 12];
+    pub const ALL: [TopicId; 14] = {
+        let mut all = [TopicId::Frame; 14];
         let mut i = 0;
         while i < TOPICS.len() {
             all[i] = TOPICS[i].id;
@@ -579,6 +626,8 @@ pub fn visit<V: PayloadVisitor>(topic: TopicId, v: V) -> V::Out {
         TopicId::Detections => v.messages::<Detections>(spec),
         TopicId::Tracks => v.messages::<Tracks>(spec),
         TopicId::EarthAttitude => v.messages::<EarthAttitude>(spec),
+        TopicId::Stereo => v.messages::<Stereo>(spec),
+        TopicId::RelNav => v.messages::<RelNavEstimate>(spec),
         TopicId::Range => v.calls::<RangeRequest, RangeResponse>(spec),
         TopicId::Solve => v.calls::<SolveRequest, SolveResponse>(spec),
     }
