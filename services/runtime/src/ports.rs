@@ -144,8 +144,9 @@ impl<T: Message> Outbox<T> {
         self.next_seq < self.stats.published
     }
 
-    /// Sends logged messages again, exactly as first sent, from the rewound seq on, at most
-    /// `limit` of them (the consumers' credit). Returns how many were sent.
+    /// Sends logged messages again, exactly as first sent but for the send time (now: a
+    /// restarted consumer tells the replay from stale copies by it), from the rewound seq on,
+    /// at most `limit` of them (the consumers' credit). Returns how many were sent.
     pub fn resend(&mut self, limit: u64) -> Result<u64> {
         let Some(log) = self.log.as_ref() else {
             return Ok(0);
@@ -158,8 +159,10 @@ impl<T: Message> Outbox<T> {
                 // Trimmed: below every consumer's checkpoint, so nobody asks for it.
                 break;
             };
+            let mut copy = *msg;
+            copy.meta_mut().send_mono_ns = mono_ns();
             self.publisher
-                .send_copy(*msg)
+                .send_copy(copy)
                 .map_err(|e| anyhow!("resend on {}: {e:?}", self.stats.topic.name()))?;
             self.next_seq += 1;
             n += 1;
@@ -313,7 +316,8 @@ impl<T: Message> Inbox<T> {
                 continue;
             }
             let (producer, seq) = (msg.meta().producer, msg.meta().seq);
-            if self.stats.observe(producer, seq) == SeqVerdict::Duplicate {
+            let sent_mono_ns = msg.meta().send_mono_ns;
+            if self.stats.observe_sent(producer, seq, sent_mono_ns) == SeqVerdict::Duplicate {
                 continue;
             }
             let latency_ns = mono_ns().saturating_sub(msg.meta().send_mono_ns);
@@ -515,7 +519,8 @@ impl FrameInbox {
                 continue;
             }
             if self.verify_checksum && !self.checksum_holds(&header, pixels) {
-                self.stats.observe_seq(header.meta.seq);
+                let meta = header.meta;
+                self.stats.observe_sent(0, meta.seq, meta.send_mono_ns);
                 self.stats.drop_for(DropReason::Malformed);
                 self.last_reject = Some(Reject {
                     field: "frame.pixels_xxh3",
@@ -523,7 +528,8 @@ impl FrameInbox {
                 });
                 continue;
             }
-            if self.stats.observe_seq(header.meta.seq) == SeqVerdict::Duplicate {
+            let meta = header.meta;
+            if self.stats.observe_sent(0, meta.seq, meta.send_mono_ns) == SeqVerdict::Duplicate {
                 continue;
             }
             match handle(&header, pixels, latency_ns) {

@@ -23,7 +23,7 @@ pub struct TopicStats {
     /// A restarted consumer: everything before its producer's replay reaches this seq (its
     /// checkpoint's `next_seq`, or 0; history, messages in flight) is skipped as a duplicate;
     /// the replay brings it again in order.
-    awaiting_replay: Option<u64>,
+    awaiting_replay: Option<AwaitedReplay>,
     /// Many-to-one housekeeping topics (heartbeat, ack, control): a producer joins at whatever
     /// seq it is at, and a seq going back means that producer restarted.
     peers_restart: bool,
@@ -47,6 +47,18 @@ pub struct StatsSnapshot {
     pub next_seq: u64,
     pub duplicates: u64,
     pub per_producer: Vec<(u32, u64)>,
+}
+
+/// Where a restarted consumer's replay starts, and when the consumer started waiting for it.
+#[derive(Debug, Clone, Copy)]
+struct AwaitedReplay {
+    seq: u64,
+    /// `CLOCK_MONOTONIC` [ns] when the consumer began to wait. A copy of `seq` sent before is
+    /// not the replay's but a stale one (the topic's history, or one in flight to the dead
+    /// incarnation): accepting it would start the consumer on a stream whose next messages
+    /// the producer's credit no longer counts as in flight, and the replay's copies of them
+    /// would push out the rest of the replay from the subscriber's buffer.
+    since_mono_ns: u64,
 }
 
 /// What the consumer should do with a message after sequence accounting.
@@ -84,9 +96,17 @@ impl TopicStats {
     }
 
     /// Accounting of a restarted consumer whose producer replays from its `next_seq` (0, or
-    /// where its restored checkpoint left it).
+    /// where its restored checkpoint left it), every copy sent from now on.
     pub fn await_replay(&mut self) {
-        self.awaiting_replay = Some(self.next_seq);
+        self.await_replay_since(crate::clock::mono_ns());
+    }
+
+    /// As [`TopicStats::await_replay`], for copies sent from `since_mono_ns` on.
+    pub fn await_replay_since(&mut self, since_mono_ns: u64) {
+        self.awaiting_replay = Some(AwaitedReplay {
+            seq: self.next_seq,
+            since_mono_ns,
+        });
     }
 
     /// The accounting a checkpoint keeps.
@@ -123,15 +143,26 @@ impl TopicStats {
         self.observe(0, seq)
     }
 
-    /// Accounts for the arrival of `seq` from `producer` (sequence numbers are per producer).
-    pub fn observe(&mut self, producer: u32, seq: u64) -> SeqVerdict {
-        if let Some(start) = self.awaiting_replay {
-            if seq != start {
+    /// Accounts for the arrival of `seq` from `producer` (sequence numbers are per producer),
+    /// sent at `sent_mono_ns` (`CLOCK_MONOTONIC`).
+    pub fn observe_sent(&mut self, producer: u32, seq: u64, sent_mono_ns: u64) -> SeqVerdict {
+        if let Some(awaited) = self.awaiting_replay {
+            if seq != awaited.seq || sent_mono_ns < awaited.since_mono_ns {
                 self.duplicates += 1;
                 return SeqVerdict::Duplicate;
             }
             self.awaiting_replay = None;
         }
+        self.observe_in_order(producer, seq)
+    }
+
+    /// Accounts for the arrival of `seq` from `producer` on a topic whose consumer waits for no
+    /// replay (housekeeping).
+    pub fn observe(&mut self, producer: u32, seq: u64) -> SeqVerdict {
+        self.observe_sent(producer, seq, u64::MAX)
+    }
+
+    fn observe_in_order(&mut self, producer: u32, seq: u64) -> SeqVerdict {
         let slot = match self.per_producer.iter().position(|(p, _)| *p == producer) {
             Some(i) => i,
             None => {
@@ -242,6 +273,38 @@ mod tests {
         assert_eq!((s.received, s.duplicates, s.dropped_total()), (43, 2, 0));
         assert_eq!(s.next_seq, 43);
         assert_eq!(s.received + s.dropped_total(), s.next_seq);
+    }
+
+    #[test]
+    fn stale_copies_of_the_replays_first_messages_are_not_the_replay() {
+        // Restored at 28: the topic's history still holds 27, 28 and 29, sent to the dead
+        // incarnation (before t = 1000 ns); the replay sends 28, 29, … again after it.
+        let mut before = TopicStats::new(TopicId::EarthFrame);
+        for seq in 0..28 {
+            before.observe_seq(seq);
+            before.accept();
+        }
+        let mut s = TopicStats::new(TopicId::EarthFrame);
+        s.restore(&before.snapshot());
+        s.await_replay_since(1000);
+        let arrivals = [
+            (27, 400),
+            (28, 500),
+            (29, 600),
+            (28, 1100),
+            (29, 1200),
+            (30, 1300),
+        ];
+        let taken: Vec<(u64, u64)> = arrivals
+            .into_iter()
+            .filter(|&(seq, sent)| s.observe_sent(0, seq, sent) == SeqVerdict::Accept)
+            .collect();
+        assert_eq!(
+            taken,
+            [(28, 1100), (29, 1200), (30, 1300)],
+            "the replay's copies"
+        );
+        assert_eq!((s.duplicates, s.dropped_total(), s.next_seq), (3, 0, 31));
     }
 
     #[test]

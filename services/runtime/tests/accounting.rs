@@ -53,7 +53,7 @@ fn malformed_messages_are_rejected_and_counted() {
         let mut alien = spectrum(2);
         alien.meta = Meta::new(2, 0, 0, ServiceId::Sensor);
         alien.seal();
-        alien.meta.contract_version = 7;
+        alien.meta.contract_version = shared_types::CONTRACT_VERSION + 1;
         out.send_raw(alien).unwrap();
         out.send(spectrum(3), 0).unwrap();
 
