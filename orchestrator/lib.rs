@@ -15,6 +15,9 @@ mod plots;
 mod png;
 mod progress;
 pub mod report;
+/// A [004] campaign's `campaign.json`, where other tools look for it.
+#[cfg(feature = "lab")]
+pub use lab::relnav::RelNavCampaign;
 /// The fault matrix's report, where other tools look for it.
 pub use run::matrix;
 pub mod run;

@@ -40,3 +40,16 @@ pub fn points_bar(total: u64) -> ProgressBar {
     );
     b
 }
+
+/// A bar over a campaign's deployments, the value being run in its message.
+pub fn runs_bar(total: u64) -> ProgressBar {
+    let b = ProgressBar::new(total);
+    b.set_style(
+        ProgressStyle::with_template(
+            "{spinner} {elapsed_precise} [{bar:40}] {pos}/{len} runs, {eta} left: {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    b
+}

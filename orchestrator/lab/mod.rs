@@ -11,6 +11,7 @@ use shared_types::Scenario;
 
 pub mod mc;
 pub mod mc_summary;
+pub mod relnav;
 
 use crate::plots::{line_chart, Series, BLUE, GREEN, RED};
 use crate::run::{self, RunOptions};
@@ -27,6 +28,10 @@ pub fn run(
         PathBuf::from("runs").join(format!("{}-{}", scenario.name, run::utc_stamp()))
     });
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    if relnav::applies(scenario, &camp) {
+        let ok = relnav::run(scenario, file, &dir, &camp, progress)?;
+        return Ok((dir, ok));
+    }
     let mut rows = vec![];
     let mut all_ok = true;
     for (i, value) in camp.values.iter().enumerate() {
@@ -258,6 +263,10 @@ pub(crate) fn command(lab: crate::cli::LabCmd) -> std::process::ExitCode {
                 eprintln!("error: {file}: no [campaign] section (run it with `glint run {file}`)");
                 return ExitCode::from(2);
             };
+            if rescore && relnav::applies(&sc, campaign) {
+                eprintln!("error: {file}: --rescore re-scores [000] Monte-Carlo campaigns only");
+                return ExitCode::from(2);
+            }
             if rescore && campaign.seeds <= 1 {
                 eprintln!("error: {file}: --rescore needs a [campaign] with seeds > 1");
                 return ExitCode::from(2);

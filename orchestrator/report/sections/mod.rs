@@ -15,7 +15,7 @@ use crate::run::taps::{Fold, Taps};
 mod debris;
 mod earth;
 mod inversion;
-mod relnav;
+pub mod relnav;
 
 use debris::DebrisSection;
 use earth::EarthSection;

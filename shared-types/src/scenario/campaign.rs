@@ -4,23 +4,24 @@ use serde::{Deserialize, Serialize};
 
 use super::*;
 
-/// A one-parameter sweep ([000] studies: phase, SNR, body shape, rotation axis, seed).
+/// A one-parameter sweep ([000] studies: phase, SNR, body shape, rotation axis, seed; [004]:
+/// features, target size, image noise).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Campaign {
     /// One of `spectra.start_phase_deg`, `spectra.snr`, `spectra.body_shape`,
     /// `spectra.materials`, `spectra.rotation` (values "y" or "z": 0.25 deg/frame about that
-    /// body axis), `seed`.
+    /// body axis), `stereo.n_features`, `stereo.size_m`, `stereo.sigma_norm`, `seed`.
     pub parameter: String,
     /// 1–100 values of that parameter.
     pub values: Vec<toml::Value>,
     /// The paper's figure for each value (its error metric), shown beside ours; optional.
     #[serde(default)]
     pub paper: Vec<f64>,
-    /// Monte-Carlo runs per value, 1–1000 (default 1). With more than one, each value also runs
-    /// once noise-free (the reference) and then with seeds `seed`, `seed + 1`, …; the summary
-    /// gives the scatter about the noise-free solution against the Cramér–Rao bound and the
-    /// NEES of the reported covariance.
+    /// Monte-Carlo runs per value, 1–1000 (default 1), with seeds `seed`, `seed + 1`, ….
+    /// [000]: each value also runs once noise-free (the reference); the summary gives the
+    /// scatter about the noise-free solution against the Cramér–Rao bound and the NEES of the
+    /// reported covariance. [004]: the RTMSE pooled over the runs and the runs' mean NEES.
     #[serde(default = "one")]
     pub seeds: u32,
 }
@@ -30,12 +31,15 @@ fn one() -> u32 {
 }
 
 /// Parameters a campaign may sweep.
-pub const CAMPAIGN_PARAMETERS: [&str; 6] = [
+pub const CAMPAIGN_PARAMETERS: [&str; 9] = [
     "spectra.start_phase_deg",
     "spectra.snr",
     "spectra.body_shape",
     "spectra.materials",
     "spectra.rotation",
+    "stereo.n_features",
+    "stereo.size_m",
+    "stereo.sigma_norm",
     "seed",
 ];
 
@@ -67,6 +71,11 @@ impl Scenario {
             s.spectra
                 .clone()
                 .ok_or_else(|| bad("needs a [spectra] section"))
+        };
+        let st = || {
+            s.stereo
+                .clone()
+                .ok_or_else(|| bad("needs a [stereo] section"))
         };
         match c.parameter.as_str() {
             "seed" => {
@@ -110,6 +119,23 @@ impl Scenario {
                     }
                 }
                 s.spectra = Some(x);
+            }
+            "stereo.n_features" => {
+                let mut x = st()?;
+                x.n_features = v
+                    .as_integer()
+                    .and_then(|i| u32::try_from(i).ok())
+                    .ok_or_else(|| bad("is not a number of features (a whole number)"))?;
+                s.stereo = Some(x);
+            }
+            "stereo.size_m" | "stereo.sigma_norm" => {
+                let mut x = st()?;
+                let n = num().ok_or_else(|| bad("is not a number"))?;
+                match c.parameter.as_str() {
+                    "stereo.size_m" => x.size_m = n,
+                    _ => x.sigma_norm = n,
+                }
+                s.stereo = Some(x);
             }
             other => {
                 return Err(FieldError {
