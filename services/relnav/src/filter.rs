@@ -2,9 +2,11 @@
 //! feature by its Mahalanobis distance, update with the accepted ones in one batch (Joseph
 //! form), inject the error multiplicatively into the attitude.
 
-use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
+use nalgebra::{Matrix4, Matrix6, SMatrix, Vector4, Vector6};
 
-use crate::model::{ix, measure, symmetrise, ErrMat, ErrVec, Nominal, Propagator, Rig, N_ERR};
+use crate::model::{
+    ix, measure_observed, symmetrise, ErrMat, ErrVec, Nominal, Propagator, Rig, N_ERR, OBSERVED,
+};
 
 /// Most Gauss–Newton iterations of one update.
 const MAX_ITERATIONS: usize = 6;
@@ -75,6 +77,15 @@ impl Filter {
 
     /// Updates with one epoch's features; `gate_chi2` bounds each feature's squared Mahalanobis
     /// distance (4 degrees of freedom).
+    ///
+    /// A stereo measurement sees only the six [`OBSERVED`] components (δθ, δρ) and its noise is
+    /// white (R = σ² I), so the batch update is solved in those six dimensions whatever the
+    /// number of features: with P₆ the observed block of P, P₍:,6₎ its columns, A = H₆ᵀH₆ / σ²
+    /// and b = H₆ᵀ y / σ² summed over the features, and M = I + A P₆,
+    /// `K y = P₍:,6₎ M⁻¹ b` and `K H = P₍:,6₎ M⁻¹ A E` (E picks the observed components) — the
+    /// push-through identity `Hᵀ(H P Hᵀ + σ² I)⁻¹ = (Hᵀ H P + σ² I)⁻¹ Hᵀ`. The Joseph form
+    /// `(I − KH) P (I − KH)ᵀ + K R Kᵀ` is then two 14 × 6 × 14 products and `K R Kᵀ =
+    /// P₍:,6₎ M⁻¹ A M⁻ᵀ P₍6,:₎`.
     pub fn update(
         &mut self,
         rig: &Rig,
@@ -82,6 +93,8 @@ impl Filter {
         gate_chi2: f64,
     ) -> Result<UpdateOutcome, NumericalFailure> {
         let r = rig.sigma_norm * rig.sigma_norm;
+        let p_x6 = SMatrix::<f64, N_ERR, 6>::from_fn(|i, c| self.p[(i, OBSERVED[c])]);
+        let p66 = Matrix6::from_fn(|a, c| self.p[(OBSERVED[a], OBSERVED[c])]);
         let mut out = UpdateOutcome::default();
         let mut accepted: Vec<(Vector4<f64>, &nalgebra::Vector3<f64>)> =
             Vec::with_capacity(features.len());
@@ -90,13 +103,13 @@ impl Filter {
                 out.rejected += 1;
                 continue;
             };
-            let Some((z_hat, h)) = measure(rig, &self.x, r_t) else {
+            let Some((z_hat, h)) = measure_observed(rig, &self.x, r_t) else {
                 out.rejected += 1;
                 continue;
             };
             let z = Vector4::from(f.z);
             let nu = z - z_hat;
-            let s = h * self.p * h.transpose() + Matrix4::identity() * r;
+            let s = h * p66 * h.transpose() + Matrix4::identity() * r;
             let Some(chol) = s.cholesky() else {
                 return Err(NumericalFailure::Innovation);
             };
@@ -110,61 +123,63 @@ impl Filter {
         if accepted.is_empty() {
             return Ok(out);
         }
-        let m = 4 * accepted.len();
-        let p = DMatrix::from_column_slice(N_ERR, N_ERR, self.p.as_slice());
         let sig = self.sigmas();
         // Iterated update (Gauss–Newton on the measurement): relinearise h at the updated
         // state, δᵢ₊₁ = Kᵢ (z − h(xᵢ) + Hᵢ δᵢ), until the correction settles. One iteration is
         // the plain EKF; more matter when the prior is wide (a start, after a gap).
         let mut dx = ErrVec::zeros();
-        let mut last: Option<(DMatrix<f64>, DMatrix<f64>)> = None;
+        let mut last: Option<(Matrix6<f64>, Matrix6<f64>)> = None;
         for iteration in 0..MAX_ITERATIONS {
             let xi = self.x.inject(&dx);
-            let mut h = DMatrix::<f64>::zeros(m, N_ERR);
-            let mut y = DVector::<f64>::zeros(m);
+            let dx6 = Vector6::from_fn(|c, _| dx[OBSERVED[c]]);
+            let (mut a, mut b, mut yy) = (Matrix6::<f64>::zeros(), Vector6::<f64>::zeros(), 0.0);
             let mut behind = false;
-            for (i, (z, r_t)) in accepted.iter().enumerate() {
-                let Some((z_hat, hi)) = measure(rig, &xi, r_t) else {
+            for (z, r_t) in &accepted {
+                let Some((z_hat, h)) = measure_observed(rig, &xi, r_t) else {
                     behind = true;
                     break;
                 };
-                h.view_mut((4 * i, 0), (4, N_ERR)).copy_from(&hi);
-                y.rows_mut(4 * i, 4).copy_from(&(z - z_hat + hi * dx));
+                let y = z - z_hat + h * dx6;
+                a += h.transpose() * h;
+                b += h.transpose() * y;
+                yy += y.norm_squared();
             }
             if behind {
                 break; // keep the last iterate that saw every feature
             }
-            let hp = &h * &p;
-            let mut s = &hp * h.transpose();
-            for i in 0..m {
-                s[(i, i)] += r;
-            }
-            let chol = s.cholesky().ok_or(NumericalFailure::Innovation)?;
-            // K = P Hᵀ S⁻¹ = (S⁻¹ H P)ᵀ
-            let k = chol.solve(&hp).transpose();
+            let (a, b) = (a / r, b / r);
+            let m_inv = (Matrix6::identity() + a * p66)
+                .try_inverse()
+                .filter(|m| m.iter().all(|v| v.is_finite()))
+                .ok_or(NumericalFailure::Innovation)?;
+            let u = m_inv * b;
             if iteration == 0 {
-                out.nis = y.dot(&chol.solve(&y));
+                // yᵀ S⁻¹ y = yᵀy / σ² − bᵀ P₆ M⁻¹ b (Woodbury)
+                out.nis = yy / r - b.dot(&(p66 * u));
             }
-            let next = ErrVec::from_column_slice((&k * &y).as_slice());
+            let next = p_x6 * u;
             let change = (next - dx)
                 .iter()
                 .zip(sig.iter())
                 .map(|(d, s)| d.abs() / s.max(1e-300))
                 .fold(0.0, f64::max);
             dx = next;
-            last = Some((k, h));
+            last = Some((a, m_inv));
             if change < SETTLED_SIGMAS {
                 break;
             }
         }
-        let Some((k, h)) = last else {
+        let Some((a, m_inv)) = last else {
             return Err(NumericalFailure::State);
         };
-        out.dof = m;
+        out.dof = 4 * accepted.len();
         out.used = accepted.len();
-        let i_kh = DMatrix::<f64>::identity(N_ERR, N_ERR) - &k * &h;
-        let p_new = &i_kh * &p * i_kh.transpose() + (&k * k.transpose()) * r;
-        let mut p_new = ErrMat::from_column_slice(p_new.as_slice());
+        // K H = L E with L = P₍:,6₎ M⁻¹ A; (I − KH) P (I − KH)ᵀ in two 14 × 6 × 14 products.
+        let k_r = p_x6 * m_inv;
+        let l = k_r * a;
+        let q = self.p - l * p_x6.transpose();
+        let q_x6 = SMatrix::<f64, N_ERR, 6>::from_fn(|i, c| q[(i, OBSERVED[c])]);
+        let mut p_new = q - q_x6 * l.transpose() + k_r * a * k_r.transpose();
         symmetrise(&mut p_new);
         let x_new = self.x.inject(&dx);
         if !x_new.is_finite() || !covariance_ok(&p_new) {
@@ -215,3 +230,112 @@ pub const GROUPS: [(&str, usize, usize); 5] = [
     ("position", ix::RHO, 3),
     ("velocity", ix::V, 3),
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::measure;
+    use crate::model::tests::{rig, state};
+    use nalgebra::{DMatrix, DVector};
+
+    /// The textbook iterated update with the whole H, S = H P Hᵀ + R (4N × 4N), K = P Hᵀ S⁻¹
+    /// and the Joseph form in 14 × 14: the reference the six-dimensional solve must equal.
+    fn dense_update(f: &Filter, rig: &Rig, features: &[FeatureObs]) -> (Nominal, ErrMat, f64) {
+        let r = rig.sigma_norm * rig.sigma_norm;
+        let m = 4 * features.len();
+        let p = DMatrix::from_column_slice(N_ERR, N_ERR, f.p.as_slice());
+        let sig = f.sigmas();
+        let mut dx = ErrVec::zeros();
+        let mut nis = f64::NAN;
+        let mut last = None;
+        for iteration in 0..MAX_ITERATIONS {
+            let xi = f.x.inject(&dx);
+            let mut h = DMatrix::<f64>::zeros(m, N_ERR);
+            let mut y = DVector::<f64>::zeros(m);
+            for (i, o) in features.iter().enumerate() {
+                let (z_hat, hi) = measure(rig, &xi, &rig.features_m[o.feature]).unwrap();
+                h.view_mut((4 * i, 0), (4, N_ERR)).copy_from(&hi);
+                y.rows_mut(4 * i, 4)
+                    .copy_from(&(Vector4::from(o.z) - z_hat + hi * dx));
+            }
+            let s = &h * &p * h.transpose() + DMatrix::<f64>::identity(m, m) * r;
+            let s_inv = s.try_inverse().unwrap();
+            let k = &p * h.transpose() * &s_inv;
+            if iteration == 0 {
+                nis = (y.transpose() * &s_inv * &y)[(0, 0)];
+            }
+            let next = ErrVec::from_column_slice((&k * &y).as_slice());
+            let change = (next - dx)
+                .iter()
+                .zip(sig.iter())
+                .map(|(d, s)| d.abs() / s)
+                .fold(0.0, f64::max);
+            dx = next;
+            last = Some((k, h));
+            if change < SETTLED_SIGMAS {
+                break;
+            }
+        }
+        let (k, h) = last.unwrap();
+        let i_kh = DMatrix::<f64>::identity(N_ERR, N_ERR) - &k * &h;
+        let p_new = &i_kh * &p * i_kh.transpose() + (&k * k.transpose()) * r;
+        (
+            f.x.inject(&dx),
+            ErrMat::from_column_slice(p_new.as_slice()),
+            nis,
+        )
+    }
+
+    /// A prior with every component correlated, at a state off the truth by about its σ, and
+    /// noisy features: the update in six dimensions against the dense one.
+    #[test]
+    fn the_six_dimensional_update_equals_the_dense_batch_update() {
+        let rig = rig();
+        let truth = state();
+        let sig = [
+            2e-3, 2e-3, 2e-3, 1e-4, 1e-4, 1e-4, 0.05, 0.05, 5e-3, 5e-3, 5e-3, 1e-5, 1e-5, 1e-5,
+        ];
+        // P = D C D with C a correlation matrix of a random-looking but fixed factor.
+        let g = ErrMat::from_fn(|i, j| ((i * 7 + j * 13) % 11) as f64 / 11.0 - 0.45);
+        let c = g * g.transpose() + ErrMat::identity() * 2.0;
+        let d = ErrMat::from_diagonal(&ErrVec::from_fn(|i, _| sig[i] / c[(i, i)].sqrt()));
+        let p = d * c * d;
+        let offset = ErrVec::from_fn(|i, _| sig[i] * if i % 2 == 0 { 0.8 } else { -0.6 });
+        let filter = Filter::new(truth.inject(&offset), p, 0.0);
+        let features: Vec<FeatureObs> = (0..rig.features_m.len())
+            .map(|i| {
+                let (z, _) = measure(&rig, &truth, &rig.features_m[i]).unwrap();
+                let noise = Vector4::new(1.0, -0.5, 0.3, 0.7) * rig.sigma_norm * (i as f64 - 1.5);
+                FeatureObs {
+                    feature: i,
+                    z: (z + noise).into(),
+                }
+            })
+            .collect();
+        let (x_ref, p_ref, nis_ref) = dense_update(&filter, &rig, &features);
+        let mut f = filter.clone();
+        let out = f.update(&rig, &features, 1e9).unwrap();
+        assert_eq!((out.used, out.rejected, out.dof), (4, 0, 16));
+        let dx = x_ref.error_to(&f.x);
+        let post = f.sigmas();
+        for i in 0..N_ERR {
+            assert!(dx[i].abs() < 1e-6 * post[i], "component {i}: {dx}");
+            for j in 0..N_ERR {
+                let scale = (p_ref[(i, i)] * p_ref[(j, j)]).sqrt();
+                assert!(
+                    (f.p[(i, j)] - p_ref[(i, j)]).abs() < 1e-8 * scale,
+                    "P[{i},{j}]: {} vs {}",
+                    f.p[(i, j)],
+                    p_ref[(i, j)]
+                );
+            }
+        }
+        assert!(
+            (out.nis - nis_ref).abs() < 1e-6 * nis_ref,
+            "{} vs {nis_ref}",
+            out.nis
+        );
+        // The update did something: the observed components' σ shrank.
+        assert!(post[ix::TH] < 0.5 * sig[ix::TH] && post[ix::RHO] < 0.5 * sig[ix::RHO]);
+    }
+}

@@ -251,13 +251,18 @@ impl Propagator {
         xr.rho_o = s.fixed_rows::<3>(0).into();
         xr.v_o = s.fixed_rows::<3>(3).into();
 
-        let mut phi = ErrMat::zeros();
-        phi.fixed_view_mut::<8, 8>(0, 0).copy_from(&phi_r);
-        phi.fixed_view_mut::<6, 6>(8, 8).copy_from(&tr.phi);
-        let mut q = ErrMat::zeros();
-        q.fixed_view_mut::<8, 8>(0, 0).copy_from(&q_r);
-        q.fixed_view_mut::<6, 6>(8, 8).copy_from(&tr.q);
-        let mut p1 = phi * p * phi.transpose() + q;
+        // Φ P Φᵀ + Q block by block (Φ and Q are block-diagonal: rotation 8, translation 6).
+        let p_rr = p.fixed_view::<8, 8>(0, 0);
+        let p_rt = p.fixed_view::<8, 6>(0, 8);
+        let p_tt = p.fixed_view::<6, 6>(8, 8);
+        let rr = phi_r * p_rr * phi_r.transpose() + q_r;
+        let rt = phi_r * p_rt * tr.phi.transpose();
+        let tt = tr.phi * p_tt * tr.phi.transpose() + tr.q;
+        let mut p1 = ErrMat::zeros();
+        p1.fixed_view_mut::<8, 8>(0, 0).copy_from(&rr);
+        p1.fixed_view_mut::<8, 6>(0, 8).copy_from(&rt);
+        p1.fixed_view_mut::<6, 8>(8, 0).copy_from(&rt.transpose());
+        p1.fixed_view_mut::<6, 6>(8, 8).copy_from(&tt);
         symmetrise(&mut p1);
         (xr, p1)
     }
@@ -321,13 +326,27 @@ pub fn feature_in_camera(rig: &Rig, x: &Nominal, r_t: &Vector3<f64>) -> Vector3<
     rig.c_co * x.rho_o + x.q_ct * r_t
 }
 
-/// The predicted normalised coordinates of feature `r_t` and their Jacobian (eqs 38–39);
-/// `None` when the feature would be behind the cameras.
-pub fn measure(
+/// The error-state components a stereo measurement depends on: δθ and δρ (eq 39: H is zero in
+/// the columns of δω, δk and δv).
+pub const OBSERVED: [usize; 6] = [
+    ix::TH,
+    ix::TH + 1,
+    ix::TH + 2,
+    ix::RHO,
+    ix::RHO + 1,
+    ix::RHO + 2,
+];
+
+/// A feature's measurement Jacobian on the [`OBSERVED`] components (4 × 6).
+pub type ObservedJacobian = SMatrix<f64, 4, 6>;
+
+/// The predicted normalised coordinates of feature `r_t` and their Jacobian on the
+/// [`OBSERVED`] components (eqs 38–39); `None` when the feature would be behind the cameras.
+pub fn measure_observed(
     rig: &Rig,
     x: &Nominal,
     r_t: &Vector3<f64>,
-) -> Option<(Vector4<f64>, FeatureJacobian)> {
+) -> Option<(Vector4<f64>, ObservedJacobian)> {
     let p = feature_in_camera(rig, x, r_t);
     let z = glint_physics::stereo::project(p, rig.baseline_m)?;
     let (px, py, pz) = (p.x, p.y, p.z);
@@ -341,12 +360,26 @@ pub fn measure(
         0.0, iz,  -py * iz2,
     );
     let c_ct = x.q_ct.to_rotation_matrix().into_inner();
-    let mut h = FeatureJacobian::zeros();
-    h.fixed_view_mut::<4, 3>(0, ix::TH)
+    let mut h = ObservedJacobian::zeros();
+    h.fixed_view_mut::<4, 3>(0, 0)
         .copy_from(&(jp * (-c_ct * cross_matrix(*r_t))));
-    h.fixed_view_mut::<4, 3>(0, ix::RHO)
-        .copy_from(&(jp * rig.c_co));
+    h.fixed_view_mut::<4, 3>(0, 3).copy_from(&(jp * rig.c_co));
     Some((Vector4::from(z), h))
+}
+
+/// The predicted normalised coordinates of feature `r_t` and their whole Jacobian (eqs
+/// 38–39); `None` when the feature would be behind the cameras.
+pub fn measure(
+    rig: &Rig,
+    x: &Nominal,
+    r_t: &Vector3<f64>,
+) -> Option<(Vector4<f64>, FeatureJacobian)> {
+    let (z, h6) = measure_observed(rig, x, r_t)?;
+    let mut h = FeatureJacobian::zeros();
+    for (c, &j) in OBSERVED.iter().enumerate() {
+        h.set_column(j, &h6.column(c));
+    }
+    Some((z, h))
 }
 
 #[cfg(test)]
