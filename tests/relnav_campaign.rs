@@ -33,18 +33,19 @@ fn a_features_sweep_pools_its_runs_and_more_features_help() {
     for row in &c.rows {
         assert_eq!((row.runs, row.failed), (3, 0), "{row:?}");
         // eq 40 over the runs, recomputed from each run's own report.
-        let mut sum_sq = 0.0;
-        let mut nees = 0.0;
+        let (mut sum_sq, mut epochs, mut nees) = (0.0, 0.0, 0.0);
         for (i, run) in row.per_run.iter().enumerate() {
             assert_eq!(run.seed, c.seed + i as u64);
             let rep = read_report(&out.join(&run.run).join("report.json"));
             assert!(rep.results.success);
             let nav = rep.results.relnav.as_ref().expect("a relnav section");
             assert_eq!(nav.window_s, [600.0, 3600.0]);
-            sum_sq += nav.rtmse.attitude_deg.powi(2);
+            assert_eq!(run.epochs_scored, nav.epochs_scored);
+            sum_sq += nav.rtmse.attitude_deg.powi(2) * nav.epochs_scored as f64;
+            epochs += nav.epochs_scored as f64;
             nees += nav.nees_mean;
         }
-        let pooled = (sum_sq / 3.0).sqrt();
+        let pooled = (sum_sq / epochs).sqrt();
         assert!(
             (row.rtmse.attitude_deg - pooled).abs() <= 1e-12 * pooled,
             "{} vs {pooled}",

@@ -41,6 +41,8 @@ pub struct RunFigures {
     pub run: String,
     /// The run's own verdict (every message accounted for, no service lost).
     pub success: bool,
+    /// Epochs in its score (a filter restart's starting epochs are left out).
+    pub epochs_scored: u64,
     pub rtmse: RelNavErrors,
     pub nees_mean: f64,
     pub within_3sigma: RelNavShares,
@@ -56,7 +58,8 @@ pub struct ValueFigures {
     pub runs: u32,
     /// Runs whose deployment failed or that scored nothing (left out of the figures below).
     pub failed: u32,
-    /// RTMSE over the runs and the window's epochs (eq 40: the root of the runs' mean square).
+    /// RTMSE over the runs and the window's epochs (eq 40: the root of the mean square over
+    /// every scored epoch of every run); NaN when no run scored.
     pub rtmse: RelNavErrors,
     /// The worst run's RTMSE, per group.
     pub rtmse_worst: RelNavErrors,
@@ -120,9 +123,13 @@ pub fn paper() -> RelNavErrors {
 pub fn pool(value: String, per_run: Vec<RunFigures>) -> ValueFigures {
     let scored: Vec<&RunFigures> = per_run
         .iter()
-        .filter(|r| r.success && groups(&r.rtmse).iter().all(|x| x.is_finite()))
+        .filter(|r| {
+            r.success && r.epochs_scored > 0 && groups(&r.rtmse).iter().all(|x| x.is_finite())
+        })
         .collect();
-    let m = scored.len().max(1) as f64;
+    // No run scored: every figure NaN (written null), not 0.
+    let m = scored.len() as f64;
+    let epochs = scored.iter().map(|r| r.epochs_scored).sum::<u64>() as f64;
     let over = |f: &dyn Fn(&RunFigures) -> [f64; 5], combine: fn(f64, f64) -> f64| {
         let mut acc = [0.0; 5];
         for r in &scored {
@@ -132,7 +139,11 @@ pub fn pool(value: String, per_run: Vec<RunFigures>) -> ValueFigures {
         }
         acc
     };
-    let mean_square = over(&|r| groups(&r.rtmse).map(|x| x * x), |a, x| a + x);
+    // eq 40: each run's mean square weighted by its epochs.
+    let sum_sq = over(
+        &|r| groups(&r.rtmse).map(|x| x * x * r.epochs_scored as f64),
+        |a, x| a + x,
+    );
     let worst = over(&|r| groups(&r.rtmse), f64::max);
     let within = over(&|r| shares(&r.within_3sigma), |a, x| a + x);
     let limit = groups(&paper());
@@ -141,8 +152,12 @@ pub fn pool(value: String, per_run: Vec<RunFigures>) -> ValueFigures {
         value,
         runs: per_run.len() as u32,
         failed: (per_run.len() - scored.len()) as u32,
-        rtmse: errors(mean_square.map(|s| (s / m).sqrt())),
-        rtmse_worst: errors(worst),
+        rtmse: errors(sum_sq.map(|s| (s / epochs).sqrt())),
+        rtmse_worst: errors(if scored.is_empty() {
+            [f64::NAN; 5]
+        } else {
+            worst
+        }),
         runs_within_paper: scored
             .iter()
             .filter(|r| groups(&r.rtmse).iter().zip(limit).all(|(x, l)| *x <= l))
@@ -167,19 +182,21 @@ pub fn pool(value: String, per_run: Vec<RunFigures>) -> ValueFigures {
     }
 }
 
-/// One deployment of value `index` with seed `seed`, its logs silenced (its report and its
-/// services' logs are in its directory).
+/// One deployment of value `index` with the value's seed + `offset`, its logs silenced (its
+/// report and its services' logs are in its directory).
 fn deploy(
     scenario: &Scenario,
     file: &str,
     index: usize,
-    seed: u64,
+    offset: u64,
     dir: &Path,
     sub: &str,
 ) -> Result<RunFigures> {
     let mut variant = scenario
         .campaign_variant(index)
         .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+    // A `seed` sweep's value is the first seed of its runs.
+    let seed = variant.seed + offset;
     variant.seed = seed;
     variant.name = format!("{}-s{seed}", variant.name);
     let (run_dir, ok) =
@@ -200,6 +217,7 @@ fn deploy(
         seed,
         run: sub.to_string(),
         success: ok && r.is_some(),
+        epochs_scored: r.map_or(0, |r| r.epochs_scored),
         rtmse: r.map_or(nan, |r| r.rtmse.clone()),
         nees_mean: r.map_or(f64::NAN, |r| r.nees_mean),
         within_3sigma: r.map_or(
@@ -261,14 +279,14 @@ pub fn run(
                 }
                 let (index, s) = jobs[j];
                 let sub = format!("{index:02}/s{s:04}");
-                let seed = scenario.seed + s;
-                match deploy(scenario, file, index, seed, dir, &sub) {
+                match deploy(scenario, file, index, s, dir, &sub) {
                     Ok(f) => {
                         if !f.success {
                             bar.suspend(|| {
                                 eprintln!(
-                                    "campaign {}: run {sub} (seed {seed}) failed: see {}",
+                                    "campaign {}: run {sub} (seed {}) failed: see {}",
                                     scenario.name,
+                                    f.seed,
                                     dir.join(&sub).join("summary.md").display()
                                 )
                             });
@@ -498,6 +516,7 @@ mod tests {
             seed,
             run: format!("00/s{seed:04}"),
             success,
+            epochs_scored: 3001,
             rtmse: errors(rtmse),
             nees_mean: nees,
             within_3sigma: RelNavShares {
@@ -533,5 +552,23 @@ mod tests {
         assert!(lo < 14.0 && 14.0 < hi && hi - lo < Score::nees_interval(1).1);
         assert_eq!(v.runs_within_paper, 2);
         assert!((v.within_3sigma.rate - 0.9).abs() < 1e-12);
+    }
+
+    #[test]
+    fn runs_weigh_by_their_scored_epochs_and_a_value_without_a_scored_run_is_nan() {
+        let mut short = run_with(0, [0.02, 1e-5, 1e-4, 3e-4, 1e-6], 14.0, true);
+        short.epochs_scored = 1000;
+        let mut long = run_with(1, [0.04, 1e-5, 1e-4, 3e-4, 1e-6], 14.0, true);
+        long.epochs_scored = 3000;
+        let v = pool("4".into(), vec![short, long]);
+        let expected = ((0.02f64.powi(2) * 1000.0 + 0.04f64.powi(2) * 3000.0) / 4000.0).sqrt();
+        assert!((v.rtmse.attitude_deg - expected).abs() < 1e-15);
+        let none = pool(
+            "4".into(),
+            vec![run_with(0, [0.02, 1e-5, 1e-4, 3e-4, 1e-6], 14.0, false)],
+        );
+        assert_eq!((none.runs, none.failed), (1, 1));
+        assert!(none.rtmse.attitude_deg.is_nan() && none.nees_mean.is_nan());
+        assert!(none.rtmse_worst.position_m.is_nan());
     }
 }

@@ -137,7 +137,21 @@ fn deploy_and_run(
         log_dir: out_dir.join("logs"),
     };
     let mut live = Live::spawn(scenario, &node, spawner, consumer, sequencer, progress)?;
-    let exit = run_loop(&inputs, TICK, |wakes| live.step(wakes))?;
+    // A signal is seen by one wait loop of the process: a deployment run beside the one that
+    // saw it (a campaign's) stops on the flag that one set.
+    let mut interrupted = false;
+    let exit = run_loop(&inputs, TICK, |wakes| {
+        if INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst) {
+            interrupted = true;
+            return Ok(glint_runtime::Step::Stop);
+        }
+        live.step(wakes)
+    })?;
+    let exit = if interrupted {
+        glint_runtime::Exit::Terminated
+    } else {
+        exit
+    };
     live.stop(exit)?;
     let facts = live.facts();
     drop(inputs);

@@ -520,8 +520,10 @@ impl FrameInbox {
             }
             if self.verify_checksum && !self.checksum_holds(&header, pixels) {
                 let meta = header.meta;
-                self.stats.observe_sent(0, meta.seq, meta.send_mono_ns);
-                self.stats.drop_for(DropReason::Malformed);
+                // A stale copy (already accounted for) is a duplicate, not a second drop.
+                if self.stats.observe_sent(0, meta.seq, meta.send_mono_ns) == SeqVerdict::Accept {
+                    self.stats.drop_for(DropReason::Malformed);
+                }
                 self.last_reject = Some(Reject {
                     field: "frame.pixels_xxh3",
                     what: "does not match the pixels",
