@@ -338,4 +338,69 @@ mod tests {
         // The update did something: the observed components' σ shrank.
         assert!(post[ix::TH] < 0.5 * sig[ix::TH] && post[ix::RHO] < 0.5 * sig[ix::RHO]);
     }
+
+    /// A target at rest (ω = 0, v = 0, no disturbance, mean motion ≈ 0): the error dynamics
+    /// are linear and constant (δθ̇ = δω, δρ̇ = δv, the rest held), so after n noise-free
+    /// epochs the filter's covariance must be the batch least-squares one in closed form,
+    /// `Φ(tₙ) (P₀⁻¹ + Σₖ (Hₖ Φ(tₖ))ᵀ R⁻¹ Hₖ Φ(tₖ))⁻¹ Φ(tₙ)ᵀ`.
+    #[test]
+    fn a_target_at_rest_matches_the_closed_form_batch_covariance() {
+        let mut rig = rig();
+        rig.mean_motion_rad_s = 1e-9;
+        rig.torque_psd = 0.0;
+        rig.accel_psd = 0.0;
+        let mut x0 = state();
+        x0.w_t = nalgebra::Vector3::zeros();
+        x0.v_o = nalgebra::Vector3::zeros();
+        let sig0 = [
+            1e-2, 1e-2, 1e-2, 1e-3, 1e-3, 1e-3, 0.1, 0.1, 1e-2, 1e-2, 1e-2, 1e-3, 1e-3, 1e-3,
+        ];
+        let p0 = ErrMat::from_diagonal(&ErrVec::from_fn(|i, _| sig0[i] * sig0[i]));
+        let phi = |t: f64| {
+            let mut m = ErrMat::identity();
+            for i in 0..3 {
+                m[(ix::TH + i, ix::W + i)] = t;
+                m[(ix::RHO + i, ix::V + i)] = t;
+            }
+            m
+        };
+        let r = rig.sigma_norm * rig.sigma_norm;
+        let mut info = p0.try_inverse().unwrap();
+        let mut f = Filter::new(x0, p0, 0.0);
+        let n = 10;
+        for k in 1..=n {
+            let t = k as f64;
+            f.predict_to(&rig, t);
+            // noise-free features where the filter predicts them: the estimate stays on the
+            // truth and every Jacobian is the truth's
+            let obs: Vec<FeatureObs> = (0..rig.features_m.len())
+                .map(|i| {
+                    let (z, h) = measure(&rig, &f.x, &rig.features_m[i]).unwrap();
+                    let hp = h * phi(t);
+                    info += hp.transpose() * hp / r;
+                    FeatureObs {
+                        feature: i,
+                        z: z.into(),
+                    }
+                })
+                .collect();
+            let out = f.update(&rig, &obs, 1e9).unwrap();
+            assert_eq!(out.used, 4);
+        }
+        let p_closed = phi(n as f64) * info.try_inverse().unwrap() * phi(n as f64).transpose();
+        for i in 0..N_ERR {
+            for j in 0..N_ERR {
+                let scale = (p_closed[(i, i)] * p_closed[(j, j)]).sqrt();
+                assert!(
+                    (f.p[(i, j)] - p_closed[(i, j)]).abs() < 1e-6 * scale,
+                    "P[{i},{j}]: {} vs {}",
+                    f.p[(i, j)],
+                    p_closed[(i, j)]
+                );
+            }
+        }
+        // The measurements taught the filter: δθ and δρ shrank, k (unobservable at rest) did not.
+        assert!(f.p[(ix::TH, ix::TH)] < 1e-3 * p0[(ix::TH, ix::TH)]);
+        assert!((f.p[(ix::K, ix::K)] / p0[(ix::K, ix::K)] - 1.0).abs() < 1e-9);
+    }
 }
