@@ -18,6 +18,7 @@
 //! - [`hover`]: the seed-000 GEO hover geometry (§1.7)
 //! - [`rigid_body`]: Euler's equations and the tanh inertia parametrisation (§5.4)
 //! - [`stereo`]: rectified stereo projection and triangulation (§5.5)
+//! - [`photometry`]: Ashikhmin–Shirley facets from OBJ text, shadowing, magnitudes (§2.1–2.4)
 
 pub mod brdf;
 pub mod camera;
@@ -27,6 +28,7 @@ pub mod frames;
 pub mod hover;
 pub mod materials;
 pub mod orbit;
+pub mod photometry;
 pub mod rigid_body;
 pub mod rng;
 pub mod satellite;
