@@ -5,13 +5,17 @@
 //! - [`spin`]: the spin attitude `q(v, φ)`, the Fibonacci axes and the rotation angles (§2.5);
 //! - [`database`]: the geometry–attitude–photometry database for one Sun and observer geometry;
 //! - [`rate`]: the spin rate by FFT with parabolic refinement, Lomb–Scargle across gaps (§2.6);
-//! - [`matching`]: the matching degree and size over the database (§2.7).
+//! - [`matching`]: the matching degree and size over the database (§2.7);
+//! - [`grp`], [`ukf`]: the attitude UKF on generalised Rodrigues parameters (USQUE, §2.8–2.9).
 
 pub mod database;
+pub mod grp;
 pub mod matching;
 pub mod rate;
 pub mod spin;
+pub mod ukf;
 
 pub use database::Database;
 pub use matching::{identify, Identification, Match};
 pub use rate::dominant_angular_frequency;
+pub use ukf::{Sample, StepOutcome, Ukf, UkfFailure, UkfSettings};

@@ -12,7 +12,7 @@ use nalgebra::Vector3;
 
 use super::ashikhmin_shirley::{rho_total, SpecularDenominator};
 use super::mesh::Shape;
-use super::visibility::visible_facets;
+use super::visibility::facet_visible;
 
 /// The Sun's visual apparent magnitude (the patent's constant).
 pub const SUN_MAGNITUDE: f64 = -26.7;
@@ -25,10 +25,9 @@ pub fn normalised_flux(
     obs: &Vector3<f64>,
     den: SpecularDenominator,
 ) -> f64 {
-    let vis = visible_facets(shape, sun, obs);
-    (shape.facets.iter().zip(vis))
-        .filter(|(_, v)| *v)
-        .map(|(f, _)| {
+    (shape.facets.iter().enumerate())
+        .filter(|(i, _)| facet_visible(shape, *i, sun, obs))
+        .map(|(_, f)| {
             let rho = rho_total(&f.n, &f.u, &f.v, sun, obs, &f.material, den);
             rho * f.area_m2 * f.n.dot(sun) * f.n.dot(obs)
         })

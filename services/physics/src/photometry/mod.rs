@@ -15,4 +15,4 @@ pub mod visibility;
 pub use ashikhmin_shirley::{rho_total, Material, SpecularDenominator};
 pub use flux::{apparent_magnitude, flux_of_magnitude, normalised_flux, SUN_MAGNITUDE};
 pub use mesh::{parse_obj, Facet, FanTriangle, ObjError, Shape};
-pub use visibility::{moller_trumbore, visible_facets};
+pub use visibility::{facet_visible, moller_trumbore, visible_facets};

@@ -36,37 +36,45 @@ pub fn moller_trumbore(o: &Vector3<f64>, d: &Vector3<f64>, tri: &[Vector3<f64>; 
     Some(e2.dot(&q) * inv)
 }
 
-/// Whether the ray from `o` along `d` meets a facet other than `from` in front of it.
+/// Whether the ray from `o` along `d` meets a facet other than `from` in front of it. A facet's
+/// fan triangles are consecutive in `shape.triangles`: their signed hits are summed facet by
+/// facet.
 fn blocked(shape: &Shape, from: usize, o: &Vector3<f64>, d: &Vector3<f64>) -> bool {
     let min_t = EPSILON * shape.size_m;
-    // Winding per facet: the fan's signed triangles holding the hit point.
-    let mut winding: Vec<(usize, i32)> = vec![];
+    let (mut facet, mut winding, mut crosses) = (usize::MAX, 0, false);
     for t in &shape.triangles {
-        if t.facet == from {
-            continue;
-        }
-        if moller_trumbore(o, d, &t.vertices_m).is_some_and(|t_hit| t_hit > min_t) {
-            match winding.iter_mut().find(|(f, _)| *f == t.facet) {
-                Some((_, w)) => *w += t.sign,
-                None => winding.push((t.facet, t.sign)),
+        if t.facet != facet {
+            if winding != 0 {
+                return true;
             }
+            (facet, winding) = (t.facet, 0);
+            // The ray can meet this facet only where it crosses its plane ahead of the origin.
+            let f = &shape.facets[facet];
+            let along = d.dot(&f.n);
+            crosses = facet != from && along != 0.0 && (f.centre_m - o).dot(&f.n) / along > min_t;
+        }
+        if crosses && moller_trumbore(o, d, &t.vertices_m).is_some_and(|t_hit| t_hit > min_t) {
+            winding += t.sign;
         }
     }
-    winding.iter().any(|(_, w)| *w != 0)
+    winding != 0
 }
 
-/// Per facet: whether it faces the Sun and the observer (unit directions in the body frame)
-/// and neither is hidden from its centre by another facet.
+/// Whether facet `i` faces the Sun and the observer (unit directions in the body frame) and
+/// neither is hidden from its centre by another facet.
+pub fn facet_visible(shape: &Shape, i: usize, sun: &Vector3<f64>, obs: &Vector3<f64>) -> bool {
+    let f = &shape.facets[i];
+    if !(f.n.dot(sun) > 0.0 && f.n.dot(obs) > 0.0) {
+        return false;
+    }
+    let o = f.centre_m + f.n * (EPSILON * shape.size_m);
+    !blocked(shape, i, &o, sun) && !blocked(shape, i, &o, obs)
+}
+
+/// [`facet_visible`] of every facet.
 pub fn visible_facets(shape: &Shape, sun: &Vector3<f64>, obs: &Vector3<f64>) -> Vec<bool> {
-    let offset = EPSILON * shape.size_m;
-    (shape.facets.iter().enumerate())
-        .map(|(i, f)| {
-            if !(f.n.dot(sun) > 0.0 && f.n.dot(obs) > 0.0) {
-                return false;
-            }
-            let o = f.centre_m + f.n * offset;
-            !blocked(shape, i, &o, sun) && !blocked(shape, i, &o, obs)
-        })
+    (0..shape.facets.len())
+        .map(|i| facet_visible(shape, i, sun, obs))
         .collect()
 }
 
