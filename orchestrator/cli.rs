@@ -287,6 +287,18 @@ pub(crate) enum ToolCmd {
         #[arg(long, default_value = ".")]
         out: PathBuf,
     },
+    /// The [001] chain on a light curve (`t_s, mag, sigma_mag, sun_x.., obs_x.., range_m`) and
+    /// the user's shapes (SHAPES.toml naming OBJ files): geometry, spin and size by the database,
+    /// then the attitude by the UKF; writes DIR/identification.json and DIR/attitude.csv,
+    /// prints the identification. docs/photometry.md fixes the formats.
+    Photometry {
+        lc: PathBuf,
+        #[arg(long)]
+        shapes: PathBuf,
+        /// Directory for identification.json and attitude.csv.
+        #[arg(long, default_value = ".")]
+        out: PathBuf,
+    },
     /// Render one camera frame of a scenario into a 16-bit PGM.
     Render {
         scenario: PathBuf,

@@ -6,11 +6,14 @@
 //! - `glint tool tfit SAMPLES`: the t location-scale MLE of a sample file as JSON.
 //! - `glint tool earth FRAME.pgm --f-px F --center X,Y`: β from a fisheye Earth image by every
 //!   [003] method, as JSON.
+//! - `glint tool photometry LC.csv --shapes SHAPES.toml [--out DIR]`: the [001] chain on a light
+//!   curve and the user's OBJ shapes;
 //! - `glint tool relnav MEAS.csv --rig RIG.toml [--out DIR]`: the [004] filter on a file of
 //!   stereo measurements.
 
 pub mod invert;
 pub mod observations;
+pub mod photometry;
 pub mod relnav;
 
 use std::path::Path;
@@ -330,6 +333,9 @@ pub(crate) fn command(tool: crate::cli::ToolCmd) -> std::process::ExitCode {
             )),
         },
         ToolCmd::Tfit { samples } => tfit(&samples).map(|json| println!("{json}")),
+        ToolCmd::Photometry { lc, shapes, out } => {
+            photometry::run(&lc, &shapes, &out).map(|json| println!("{json}"))
+        }
         ToolCmd::Relnav { meas, rig, out } => {
             relnav::run(&meas, &rig, &out).map(|json| println!("{json}"))
         }

@@ -21,6 +21,11 @@ pub struct Database {
     pub angles: Vec<f64>,
     /// M [m² sr⁻¹], geometry-major, then axis, then angle.
     entries: Vec<f64>,
+    /// What an entry off the lattice is computed from ([`Database::entry_about`]).
+    shapes: Vec<Shape>,
+    sun: Vector3<f64>,
+    obs: Vector3<f64>,
+    den: SpecularDenominator,
 }
 
 impl Database {
@@ -54,7 +59,22 @@ impl Database {
             axes,
             angles,
             entries,
+            shapes: shapes.iter().map(|(_, s)| s.clone()).collect(),
+            sun: *sun,
+            obs: *obs,
+            den,
         }
+    }
+
+    /// Geometry `g`'s fluxes about any `axis` at the database's angles (an entry off the
+    /// Fibonacci lattice, for refining a match).
+    pub fn entry_about(&self, g: usize, axis: &Unit<Vector3<f64>>) -> Vec<f64> {
+        (self.angles.iter())
+            .map(|&phi| {
+                let q = spin_attitude(axis, phi).inverse();
+                normalised_flux(&self.shapes[g], &(q * self.sun), &(q * self.obs), self.den)
+            })
+            .collect()
     }
 
     /// M_{g,a,·}: geometry `g`'s fluxes about axis `a` at every angle.

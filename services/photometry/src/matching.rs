@@ -46,6 +46,15 @@ pub struct Identification {
 
 /// Candidate rates: the line's rate divided by 1 to this.
 const SUBHARMONICS: usize = 4;
+/// Candidates per geometry whose rate is refined, and the refinement: ± this many steps of
+/// this relative size.
+const REFINED: usize = 5;
+const RATE_STEPS: i32 = 4;
+const RATE_STEP: f64 = 5e-4;
+/// The axis refinement's ring radii [rad] (8° then 3°, each ring also at half its radius) and
+/// azimuths per ring.
+const AXIS_REFINEMENT_RAD: [f64; 2] = [0.14, 0.05];
+const AZIMUTHS: usize = 8;
 
 /// Database entries below this fraction of the largest are skipped (j with no light).
 const DARK: f64 = 1e-9;
@@ -63,7 +72,30 @@ fn interpolate(t_s: &[f64], y: &[f64], t: f64) -> Option<f64> {
     Some(y[k - 1] + (y[k] - y[k - 1]) * (t - t0) / (t1 - t0))
 }
 
-/// The best phase of entry `m` at rate `w`: (score, spread, P̄, t*).
+/// The ratios' (score, spread, P̄) with the database angles read from `t` on, if every one
+/// falls inside the curve.
+fn ratios_at(
+    t_s: &[f64],
+    y: &[f64],
+    lit: &[(usize, f64)],
+    step: f64,
+    t: f64,
+    p: &mut [f64],
+) -> Option<(f64, f64, f64)> {
+    for (slot, &(j, mj)) in p.iter_mut().zip(lit) {
+        *slot = interpolate(t_s, y, t + j as f64 * step)? / mj;
+    }
+    let mean = p.iter().sum::<f64>() / p.len() as f64;
+    if mean <= 0.0 {
+        return None;
+    }
+    let spread = (p.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / p.len() as f64).sqrt();
+    Some((spread / mean, spread, mean))
+}
+
+/// The best phase of entry `m` at rate `w`: (score, spread, P̄, t*). Each phase in the first
+/// turn is scored by the mean of eq (10) over every turn the curve holds from it (the same
+/// entry at the same phase, one turn later), so that noise in one turn does not pick the phase.
 fn best_phase(t_s: &[f64], y: &[f64], m: &[f64], w: f64) -> Option<(f64, f64, f64, f64)> {
     let max_m = m.iter().cloned().fold(0.0, f64::max);
     let lit: Vec<(usize, f64)> = (m.iter().copied().enumerate())
@@ -73,31 +105,76 @@ fn best_phase(t_s: &[f64], y: &[f64], m: &[f64], w: f64) -> Option<(f64, f64, f6
         return None;
     }
     let step = 2.0 * std::f64::consts::PI / m.len() as f64 / w;
-    let last = *t_s.last()?;
+    let turn = step * m.len() as f64;
+    let (first, last) = (*t_s.first()?, *t_s.last()?);
+    let span = step * (m.len() - 1) as f64;
     let mut best: Option<(f64, f64, f64, f64)> = None;
     let mut p = vec![0.0; lit.len()];
     for &t in t_s {
-        if t + step * (m.len() - 1) as f64 > last {
+        if t >= first + turn || t + span > last {
             break;
         }
-        let mut ok = true;
-        for (slot, &(j, mj)) in p.iter_mut().zip(&lit) {
-            match interpolate(t_s, y, t + j as f64 * step) {
-                Some(v) => *slot = v / mj,
-                None => ok = false,
+        let (mut n, mut score, mut spread, mut mean) = (0.0, 0.0, 0.0, 0.0);
+        let mut start = t;
+        while start + span <= last {
+            if let Some((sc, sp, me)) = ratios_at(t_s, y, &lit, step, start, &mut p) {
+                n += 1.0;
+                score += sc;
+                spread += sp;
+                mean += me;
             }
+            start += turn;
         }
-        if !ok {
+        if n == 0.0 {
             continue;
         }
-        let mean = p.iter().sum::<f64>() / p.len() as f64;
-        if mean <= 0.0 {
-            continue;
-        }
-        let spread = (p.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / p.len() as f64).sqrt();
-        let score = spread / mean;
+        let (score, spread, mean) = (score / n, spread / n, mean / n);
         if best.is_none_or(|b| score < b.0) {
             best = Some((score, spread, mean, t));
+        }
+    }
+    best
+}
+
+/// Refines a match's axis off the lattice (whose axes are up to ~8° from any direction):
+/// rings of axes about it, shrinking, each with its rate refined by ±1 step; the best kept.
+fn refine_axis(db: &Database, g: usize, mut best: Match, t_s: &[f64], y: &[f64]) -> Match {
+    for radius in AXIS_REFINEMENT_RAD {
+        let centre = best.axis;
+        // two unit vectors across the axis
+        let across = if centre.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let e1 = centre.cross(&across).normalize();
+        let e2 = centre.cross(&e1);
+        for ring in [0.5, 1.0] {
+            for k in 0..AZIMUTHS {
+                let az = 2.0 * std::f64::consts::PI * k as f64 / AZIMUTHS as f64;
+                let r = radius * ring;
+                let axis = nalgebra::Unit::new_normalize(
+                    centre * r.cos() + (e1 * az.cos() + e2 * az.sin()) * r.sin(),
+                );
+                let m = db.entry_about(g, &axis);
+                for i in -1..=1 {
+                    let w = best.spin_rad_s * (1.0 + RATE_STEP * i as f64);
+                    if let Some((score, spread, mean, t)) = best_phase(t_s, y, &m, w) {
+                        if score < best.score {
+                            best = Match {
+                                axis: axis.into_inner(),
+                                spin_rad_s: w,
+                                area_scale: mean,
+                                area_m2: best.area_m2 / best.area_scale * mean,
+                                score,
+                                spread,
+                                t_s: t,
+                                ..best
+                            };
+                        }
+                    }
+                }
+            }
         }
     }
     best
@@ -109,16 +186,28 @@ pub fn identify(db: &Database, t_s: &[f64], y: &[f64]) -> Option<Identification>
     let line = crate::rate::dominant_angular_frequency(t_s, y)?;
     let mut per_geometry: Vec<Match> = vec![];
     for (g, (name, area0)) in db.geometries.iter().enumerate() {
-        let mut best: Option<Match> = None;
+        // Every axis at every candidate rate, then the best few with their rate refined: the
+        // line's rate is good to a few 1e-4, and a turn-averaged score drifts with the error.
+        let mut coarse: Vec<(f64, usize, f64)> = vec![];
         for w in (1..=SUBHARMONICS).map(|k| line / k as f64) {
-            for (a, axis) in db.axes.iter().enumerate() {
+            for a in 0..db.axes.len() {
+                if let Some((score, ..)) = best_phase(t_s, y, db.entry(g, a), w) {
+                    coarse.push((score, a, w));
+                }
+            }
+        }
+        coarse.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let mut best: Option<Match> = None;
+        for &(_, a, w0) in coarse.iter().take(REFINED) {
+            for i in -RATE_STEPS..=RATE_STEPS {
+                let w = w0 * (1.0 + RATE_STEP * i as f64);
                 let Some((score, spread, mean, t)) = best_phase(t_s, y, db.entry(g, a), w) else {
                     continue;
                 };
                 if best.as_ref().is_none_or(|b| score < b.score) {
                     best = Some(Match {
                         geometry: name.clone(),
-                        axis: axis.into_inner(),
+                        axis: db.axes[a].into_inner(),
                         spin_rad_s: w,
                         area_scale: mean,
                         area_m2: area0 * mean,
@@ -129,7 +218,7 @@ pub fn identify(db: &Database, t_s: &[f64], y: &[f64]) -> Option<Identification>
                 }
             }
         }
-        per_geometry.extend(best);
+        per_geometry.extend(best.map(|b| refine_axis(db, g, b, t_s, y)));
     }
     per_geometry.sort_by(|a, b| a.score.total_cmp(&b.score));
     Some(Identification {

@@ -42,7 +42,7 @@ fn parabolic_offset(a: f64, b: f64, c: f64) -> f64 {
 fn fft_peak(y: &[f64], fs_hz: f64) -> Option<f64> {
     let n = y.len();
     let mean = y.iter().sum::<f64>() / n as f64;
-    let n_fft = (8 * n).next_power_of_two();
+    let n_fft = (64 * n).next_power_of_two();
     let mut buf: Vec<Complex<f64>> = vec![Complex::new(0.0, 0.0); n_fft];
     for (k, (b, v)) in buf.iter_mut().zip(y).enumerate() {
         let hann = 0.5 * (1.0 - (2.0 * PI * k as f64 / (n - 1) as f64).cos());
