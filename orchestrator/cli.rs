@@ -84,6 +84,23 @@ pub(crate) enum LabCmd {
         #[arg(long, requires = "out")]
         rescore: bool,
     },
+    /// [001] how often the identification names the right geometry: light curves of every
+    /// shape in SHAPES.toml about random axes, with noise, identified; a confusion table.
+    Identify {
+        #[arg(long)]
+        shapes: PathBuf,
+        /// Random spin axes per shape.
+        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u16).range(1..=1000))]
+        axes: u16,
+        /// Magnitude noise σ [mag].
+        #[arg(long, default_value_t = 0.05)]
+        noise: f64,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Where identify.json and confusion.md go (default: runs/identify-<UTC timestamp>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 #[derive(Subcommand)]

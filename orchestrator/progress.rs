@@ -42,6 +42,7 @@ pub fn points_bar(total: u64) -> ProgressBar {
 }
 
 /// A bar over a campaign's deployments, the value being run in its message.
+#[cfg(feature = "lab")]
 pub fn runs_bar(total: u64) -> ProgressBar {
     let b = ProgressBar::new(total);
     b.set_style(

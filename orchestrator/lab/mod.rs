@@ -9,6 +9,7 @@ use anyhow::{Context, Result};
 use serde_json::{json, Value};
 use shared_types::Scenario;
 
+pub mod identify;
 pub mod mc;
 pub mod mc_summary;
 pub mod relnav;
@@ -248,6 +249,33 @@ pub(crate) fn command(lab: crate::cli::LabCmd) -> std::process::ExitCode {
     use crate::run::command::{finish, load_with_seed};
     use std::process::ExitCode;
     match lab {
+        LabCmd::Identify {
+            shapes,
+            axes,
+            noise,
+            seed,
+            out,
+        } => {
+            if !(noise.is_finite() && (0.0..=2.0).contains(&noise)) {
+                eprintln!("error: --noise {noise}: out of range; allowed 0..=2 mag");
+                return ExitCode::from(2);
+            }
+            let out = out.unwrap_or_else(|| {
+                PathBuf::from("runs").join(format!("identify-{}", crate::run::utc_stamp()))
+            });
+            let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
+            match identify::run(&shapes, axes as usize, noise, seed, &out, progress) {
+                Ok(r) => {
+                    println!("{}", identify::markdown(&r));
+                    println!("{}", out.join("confusion.md").display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e:#}");
+                    ExitCode::from(2)
+                }
+            }
+        }
         LabCmd::Campaign {
             scenario,
             out,
