@@ -59,31 +59,48 @@ const AZIMUTHS: usize = 8;
 /// Database entries below this fraction of the largest are skipped (j with no light).
 const DARK: f64 = 1e-9;
 
-/// `y` at `t` by linear interpolation of the samples (`t_s` increasing); `None` outside.
-fn interpolate(t_s: &[f64], y: &[f64], t: f64) -> Option<f64> {
-    let k = t_s.partition_point(|&s| s <= t);
-    if k == 0 || k > t_s.len() || (k == t_s.len() && t > t_s[k - 1]) {
-        return None;
+/// A light curve: times (increasing), normalised flux, and the longest interval
+/// interpolation may bridge (samples missing in shadow or below the horizon leave gaps that
+/// must not be filled with a straight line).
+struct Curve<'a> {
+    t_s: &'a [f64],
+    y: &'a [f64],
+    max_gap_s: f64,
+}
+
+/// Intervals up to this many times the median one are bridged.
+const GAP_FACTOR: f64 = 2.5;
+
+impl Curve<'_> {
+    /// `y` at `t` by linear interpolation; `None` outside the curve or inside a gap.
+    fn at(&self, t: f64) -> Option<f64> {
+        let (t_s, y) = (self.t_s, self.y);
+        let k = t_s.partition_point(|&s| s <= t);
+        if k == 0 || (k == t_s.len() && t > t_s[k - 1]) {
+            return None;
+        }
+        if k == t_s.len() {
+            return Some(y[k - 1]);
+        }
+        let (t0, t1) = (t_s[k - 1], t_s[k]);
+        if t1 - t0 > self.max_gap_s && t != t0 {
+            return None;
+        }
+        Some(y[k - 1] + (y[k] - y[k - 1]) * (t - t0) / (t1 - t0))
     }
-    if k == t_s.len() {
-        return Some(y[k - 1]);
-    }
-    let (t0, t1) = (t_s[k - 1], t_s[k]);
-    Some(y[k - 1] + (y[k] - y[k - 1]) * (t - t0) / (t1 - t0))
 }
 
 /// The ratios' (score, spread, P̄) with the database angles read from `t` on, if every one
 /// falls inside the curve.
 fn ratios_at(
-    t_s: &[f64],
-    y: &[f64],
+    curve: &Curve<'_>,
     lit: &[(usize, f64)],
     step: f64,
     t: f64,
     p: &mut [f64],
 ) -> Option<(f64, f64, f64)> {
     for (slot, &(j, mj)) in p.iter_mut().zip(lit) {
-        *slot = interpolate(t_s, y, t + j as f64 * step)? / mj;
+        *slot = curve.at(t + j as f64 * step)? / mj;
     }
     let mean = p.iter().sum::<f64>() / p.len() as f64;
     if mean <= 0.0 {
@@ -96,7 +113,8 @@ fn ratios_at(
 /// The best phase of entry `m` at rate `w`: (score, spread, P̄, t*). Each phase in the first
 /// turn is scored by the mean of eq (10) over every turn the curve holds from it (the same
 /// entry at the same phase, one turn later), so that noise in one turn does not pick the phase.
-fn best_phase(t_s: &[f64], y: &[f64], m: &[f64], w: f64) -> Option<(f64, f64, f64, f64)> {
+fn best_phase(curve: &Curve<'_>, m: &[f64], w: f64) -> Option<(f64, f64, f64, f64)> {
+    let t_s = curve.t_s;
     let max_m = m.iter().cloned().fold(0.0, f64::max);
     let lit: Vec<(usize, f64)> = (m.iter().copied().enumerate())
         .filter(|(_, v)| *v > DARK * max_m)
@@ -117,7 +135,7 @@ fn best_phase(t_s: &[f64], y: &[f64], m: &[f64], w: f64) -> Option<(f64, f64, f6
         let (mut n, mut score, mut spread, mut mean) = (0.0, 0.0, 0.0, 0.0);
         let mut start = t;
         while start + span <= last {
-            if let Some((sc, sp, me)) = ratios_at(t_s, y, &lit, step, start, &mut p) {
+            if let Some((sc, sp, me)) = ratios_at(curve, &lit, step, start, &mut p) {
                 n += 1.0;
                 score += sc;
                 spread += sp;
@@ -138,7 +156,7 @@ fn best_phase(t_s: &[f64], y: &[f64], m: &[f64], w: f64) -> Option<(f64, f64, f6
 
 /// Refines a match's axis off the lattice (whose axes are up to ~8° from any direction):
 /// rings of axes about it, shrinking, each with its rate refined by ±1 step; the best kept.
-fn refine_axis(db: &Database, g: usize, mut best: Match, t_s: &[f64], y: &[f64]) -> Match {
+fn refine_axis(db: &Database, g: usize, mut best: Match, curve: &Curve<'_>) -> Match {
     for radius in AXIS_REFINEMENT_RAD {
         let centre = best.axis;
         // two unit vectors across the axis
@@ -159,7 +177,7 @@ fn refine_axis(db: &Database, g: usize, mut best: Match, t_s: &[f64], y: &[f64])
                 let m = db.entry_about(g, &axis);
                 for i in -1..=1 {
                     let w = best.spin_rad_s * (1.0 + RATE_STEP * i as f64);
-                    if let Some((score, spread, mean, t)) = best_phase(t_s, y, &m, w) {
+                    if let Some((score, spread, mean, t)) = best_phase(curve, &m, w) {
                         if score < best.score {
                             best = Match {
                                 axis: axis.into_inner(),
@@ -184,6 +202,13 @@ fn refine_axis(db: &Database, g: usize, mut best: Match, t_s: &[f64], y: &[f64])
 /// (increasing) against `db`; `None` when the curve has no dominant line or no entry fits.
 pub fn identify(db: &Database, t_s: &[f64], y: &[f64]) -> Option<Identification> {
     let line = crate::rate::dominant_angular_frequency(t_s, y)?;
+    let mut dts: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
+    dts.sort_by(f64::total_cmp);
+    let curve = Curve {
+        t_s,
+        y,
+        max_gap_s: GAP_FACTOR * dts[dts.len() / 2],
+    };
     let mut per_geometry: Vec<Match> = vec![];
     for (g, (name, area0)) in db.geometries.iter().enumerate() {
         // Every axis at every candidate rate, then the best few with their rate refined: the
@@ -191,7 +216,7 @@ pub fn identify(db: &Database, t_s: &[f64], y: &[f64]) -> Option<Identification>
         let mut coarse: Vec<(f64, usize, f64)> = vec![];
         for w in (1..=SUBHARMONICS).map(|k| line / k as f64) {
             for a in 0..db.axes.len() {
-                if let Some((score, ..)) = best_phase(t_s, y, db.entry(g, a), w) {
+                if let Some((score, ..)) = best_phase(&curve, db.entry(g, a), w) {
                     coarse.push((score, a, w));
                 }
             }
@@ -201,7 +226,7 @@ pub fn identify(db: &Database, t_s: &[f64], y: &[f64]) -> Option<Identification>
         for &(_, a, w0) in coarse.iter().take(REFINED) {
             for i in -RATE_STEPS..=RATE_STEPS {
                 let w = w0 * (1.0 + RATE_STEP * i as f64);
-                let Some((score, spread, mean, t)) = best_phase(t_s, y, db.entry(g, a), w) else {
+                let Some((score, spread, mean, t)) = best_phase(&curve, db.entry(g, a), w) else {
                     continue;
                 };
                 if best.as_ref().is_none_or(|b| score < b.score) {
@@ -218,7 +243,7 @@ pub fn identify(db: &Database, t_s: &[f64], y: &[f64]) -> Option<Identification>
                 }
             }
         }
-        per_geometry.extend(best.map(|b| refine_axis(db, g, b, t_s, y)));
+        per_geometry.extend(best.map(|b| refine_axis(db, g, b, &curve)));
     }
     per_geometry.sort_by(|a, b| a.score.total_cmp(&b.score));
     Some(Identification {

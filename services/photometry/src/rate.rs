@@ -9,11 +9,15 @@ use std::f64::consts::PI;
 
 /// Sampling counts as uniform when every interval is within this fraction of the first.
 const UNIFORM: f64 = 1e-6;
+/// Most samples, and most Lomb–Scargle frequencies (span over median interval × 4): a curve
+/// beyond either gives no rate rather than hours of work.
+pub const MAX_SAMPLES: usize = 1 << 20;
+pub const MAX_FREQUENCIES: usize = 1 << 20;
 
 /// ω = 2π f [rad/s] of the light curve's dominant line; `None` with fewer than 8 samples or a
 /// flat curve.
 pub fn dominant_angular_frequency(t_s: &[f64], y: &[f64]) -> Option<f64> {
-    if t_s.len() < 8 || t_s.len() != y.len() {
+    if t_s.len() < 8 || t_s.len() != y.len() || t_s.len() > MAX_SAMPLES {
         return None;
     }
     let dt = t_s[1] - t_s[0];
@@ -93,20 +97,25 @@ fn lomb_scargle_peak(t: &[f64], y: &[f64]) -> Option<f64> {
     dts.sort_by(f64::total_cmp);
     let f_max = 0.5 / dts[dts.len() / 2].max(1e-12);
     let df = 1.0 / (8.0 * span);
-    let bins = (f_max / df).floor() as usize;
-    let power: Vec<f64> = (0..=bins)
-        .map(|k| lomb_scargle(t, &yc, k.max(1) as f64 * df))
-        .collect();
-    let (k, &peak) = power
-        .iter()
-        .enumerate()
-        .skip(1)
-        .max_by(|a, b| a.1.total_cmp(b.1))?;
-    if peak <= 0.0 || k + 1 >= power.len() {
+    let bins = (f_max / df).floor();
+    if !(1.0..=MAX_FREQUENCIES as f64).contains(&bins) {
         return None;
     }
-    let k_star = k as f64 + parabolic_offset(power[k - 1], power[k], power[k + 1]);
-    Some(k_star * df)
+    // power[i] at frequency (i + 1) df: from the lowest frequency the span resolves
+    let power: Vec<f64> = (1..=bins as usize)
+        .map(|k| lomb_scargle(t, &yc, k as f64 * df))
+        .collect();
+    let (i, &peak) = power.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1))?;
+    if peak <= 0.0 {
+        return None;
+    }
+    // refined by the parabola only between two neighbours
+    let offset = if i > 0 && i + 1 < power.len() {
+        parabolic_offset(power[i - 1], power[i], power[i + 1])
+    } else {
+        0.0
+    };
+    Some((i as f64 + 1.0 + offset) * df)
 }
 
 #[cfg(test)]

@@ -7,7 +7,9 @@
 //! weight but the centre's positive); the patent's γ = 0.5 (λ = −5.25, centre weights −7 and
 //! −4.25) is a setting: over 20 runs started from P₀ (5.7°, 1e-3 rad/s) it ended at a median
 //! 1.9° with runs lost, where γ = 1 ended at 0.35° (docs/photometry.md). When `(n + λ)(P + Q̄)`
-//! is not positive definite the step falls back to γ = 1 and counts it. Each point is propagated exactly for its constant rate,
+//! is not positive definite it gets a jitter (1e-12 tr P, growing); a step whose negative centre
+//! weight (γ < 1) leaves a predicted covariance or innovation variance that is not positive is
+//! taken again with γ = 1, and counted. Each point is propagated exactly for its constant rate,
 //! `q ⊗ exp(ω Δt / 2)`; the rate is a random walk of PSD `rate_psd`.
 
 use glint_physics::photometry::{apparent_magnitude, normalised_flux, Shape, SpecularDenominator};
@@ -62,7 +64,7 @@ pub enum StepOutcome {
 /// The filter could not go on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 pub enum UkfFailure {
-    #[error("the covariance is not positive definite even with γ = 1")]
+    #[error("the covariance is not positive definite, even with γ = 1 and a jitter")]
     Covariance,
     #[error("the state or covariance is not finite")]
     State,
@@ -75,11 +77,14 @@ pub struct Ukf {
     pub p: Matrix6<f64>,
     pub t_s: f64,
     pub settings: UkfSettings,
-    /// Steps that fell back to γ = 1.
+    /// Steps taken again with γ = 1 (the predicted covariance of γ < 1 was not positive
+    /// definite).
     pub fallbacks: u64,
 }
 
 const N: f64 = 6.0;
+/// A covariance that is not positive definite gets 1e-12 tr P, then 10× more, this many times.
+const JITTER_STEPS: i32 = 7;
 
 /// The UT's weights for γ: (λ, W₀ᵐ, W₀ᶜ, Wᵢ).
 fn weights(gamma: f64, beta: f64) -> (f64, f64, f64, f64) {
@@ -133,24 +138,40 @@ impl Ukf {
         apparent_magnitude(m, s.range_m)
     }
 
-    /// Propagates to the sample's time and updates with its magnitude (steps 1–8 of §2.9).
+    /// Propagates to the sample's time and updates with its magnitude (steps 1–8 of §2.9). A
+    /// step whose weights leave a predicted covariance that is not positive definite (a
+    /// negative centre weight, γ < 1) is taken again with γ = 1 and counted.
     pub fn step(&mut self, shape: &Shape, s: &Sample) -> Result<StepOutcome, UkfFailure> {
+        match self.step_with(shape, s, self.settings.gamma) {
+            Err(UkfFailure::Covariance) if self.settings.gamma != 1.0 => {
+                self.fallbacks += 1;
+                self.step_with(shape, s, 1.0)
+            }
+            other => other,
+        }
+    }
+
+    fn step_with(
+        &mut self,
+        shape: &Shape,
+        s: &Sample,
+        gamma: f64,
+    ) -> Result<StepOutcome, UkfFailure> {
         let dt = (s.t_s - self.t_s).max(0.0);
         let qbar = self.process_noise(dt);
-        // 1. Sigma points, falling back to γ = 1 when (n + λ)(P + Q̄) is not positive definite.
-        let base = self.p + qbar;
-        let (lambda, mut w0m, mut w0c, mut wi) = weights(self.settings.gamma, self.settings.beta);
-        let chol = match ((N + lambda) * base).cholesky() {
-            Some(c) => c,
-            None => {
-                let fallback = weights(1.0, self.settings.beta);
-                (w0m, w0c, wi) = (fallback.1, fallback.2, fallback.3);
-                self.fallbacks += 1;
-                ((N + fallback.0) * base)
-                    .cholesky()
-                    .ok_or(UkfFailure::Covariance)?
+        // 1. Sigma points; a covariance that lost definiteness to rounding gets a jitter.
+        let mut base = self.p + qbar;
+        let (lambda, w0m, w0c, wi) = weights(gamma, self.settings.beta);
+        let jitter = 1e-12 * base.trace().abs().max(f64::MIN_POSITIVE);
+        let mut chol = ((N + lambda) * base).cholesky();
+        for k in 0..JITTER_STEPS {
+            if chol.is_some() {
+                break;
             }
-        };
+            base += Matrix6::identity() * (jitter * 10f64.powi(k));
+            chol = ((N + lambda) * base).cholesky();
+        }
+        let chol = chol.ok_or(UkfFailure::Covariance)?;
         let l = chol.l();
         let grp = self.settings.grp;
         let mut chi: Vec<Vector6<f64>> = Vec::with_capacity(13);
@@ -187,6 +208,9 @@ impl Ukf {
         for (i, c) in chi.iter().enumerate() {
             let d = c - x_pred;
             p_pred += d * d.transpose() * weight_c(i);
+        }
+        if w0c < 0.0 && p_pred.cholesky().is_none() {
+            return Err(UkfFailure::Covariance);
         }
         // 6. Predicted magnitudes.
         let ys: Option<Vec<f64>> = q_pts.iter().map(|q| self.magnitude(shape, q, s)).collect();

@@ -34,7 +34,7 @@ pub struct Facet {
 pub struct Shape {
     pub facets: Vec<Facet>,
     pub triangles: Vec<FanTriangle>,
-    /// Largest distance between two vertices [m] (sets the ray casts' offsets).
+    /// The diagonal of the vertices' bounding box [m] (sets the ray casts' offsets).
     pub size_m: f64,
 }
 
@@ -149,7 +149,7 @@ pub fn parse_obj(text: &str, material: Material) -> Result<Shape, ObjError> {
                     let n = vertices.len() as i64;
                     let resolved = match i {
                         1.. if i <= n => i - 1,
-                        ..=-1 if -i <= n => n + i,
+                        ..=-1 if i.unsigned_abs() <= n as u64 => n + i,
                         _ => {
                             return Err(bad(format!(
                                 "vertex index {i} out of range: {n} vertices defined so far \
@@ -202,10 +202,15 @@ pub fn parse_obj(text: &str, material: Material) -> Result<Shape, ObjError> {
         }
         facets.push(facet);
     }
-    let size_m = vertices
-        .iter()
-        .flat_map(|a| vertices.iter().map(move |b| (a - b).norm()))
-        .fold(0.0, f64::max);
+    // The bounding box's diagonal: the size that sets the ray casts' offsets.
+    let (lo, hi) = vertices.iter().fold(
+        (
+            Vector3::repeat(f64::INFINITY),
+            Vector3::repeat(f64::NEG_INFINITY),
+        ),
+        |(lo, hi), v| (lo.inf(v), hi.sup(v)),
+    );
+    let size_m = (hi - lo).norm();
     Ok(Shape {
         facets,
         triangles,
@@ -358,6 +363,12 @@ f 4 1 5 8
         )
         .unwrap_err();
         assert!(e.message.contains("not planar"), "{e}");
+        let e = parse_obj(
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -9223372036854775808\n",
+            MATERIAL,
+        )
+        .unwrap_err();
+        assert!(e.message.contains("out of range"), "{e}");
         let e = parse_obj("v 0 0 0\nv 1 0 0\nf 1 2\n", MATERIAL).unwrap_err();
         assert!(e.message.contains("3 or more"), "{e}");
         assert!(parse_obj("# nothing\n", MATERIAL)
