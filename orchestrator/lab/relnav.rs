@@ -90,6 +90,9 @@ pub struct RelNavCampaign {
     pub paper: RelNavErrors,
 }
 
+/// The state groups, in the order of [`groups`].
+const GROUP_NAMES: [&str; 5] = ["attitude", "ω", "k", "position", "velocity"];
+
 fn groups(e: &RelNavErrors) -> [f64; 5] {
     [
         e.attitude_deg,
@@ -393,8 +396,7 @@ fn trend(c: &RelNavCampaign) -> String {
     if c.rows.len() < 2 {
         return String::new();
     }
-    let names = ["attitude", "ω", "k", "position", "velocity"];
-    let moves: Vec<String> = names
+    let moves: Vec<String> = GROUP_NAMES
         .iter()
         .zip(groups(&first.rtmse).iter().zip(groups(&last.rtmse)))
         .map(|(n, (a, b))| format!("{n} ×{:.2}", b / a))
@@ -480,11 +482,10 @@ fn plot(dir: &Path, c: &RelNavCampaign) -> Result<()> {
         return Ok(());
     };
     let base = groups(&first.rtmse);
-    let names = ["attitude", "ω", "k", "position", "velocity"];
     let colors = [BLUE, GREEN, ORANGE, PURPLE, RED];
     let series: Vec<Series> = (0..5)
         .map(|g| Series {
-            label: names[g],
+            label: GROUP_NAMES[g],
             points: c
                 .rows
                 .iter()
