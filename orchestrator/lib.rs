@@ -17,6 +17,7 @@ mod progress;
 pub mod report;
 /// A [004] campaign's `campaign.json`, where other tools look for it.
 #[cfg(feature = "lab")]
+pub use lab::photometry::PhotometryCampaign;
 pub use lab::relnav::RelNavCampaign;
 /// The fault matrix's report, where other tools look for it.
 pub use run::matrix;

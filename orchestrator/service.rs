@@ -14,6 +14,7 @@ pub fn run(id: ServiceId, args: ServiceArgs<'_>) -> Result<()> {
         ServiceId::Inversion => run_service::<glint_inversion::node::InversionNode>(args),
         ServiceId::Earth => run_service::<glint_earth::node::EarthNode>(args),
         ServiceId::RelNav => run_service::<glint_relnav::node::RelNavNode>(args),
+        ServiceId::Photometry => run_service::<glint_photometry::node::PhotometryNode>(args),
         ServiceId::Orchestrator => bail!("the orchestrator is `glint run`, not a service"),
     }
 }

@@ -12,6 +12,8 @@ use shared_types::Scenario;
 pub mod identify;
 pub mod mc;
 pub mod mc_summary;
+pub mod parallel;
+pub mod photometry;
 pub mod relnav;
 
 use crate::plots::{line_chart, Series, BLUE, GREEN, RED};
@@ -31,6 +33,10 @@ pub fn run(
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     if relnav::applies(scenario, &camp) {
         let ok = relnav::run(scenario, file, &dir, &camp, progress)?;
+        return Ok((dir, ok));
+    }
+    if photometry::applies(scenario, &camp) {
+        let ok = photometry::run(scenario, file, &dir, &camp, progress)?;
         return Ok((dir, ok));
     }
     let mut rows = vec![];
@@ -291,7 +297,7 @@ pub(crate) fn command(lab: crate::cli::LabCmd) -> std::process::ExitCode {
                 eprintln!("error: {file}: no [campaign] section (run it with `glint run {file}`)");
                 return ExitCode::from(2);
             };
-            if rescore && relnav::applies(&sc, campaign) {
+            if rescore && (relnav::applies(&sc, campaign) || photometry::applies(&sc, campaign)) {
                 eprintln!("error: {file}: --rescore re-scores [000] Monte-Carlo campaigns only");
                 return ExitCode::from(2);
             }

@@ -1,5 +1,5 @@
-//! [004] campaigns: every value of the swept parameter deployed with `seeds` seeds, as many
-//! deployments at a time as the host has cores (at most [`MAX_PARALLEL`]); per value the RTMSE
+//! [004] campaigns: every value of the swept parameter deployed with `seeds` seeds, side by
+//! side ([`crate::lab::parallel`]); per value the RTMSE
 //! pooled over the runs (math.md eq 40 with M runs), the runs' mean NEES against its M-run
 //! 95 % interval and the share of epochs within 3σ; `DIR/campaign.json`, a table with the
 //! paper's trends in `DIR/summary.md` and each group's error against the parameter in
@@ -7,24 +7,18 @@
 
 use std::fmt::Write as _;
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use glint_relnav::score::Score;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use shared_types::scenario::Campaign;
 use shared_types::Scenario;
 
+use crate::lab::parallel::{deploy_all, value_text, Deployed};
 use crate::plots::{line_chart, Series, BLUE, GREEN, ORANGE, PURPLE, RED};
 use crate::report::sections::relnav::{RelNavErrors, RelNavShares};
-use crate::run::{self, RunOptions};
-
-/// Deployments run at once: each is two services and the orchestrator's thread, so one per
-/// core keeps a 2-core host busy without the runs slowing each other.
-const MAX_PARALLEL: usize = 4;
 
 /// Whether a campaign of `scenario` is a [004] one: it sweeps a `stereo.*` parameter, or the
 /// scenario's only science is the stereo chain.
@@ -185,41 +179,14 @@ pub fn pool(value: String, per_run: Vec<RunFigures>) -> ValueFigures {
     }
 }
 
-/// One deployment of value `index` with the value's seed + `offset`, its logs silenced (its
-/// report and its services' logs are in its directory).
-fn deploy(
-    scenario: &Scenario,
-    file: &str,
-    index: usize,
-    offset: u64,
-    dir: &Path,
-    sub: &str,
-) -> Result<RunFigures> {
-    let mut variant = scenario
-        .campaign_variant(index)
-        .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
-    // A `seed` sweep's value is the first seed of its runs.
-    let seed = variant.seed + offset;
-    variant.seed = seed;
-    variant.name = format!("{}-s{seed}", variant.name);
-    let (run_dir, ok) =
-        tracing::subscriber::with_default(tracing::subscriber::NoSubscriber::default(), || {
-            run::run(RunOptions {
-                scenario: variant,
-                scenario_file: file.to_string(),
-                out_dir: Some(dir.join(sub)),
-                // The campaign owns its directory: a sub-run there replaces the previous one.
-                replace: true,
-                progress: false,
-            })
-        })?;
-    let report = crate::report::Report::read(&run_dir.join("report.json"))?;
-    let r = report.results.relnav.as_ref();
+/// One deployment's figures, and whether it scored.
+fn figures(d: Deployed) -> (RunFigures, bool) {
+    let r = d.report.results.relnav.as_ref();
     let nan = errors([f64::NAN; 5]);
-    Ok(RunFigures {
-        seed,
-        run: sub.to_string(),
-        success: ok && r.is_some(),
+    let f = RunFigures {
+        seed: d.seed,
+        run: d.run.clone(),
+        success: d.success && r.is_some(),
         epochs_scored: r.map_or(0, |r| r.epochs_scored),
         rtmse: r.map_or(nan, |r| r.rtmse.clone()),
         nees_mean: r.map_or(f64::NAN, |r| r.nees_mean),
@@ -236,7 +203,9 @@ fn deploy(
         starts: r.map_or(0, |r| r.filter.starts),
         diverged: r.map_or(0, |r| r.filter.diverged),
         numerical_failures: r.map_or(0, |r| r.filter.numerical_failures),
-    })
+    };
+    let ok = f.success;
+    (f, ok)
 }
 
 /// Runs the campaign into `dir`. Returns whether every deployment succeeded.
@@ -249,89 +218,10 @@ pub fn run(
 ) -> Result<bool> {
     let t0 = Instant::now();
     let seeds = camp.seeds.max(1);
-    let jobs: Vec<(usize, u64)> = (0..camp.values.len())
-        .flat_map(|i| (0..u64::from(seeds)).map(move |s| (i, s)))
+    let (per_value, parallel) = deploy_all(scenario, file, dir, camp, progress, figures)?;
+    let rows: Vec<ValueFigures> = (camp.values.iter().zip(per_value))
+        .map(|(value, per_run)| pool(value_text(value), per_run))
         .collect();
-    let parallel = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(MAX_PARALLEL)
-        .min(jobs.len())
-        .max(1);
-    eprintln!(
-        "campaign {}: {} = {} values × {seeds} seeds = {} deployments, {parallel} at a time",
-        scenario.name,
-        camp.parameter,
-        camp.values.len(),
-        jobs.len()
-    );
-    let bar = if progress {
-        crate::progress::runs_bar(jobs.len() as u64)
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
-    let next = AtomicUsize::new(0);
-    let results: Mutex<Vec<Option<RunFigures>>> = Mutex::new(vec![None; jobs.len()]);
-    let first_error: Mutex<Option<anyhow::Error>> = Mutex::new(None);
-    std::thread::scope(|s| {
-        for _ in 0..parallel {
-            s.spawn(|| loop {
-                let j = next.fetch_add(1, Ordering::SeqCst);
-                let stop = first_error.lock().map_or(true, |e| e.is_some());
-                if j >= jobs.len() || stop || run::bail_if_interrupted("campaign").is_err() {
-                    break;
-                }
-                let (index, s) = jobs[j];
-                let sub = format!("{index:02}/s{s:04}");
-                match deploy(scenario, file, index, s, dir, &sub) {
-                    Ok(f) => {
-                        if !f.success {
-                            bar.suspend(|| {
-                                eprintln!(
-                                    "campaign {}: run {sub} (seed {}) failed: see {}",
-                                    scenario.name,
-                                    f.seed,
-                                    dir.join(&sub).join("summary.md").display()
-                                )
-                            });
-                        }
-                        if let Ok(mut r) = results.lock() {
-                            r[j] = Some(f);
-                        }
-                        bar.set_message(format!(
-                            "{} = {}",
-                            camp.parameter,
-                            value_text(&camp.values[index])
-                        ));
-                        bar.inc(1);
-                    }
-                    Err(e) => {
-                        if let Ok(mut slot) = first_error.lock() {
-                            slot.get_or_insert(e.context(format!("campaign run {sub}")));
-                        }
-                        break;
-                    }
-                }
-            });
-        }
-    });
-    bar.finish_and_clear();
-    if let Some(e) = first_error.into_inner().ok().flatten() {
-        return Err(e);
-    }
-    run::bail_if_interrupted("campaign")?;
-    let mut results = results
-        .into_inner()
-        .map_err(|_| anyhow::anyhow!("a campaign worker panicked"))?
-        .into_iter();
-    let mut rows = vec![];
-    for value in &camp.values {
-        let per_run: Vec<RunFigures> = results
-            .by_ref()
-            .take(seeds as usize)
-            .collect::<Option<_>>()
-            .context("a campaign run left no figures")?;
-        rows.push(pool(value_text(value), per_run));
-    }
     let out = RelNavCampaign {
         scenario: scenario.name.clone(),
         parameter: camp.parameter.clone(),
@@ -351,10 +241,6 @@ pub fn run(
     let all_ok = out.rows.iter().all(|r| r.failed == 0);
     eprintln!("{}", headline(&out));
     Ok(all_ok)
-}
-
-fn value_text(v: &toml::Value) -> String {
-    v.to_string().trim_matches('"').to_string()
 }
 
 /// The first line a user reads: each value's pooled errors against the paper's.

@@ -127,6 +127,7 @@ pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
         detection: None,
         tracking: None,
         relnav: None,
+        photometry: None,
     };
     let faults = faults::reports(f);
     let mut report = Report {

@@ -69,6 +69,9 @@ pub struct Results {
     /// [004] relative navigation against truth.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub relnav: Option<super::sections::RelNavReport>,
+    /// [001] ground photometry against truth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub photometry: Option<super::sections::PhotometryReport>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]

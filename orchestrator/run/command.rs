@@ -20,14 +20,31 @@ pub(crate) fn load(path: Option<&PathBuf>) -> Result<(Scenario, String), Scenari
         Some(p) => {
             let sc = Scenario::from_file(p)?;
             // The files a scenario names are read now, not by a service after deployment.
+            let invalid = |field: &str, message: String| ScenarioError::Invalid {
+                file: p.display().to_string(),
+                errors: vec![shared_types::scenario::FieldError {
+                    field: field.into(),
+                    message,
+                }],
+            };
             if let Some(Err(e)) = (sc.earth.as_ref()).map(glint_earth::service_core::sigma_table) {
-                return Err(ScenarioError::Invalid {
-                    file: p.display().to_string(),
-                    errors: vec![shared_types::scenario::FieldError {
-                        field: "earth.sigma_table".into(),
-                        message: e.to_string(),
-                    }],
-                });
+                return Err(invalid("earth.sigma_table", e.to_string()));
+            }
+            if let Some(ph) = &sc.photometry {
+                let shapes = glint_photometry::shapes::read_shapes(&ph.shapes)
+                    .map_err(|e| invalid("photometry.shapes", format!("{e:#}")))?;
+                if !shapes.iter().any(|(n, _)| *n == ph.geometry) {
+                    let names: Vec<&str> = shapes.iter().map(|(n, _)| n.as_str()).collect();
+                    return Err(invalid(
+                        "photometry.geometry",
+                        format!(
+                            "`{}` is not a shape of {}; allowed: {}",
+                            ph.geometry,
+                            ph.shapes.display(),
+                            names.join(", ")
+                        ),
+                    ));
+                }
             }
             Ok((sc, p.display().to_string()))
         }

@@ -15,100 +15,17 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{anyhow, bail, Context, Result};
-use glint_photometry::spin::spin_attitude;
-use glint_photometry::{identify, Database, Sample, Ukf, UkfSettings};
-use glint_physics::photometry::{
-    flux_of_magnitude, parse_obj, Material, Shape, SpecularDenominator,
-};
-use nalgebra::{Matrix6, Unit, Vector3, Vector6};
+use glint_photometry::service_core::{identify_samples, scaled_shape, start_filter};
+use glint_photometry::{Sample, UkfSettings};
+use glint_physics::photometry::SpecularDenominator;
+use nalgebra::Vector3;
 use serde_json::json;
 
 /// Header of `attitude.csv`.
 pub const ATTITUDE_HEADER: &str =
     "t_s,qw,qx,qy,qz,wx,wy,wz,sig_th_x,sig_th_y,sig_th_z,sig_w_x,sig_w_y,sig_w_z";
 
-/// The UKF's start about the best match: 1σ of the attitude [rad] (the database's axes are
-/// ~14° apart and its angles 45°, the phase found to a sample) and of the rate, relative.
-const START_SIGMA_ATTITUDE_RAD: f64 = 0.1;
-const START_SIGMA_RATE_FRACTION: f64 = 0.01;
-
-/// Reads SHAPES.toml and every OBJ it names; every problem names the file and the field, or
-/// the OBJ's line and column.
-pub fn read_shapes(path: &Path) -> Result<Vec<(String, Shape)>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let file = path.display();
-    let table: toml::Table =
-        toml::from_str(&text).map_err(|e| anyhow!("{file}: not valid TOML: {e}"))?;
-    if let Some(k) = table.keys().find(|k| k.as_str() != "shape") {
-        bail!("{file}: unknown field `{k}` (allowed: shape)");
-    }
-    let list = table
-        .get("shape")
-        .and_then(|v| v.as_array())
-        .filter(|a| !a.is_empty())
-        .ok_or_else(|| anyhow!("{file}: no [[shape]] tables"))?;
-    if list.len() > 64 {
-        bail!(
-            "{file}: field `shape`: {} shapes; allowed 1..=64",
-            list.len()
-        );
-    }
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let mut shapes = vec![];
-    for (i, s) in list.iter().enumerate() {
-        let at = format!("shape[{i}]");
-        let t = s
-            .as_table()
-            .ok_or_else(|| anyhow!("{file}: field `{at}` is not a table"))?;
-        if let Some(k) = t
-            .keys()
-            .find(|k| !["name", "obj", "material"].contains(&k.as_str()))
-        {
-            bail!("{file}: unknown field `{at}.{k}` (allowed: name, obj, material)");
-        }
-        let text_field = |k: &str| -> Result<String> {
-            t.get(k)
-                .and_then(|v| v.as_str())
-                .map(str::to_string)
-                .ok_or_else(|| anyhow!("{file}: field `{at}.{k}` is missing or not a string"))
-        };
-        let name = text_field("name")?;
-        if shapes.iter().any(|(n, _)| *n == name) {
-            bail!("{file}: field `{at}.name`: `{name}` is named twice");
-        }
-        let m = t
-            .get("material")
-            .and_then(|v| v.as_table())
-            .ok_or_else(|| anyhow!("{file}: field `{at}.material` is missing or not a table"))?;
-        let num = |k: &str, lo: f64, hi: f64| -> Result<f64> {
-            let v = match m.get(k) {
-                Some(toml::Value::Float(f)) => *f,
-                Some(toml::Value::Integer(i)) => *i as f64,
-                _ => bail!("{file}: field `{at}.material.{k}` is missing or not a number"),
-            };
-            if !(v.is_finite() && (lo..=hi).contains(&v)) {
-                bail!(
-                    "{file}: field `{at}.material.{k}`: {v} is out of range; allowed {lo}..={hi}"
-                );
-            }
-            Ok(v)
-        };
-        let material = Material {
-            r_diff: num("r_diff", 0.0, 1.0)?,
-            r_spec: num("r_spec", 0.0, 1.0)?,
-            n_u: num("n_u", 0.0, 1e6)?,
-            n_v: num("n_v", 0.0, 1e6)?,
-        };
-        let obj = dir.join(text_field("obj")?);
-        let obj_text = std::fs::read_to_string(&obj)
-            .with_context(|| format!("{file}: field `{at}.obj`: cannot read {}", obj.display()))?;
-        let shape =
-            parse_obj(&obj_text, material).map_err(|e| anyhow!("{}: {e}", obj.display()))?;
-        shapes.push((name, shape));
-    }
-    Ok(shapes)
-}
+pub use glint_photometry::shapes::read_shapes;
 
 /// Reads LC.csv in time order; every problem names the file, the line and the column.
 pub fn read_light_curve(path: &Path) -> Result<Vec<Sample>> {
@@ -220,19 +137,9 @@ pub fn read_light_curve(path: &Path) -> Result<Vec<Sample>> {
 pub fn run(lc: &Path, shapes_path: &Path, out: &Path) -> Result<String> {
     let shapes = read_shapes(shapes_path)?;
     let samples = read_light_curve(lc)?;
-    // The database's one geometry: the arc's mean Sun and observer directions.
-    let mean = |f: fn(&Sample) -> Vector3<f64>| -> Vector3<f64> {
-        samples.iter().map(f).sum::<Vector3<f64>>().normalize()
-    };
-    let (sun, obs) = (mean(|s| s.sun), mean(|s| s.obs));
     let den = SpecularDenominator::Linares2014;
-    let db = Database::build(&shapes, &sun, &obs, 200, 8, den);
-    let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
-    let y: Vec<f64> = samples
-        .iter()
-        .map(|s| flux_of_magnitude(s.mag, s.range_m))
-        .collect();
-    let id = identify(&db, &t, &y).ok_or_else(|| {
+    // The database's one geometry: the arc's mean Sun and observer directions.
+    let id = identify_samples(&shapes, &samples, 200, 8, den).ok_or_else(|| {
         anyhow!(
             "{}: no spin line or no database entry fits the light curve",
             lc.display()
@@ -259,30 +166,9 @@ pub fn run(lc: &Path, shapes_path: &Path, out: &Path) -> Result<String> {
         "matching": matching,
     });
     // The UKF from the best match: its attitude at the first sample, its rate about its axis.
-    let shape = shapes
-        .iter()
-        .find(|(n, _)| *n == b.geometry)
-        .map(|(_, s)| s.scaled(b.area_scale.sqrt()))
-        .context("the identified geometry is not among the shapes")?;
-    let axis = Unit::new_normalize(b.axis);
-    let t0 = samples[0].t_s;
-    let q0 = spin_attitude(&axis, b.spin_rad_s * (t0 - b.t_s));
-    let sig_w = START_SIGMA_RATE_FRACTION * b.spin_rad_s;
-    let p0 = Matrix6::from_diagonal(&Vector6::new(
-        START_SIGMA_ATTITUDE_RAD.powi(2),
-        START_SIGMA_ATTITUDE_RAD.powi(2),
-        START_SIGMA_ATTITUDE_RAD.powi(2),
-        sig_w * sig_w,
-        sig_w * sig_w,
-        sig_w * sig_w,
-    ));
-    let mut ukf = Ukf::new(
-        q0,
-        axis.into_inner() * b.spin_rad_s,
-        p0,
-        t0,
-        UkfSettings::default(),
-    );
+    let shape =
+        scaled_shape(&shapes, b).context("the identified geometry is not among the shapes")?;
+    let mut ukf = start_filter(b, samples[0].t_s, UkfSettings::default());
     let mut csv = String::from(ATTITUDE_HEADER);
     csv.push('\n');
     let mut failed = None;

@@ -64,7 +64,7 @@ fn truth_layout() {
     assert_eq!(offset_of!(Truth, false_targets_px), 920);
     assert_eq!(offset_of!(Truth, earth_beta_deg), 1176);
     assert_eq!(offset_of!(Truth, earth_tilt_deg), 1184);
-    assert_eq!(offset_of!(Truth, stereo_state), 1192);
+    assert_eq!(offset_of!(Truth, target_state), 1192);
 }
 
 #[test]
@@ -111,6 +111,42 @@ fn stereo_and_relnav_layout() {
     assert_eq!(offset_of!(RelNavEstimate, q_ct), 64);
     assert_eq!(offset_of!(RelNavEstimate, covariance), 64 + 15 * 8);
     assert_eq!(offset_of!(RelNavEstimate, starts), 64 + 120 + 840);
+}
+
+#[test]
+fn photometry_layout() {
+    assert_eq!(
+        (
+            size_of::<PhotometrySample>(),
+            align_of::<PhotometrySample>()
+        ),
+        (120, 8)
+    );
+    assert_eq!(offset_of!(PhotometrySample, sample_index), 32);
+    assert_eq!(offset_of!(PhotometrySample, status), 40);
+    assert_eq!(offset_of!(PhotometrySample, mag), 48);
+    assert_eq!(offset_of!(PhotometrySample, sun), 64);
+    assert_eq!(offset_of!(PhotometrySample, obs), 88);
+    assert_eq!(offset_of!(PhotometrySample, range_m), 112);
+    assert_eq!(
+        (size_of::<PhotometryMatch>(), align_of::<PhotometryMatch>()),
+        (72, 8)
+    );
+    assert_eq!(offset_of!(PhotometryMatch, score), 8);
+    assert_eq!(offset_of!(PhotometryMatch, axis), 32);
+    assert_eq!(offset_of!(PhotometryMatch, t0_s), 64);
+    assert_eq!(
+        (
+            size_of::<PhotometryEstimate>(),
+            align_of::<PhotometryEstimate>()
+        ),
+        (864, 8)
+    );
+    assert_eq!(offset_of!(PhotometryEstimate, status), 40);
+    assert_eq!(offset_of!(PhotometryEstimate, matching), 48);
+    assert_eq!(offset_of!(PhotometryEstimate, q_ib), 48 + 8 * 72);
+    assert_eq!(offset_of!(PhotometryEstimate, covariance), 48 + 576 + 56);
+    assert_eq!(offset_of!(PhotometryEstimate, updated), 680 + 168);
 }
 
 #[test]
@@ -230,6 +266,9 @@ fn type_names_carry_the_contract_version() {
             <StereoFeature as ZeroCopySend>::type_name(),
             <Stereo as ZeroCopySend>::type_name(),
             <RelNavEstimate as ZeroCopySend>::type_name(),
+            <PhotometrySample as ZeroCopySend>::type_name(),
+            <PhotometryMatch as ZeroCopySend>::type_name(),
+            <PhotometryEstimate as ZeroCopySend>::type_name(),
         ]
     };
     for name in names {

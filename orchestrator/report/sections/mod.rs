@@ -15,11 +15,14 @@ use crate::run::taps::{Fold, Taps};
 mod debris;
 mod earth;
 mod inversion;
+pub mod photometry;
 pub mod relnav;
 
 use debris::DebrisSection;
 use earth::EarthSection;
 use inversion::InversionSection;
+pub use photometry::PhotometryReport;
+use photometry::PhotometrySection;
 pub use relnav::RelNavReport;
 use relnav::RelNavSection;
 
@@ -52,7 +55,7 @@ pub struct SectionRow {
 }
 
 /// Every mission section, in the order summary.md shows them.
-pub const SECTIONS: [SectionRow; 4] = [
+pub const SECTIONS: [SectionRow; 5] = [
     SectionRow {
         fold: |s| Some(Box::new(InversionSection::fold(s)?)),
         snapshots: |_| vec![],
@@ -67,6 +70,11 @@ pub const SECTIONS: [SectionRow; 4] = [
         fold: |s| Some(Box::new(RelNavSection::fold(s)?)),
         snapshots: |_| vec![],
         collect: |m| Some(Box::new(RelNavSection::collect(m)?)),
+    },
+    SectionRow {
+        fold: |s| Some(Box::new(PhotometrySection::fold(s)?)),
+        snapshots: |_| vec![],
+        collect: |m| Some(Box::new(PhotometrySection::collect(m)?)),
     },
     SectionRow {
         fold: |s| Some(Box::new(DebrisSection::fold(s)?)),

@@ -179,7 +179,7 @@ impl Fold for RelNavFold {
             if t.kind != Truth::KIND_STEREO {
                 return;
             }
-            let s = &t.stereo_state;
+            let s = &t.target_state;
             let truth = nominal(
                 [s[0], s[1], s[2], s[3]],
                 [s[4], s[5], s[6]],

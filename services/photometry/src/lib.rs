@@ -6,12 +6,19 @@
 //! - [`database`]: the geometry–attitude–photometry database for one Sun and observer geometry;
 //! - [`rate`]: the spin rate by FFT with parabolic refinement, Lomb–Scargle across gaps (§2.6);
 //! - [`matching`]: the matching degree and size over the database (§2.7);
-//! - [`grp`], [`ukf`]: the attitude UKF on generalised Rodrigues parameters (USQUE, §2.8–2.9).
+//! - [`grp`], [`ukf`]: the attitude UKF on generalised Rodrigues parameters (USQUE, §2.8–2.9);
+//! - [`shapes`]: shape libraries (SHAPES.toml and its OBJ files);
+//! - [`service_core`]: samples in, identification then attitude out, as a checkpointable state;
+//! - `node`: the service on glint's runtime (feature `node`).
 
 pub mod database;
 pub mod grp;
 pub mod matching;
+#[cfg(feature = "node")]
+pub mod node;
 pub mod rate;
+pub mod service_core;
+pub mod shapes;
 pub mod spin;
 pub mod ukf;
 

@@ -20,7 +20,8 @@ use shared_types::{Command, DropReason, Scenario, ServiceId, TopicId, Truth};
 
 use crate::service_core::SensorCore;
 use crate::streams::{
-    next_in_time, EarthStream, FrameStream, MessageStream, SpectraStream, StereoStream, Stream,
+    next_in_time, EarthStream, FrameStream, MessageStream, PhotometryStream, SpectraStream,
+    StereoStream, Stream,
 };
 
 /// Messages produced per wake-up before the loop checks control and acks again.
@@ -175,6 +176,17 @@ fn emitters(setup: &Setup<'_>, core: &SensorCore) -> Result<Vec<Box<dyn Emitter>
     }
     if let Some(st) = &sc.stereo {
         let stream = StereoStream::new(st, sc.seed);
+        let out = Outbox::open(node, stream.topic(), id)?;
+        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
+        all.push(Box::new(Messages {
+            stream,
+            out,
+            end,
+            period_ns,
+        }));
+    }
+    if let Some(p) = &sc.photometry {
+        let stream = PhotometryStream::new(p, sc.seed)?;
         let out = Outbox::open(node, stream.topic(), id)?;
         let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
         all.push(Box::new(Messages {

@@ -12,13 +12,17 @@
 use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use shared_types::scenario::{CameraScenario, EarthScenario, SpectraScenario, StereoScenario};
+use shared_types::scenario::{
+    CameraScenario, EarthScenario, PhotometryScenario, SpectraScenario, StereoScenario,
+};
 use shared_types::{
-    FrameHeader, Message, Scenario, Spectrum, Stereo, StereoFeature, TopicId, Truth,
+    FrameHeader, Message, PhotometrySample, Scenario, Spectrum, Stereo, StereoFeature, TopicId,
+    Truth,
 };
 
 use crate::debris_scene::DebrisScene;
 use crate::earth_scene::EarthScene;
+use crate::photometry_scene::PhotometryScene;
 use crate::spectra_scene::SpectraScene;
 use crate::stereo_scene::StereoScene;
 
@@ -216,10 +220,42 @@ impl MessageStream for StereoStream {
         let truth = Truth {
             kind: Truth::KIND_STEREO,
             frame_index: k,
-            stereo_state: state,
+            target_state: state,
             ..Truth::default()
         };
         Ok((msg, truth))
+    }
+}
+
+/// The [001] telescope's light curve (`[photometry]`).
+pub struct PhotometryStream {
+    pub scene: PhotometryScene,
+}
+
+impl PhotometryStream {
+    pub fn new(p: &PhotometryScenario, seed: u64) -> Result<Self> {
+        Ok(PhotometryStream {
+            scene: PhotometryScene::new(p, seed)?,
+        })
+    }
+}
+
+impl Stream for PhotometryStream {
+    fn topic(&self) -> TopicId {
+        TopicId::Photometry
+    }
+    fn messages(&self) -> u64 {
+        self.scene.len()
+    }
+    fn t_ns(&self, k: u64) -> u64 {
+        self.scene.t_ns(k)
+    }
+}
+
+impl MessageStream for PhotometryStream {
+    type Msg = PhotometrySample;
+    fn make(&self, k: u64) -> Result<(PhotometrySample, Truth)> {
+        Ok((self.scene.sample(k), self.scene.truth(k)))
     }
 }
 

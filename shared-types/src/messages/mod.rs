@@ -20,6 +20,7 @@ use crate::CONTRACT_VERSION;
 mod camera;
 mod earth;
 mod housekeeping;
+mod photometry;
 mod range;
 mod spectrum;
 mod stereo;
@@ -28,6 +29,7 @@ mod truth;
 pub use camera::*;
 pub use earth::*;
 pub use housekeeping::*;
+pub use photometry::*;
 pub use range::*;
 pub use spectrum::*;
 pub use stereo::*;
@@ -225,7 +227,7 @@ impl Message for Truth {
         self.validate()
     }
     /// Its seq and time, the debris states, the satellite's attitude and rate, the Earth
-    /// sensor's angles, the stereo target's state.
+    /// sensor's angles, the stereo target's or the spinning satellite's state.
     fn fold_digest(&self, digest: &mut xxhash_rust::xxh3::Xxh3) {
         digest.update(&self.meta.seq.to_le_bytes());
         digest.update(&self.meta.t_ns.to_le_bytes());
@@ -241,8 +243,8 @@ impl Message for Truth {
         {
             digest.update(&v.to_le_bytes());
         }
-        if self.kind == Truth::KIND_STEREO {
-            for v in &self.stereo_state {
+        if matches!(self.kind, Truth::KIND_STEREO | Truth::KIND_PHOTOMETRY) {
+            for v in &self.target_state {
                 digest.update(&v.to_le_bytes());
             }
         }
@@ -325,6 +327,37 @@ message!(
                 m.q_ct[0] = f64::NAN;
             }
             Corruption::Count => m.status = RelNavEstimate::STARTED + 1,
+            Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
+        }
+    }
+);
+message!(
+    PhotometrySample,
+    |m: &PhotometrySample| m.validate(),
+    |m: &mut PhotometrySample, how| {
+        use crate::scenario::Corruption;
+        match how {
+            Corruption::Nan => {
+                m.status = PhotometrySample::SEEN;
+                m.mag = f64::NAN;
+            }
+            Corruption::Count => m.status = PhotometrySample::NO_FLUX + 1,
+            Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
+        }
+    }
+);
+message!(
+    PhotometryEstimate,
+    |m: &PhotometryEstimate| m.validate(),
+    |m: &mut PhotometryEstimate, how| {
+        use crate::scenario::Corruption;
+        match how {
+            Corruption::Nan => {
+                m.status = PhotometryEstimate::TRACKING;
+                m.n_matching = m.n_matching.max(1);
+                m.q_ib[0] = f64::NAN;
+            }
+            Corruption::Count => m.n_matching = MAX_MATCHES as u32 + 1,
             Corruption::Version => m.meta.contract_version = !CONTRACT_VERSION,
         }
     }

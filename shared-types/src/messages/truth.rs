@@ -11,7 +11,7 @@ use super::*;
 pub struct Truth {
     pub meta: Meta,
     /// Which stream this truth belongs to: 0 = camera frame, 1 = spectrum sample, 2 = Earth
-    /// frame, 3 = stereo epoch.
+    /// frame, 3 = stereo epoch, 4 = light-curve sample.
     pub kind: u32,
     /// Number of valid debris entries.
     pub n_debris: u32,
@@ -34,9 +34,11 @@ pub struct Truth {
     /// tilt about the turntable axis [deg].
     pub earth_beta_deg: f64,
     pub earth_tilt_deg: f64,
-    /// Stereo epoch ([004]): the target's `[q_ct (w, x, y, z; Hamilton, R = C_CT), ω_t in T
-    /// (rad/s), k, ρ in O (m), v in O (m/s)]`.
-    pub stereo_state: [f64; 15],
+    /// The target's state, by kind. Stereo epoch ([004]): `[q_ct (w, x, y, z; Hamilton, R =
+    /// C_CT), ω_t in T (rad/s), k, ρ in O (m), v in O (m/s)]`. Light-curve sample ([001]):
+    /// `[q_IB (w, x, y, z; body → ECI), ω in the body frame (rad/s), the shape's index in the
+    /// library, its total facet area (m²), the spin rate (rad/s), 0 × 5]`.
+    pub target_state: [f64; 15],
 }
 
 impl Default for Truth {
@@ -54,7 +56,7 @@ impl Default for Truth {
             false_targets_px: [[0.0; 2]; MAX_DEBRIS],
             earth_beta_deg: 0.0,
             earth_tilt_deg: 0.0,
-            stereo_state: [0.0; 15],
+            target_state: [0.0; 15],
         }
     }
 }
@@ -64,14 +66,15 @@ impl Truth {
     pub const KIND_SPECTRUM: u32 = 1;
     pub const KIND_EARTH: u32 = 2;
     pub const KIND_STEREO: u32 = 3;
+    pub const KIND_PHOTOMETRY: u32 = 4;
 
     pub fn validate(&self) -> Result<(), Reject> {
         self.meta.validate()?;
-        if self.kind > Self::KIND_STEREO {
-            return Err(Reject::new("truth.kind", "not 0, 1, 2 or 3"));
+        if self.kind > Self::KIND_PHOTOMETRY {
+            return Err(Reject::new("truth.kind", "not 0, 1, 2, 3 or 4"));
         }
-        for v in self.stereo_state {
-            finite(v, "truth.stereo_state")?;
+        for v in self.target_state {
+            finite(v, "truth.target_state")?;
         }
         finite(self.earth_beta_deg, "truth.earth_beta_deg")?;
         finite(self.earth_tilt_deg, "truth.earth_tilt_deg")?;

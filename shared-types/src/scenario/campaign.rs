@@ -11,7 +11,8 @@ use super::*;
 pub struct Campaign {
     /// One of `spectra.start_phase_deg`, `spectra.snr`, `spectra.body_shape`,
     /// `spectra.materials`, `spectra.rotation` (values "y" or "z": 0.25 deg/frame about that
-    /// body axis), `stereo.n_features`, `stereo.size_m`, `stereo.sigma_norm`, `seed`.
+    /// body axis), `stereo.n_features`, `stereo.size_m`, `stereo.sigma_norm`,
+    /// `photometry.geometry`, `photometry.sigma_mag`, `seed`.
     pub parameter: String,
     /// 1–100 values of that parameter.
     pub values: Vec<toml::Value>,
@@ -22,6 +23,8 @@ pub struct Campaign {
     /// [000]: each value also runs once noise-free (the reference); the summary gives the
     /// scatter about the noise-free solution against the Cramér–Rao bound and the NEES of the
     /// reported covariance. [004]: the RTMSE pooled over the runs and the runs' mean NEES.
+    /// [001]: the identification's confusion table (each seed draws its own spin axis when
+    /// `photometry.spin_axis` is absent).
     #[serde(default = "one")]
     pub seeds: u32,
 }
@@ -31,7 +34,7 @@ fn one() -> u32 {
 }
 
 /// Parameters a campaign may sweep.
-pub const CAMPAIGN_PARAMETERS: [&str; 9] = [
+pub const CAMPAIGN_PARAMETERS: [&str; 11] = [
     "spectra.start_phase_deg",
     "spectra.snr",
     "spectra.body_shape",
@@ -40,6 +43,8 @@ pub const CAMPAIGN_PARAMETERS: [&str; 9] = [
     "stereo.n_features",
     "stereo.size_m",
     "stereo.sigma_norm",
+    "photometry.geometry",
+    "photometry.sigma_mag",
     "seed",
 ];
 
@@ -136,6 +141,17 @@ impl Scenario {
                     _ => x.sigma_norm = n,
                 }
                 s.stereo = Some(x);
+            }
+            "photometry.geometry" | "photometry.sigma_mag" => {
+                let mut x =
+                    (s.photometry.clone()).ok_or_else(|| bad("needs a [photometry] section"))?;
+                match c.parameter.as_str() {
+                    "photometry.geometry" => {
+                        x.geometry = text().ok_or_else(|| bad("is not a shape's name"))?
+                    }
+                    _ => x.sigma_mag = num().ok_or_else(|| bad("is not a number"))?,
+                }
+                s.photometry = Some(x);
             }
             other => {
                 return Err(FieldError {

@@ -12,6 +12,7 @@ mod campaign;
 mod earth;
 mod fault;
 mod matrix;
+mod photometry;
 mod soak;
 mod spectra;
 mod stereo;
@@ -22,6 +23,7 @@ pub use campaign::*;
 pub use earth::*;
 pub use fault::*;
 pub use matrix::*;
+pub use photometry::*;
 pub use soak::*;
 pub use spectra::*;
 pub use stereo::*;
@@ -102,6 +104,9 @@ pub struct Scenario {
     /// The chaser's stereo camera and the tumbling target ([004]); absent = no stereo epochs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stereo: Option<StereoScenario>,
+    /// A ground telescope's light curve of a spinning satellite ([001]); absent = no samples.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub photometry: Option<PhotometryScenario>,
     /// Sweep one parameter: one full deployment per value, results tabulated.
     pub campaign: Option<Campaign>,
     /// Faults to inject (`[[fault]]`; also `glint run --fault`).
@@ -234,6 +239,12 @@ impl Scenario {
                 *t = std::path::absolute(&joined).unwrap_or(joined);
             }
         }
+        if let Some(p) = scenario.photometry.as_mut() {
+            if p.shapes.is_relative() {
+                let joined = dir.join(&p.shapes);
+                p.shapes = std::path::absolute(&joined).unwrap_or(joined);
+            }
+        }
         Ok(scenario)
     }
 
@@ -275,15 +286,19 @@ impl Scenario {
             && self.spectra.is_none()
             && self.earth.is_none()
             && self.stereo.is_none()
+            && self.photometry.is_none()
         {
             c.fail(
                 "camera",
-                "a scenario needs a [camera], [spectra], [earth] or [stereo] section (or several)"
+                "a scenario needs a [camera], [spectra], [earth], [stereo] or [photometry] section (or several)"
                     .into(),
             );
         }
         if let Some(s) = &self.stereo {
             check_stereo(&mut c, s);
+        }
+        if let Some(p) = &self.photometry {
+            check_photometry(&mut c, p);
         }
         if let Some(e) = &self.earth {
             check_earth(&mut c, e);

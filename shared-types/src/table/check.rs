@@ -124,7 +124,12 @@ mod tests {
         assert_eq!(ServiceId::from_name("tracker"), Some(ServiceId::Tracker));
         assert_eq!(ServiceId::from_u32(5), Some(ServiceId::Earth));
         assert_eq!(ServiceId::from_u32(6), Some(ServiceId::RelNav));
-        assert_eq!(ServiceId::from_u32(7), None);
+        assert_eq!(ServiceId::from_u32(7), Some(ServiceId::Photometry));
+        assert_eq!(ServiceId::from_u32(8), None);
+        assert_eq!(
+            TopicId::from_name("photometry_estimate"),
+            Some(TopicId::PhotometryEstimate)
+        );
         assert_eq!(TopicId::from_name("relnav"), Some(TopicId::RelNav));
         assert_eq!(TopicId::from_u32(11), Some(TopicId::EarthAttitude));
         assert_eq!(payload_type_name(TopicId::Tracks), "glint.v7.Tracks");
@@ -134,7 +139,7 @@ mod tests {
         );
         assert_eq!(
             ServiceId::names(),
-            "sensor, detector, tracker, inversion, earth, relnav"
+            "sensor, detector, tracker, inversion, earth, relnav, photometry"
         );
     }
 

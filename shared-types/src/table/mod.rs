@@ -32,6 +32,7 @@ pub enum ServiceId {
     Inversion = 4,
     Earth = 5,
     RelNav = 6,
+    Photometry = 7,
 }
 
 /// Topics of the chain. The numeric value travels in [`Ack::topic`] and the heartbeats' counters.
@@ -52,6 +53,8 @@ pub enum TopicId {
     EarthAttitude = 11,
     Stereo = 12,
     RelNav = 13,
+    Photometry = 14,
+    PhotometryEstimate = 15,
 }
 
 /// The scenario section a service or topic exists with.
@@ -67,6 +70,8 @@ pub enum Section {
     Earth,
     /// `[stereo]`: the stereo rig and the tumbling target ([004]).
     Stereo,
+    /// `[photometry]`: the ground telescope's light curve ([001]).
+    Photometry,
 }
 
 impl Section {
@@ -78,6 +83,7 @@ impl Section {
             Section::Spectra => scenario.spectra.is_some(),
             Section::Earth => scenario.earth.is_some(),
             Section::Stereo => scenario.stereo.is_some(),
+            Section::Photometry => scenario.photometry.is_some(),
         }
     }
 
@@ -89,6 +95,7 @@ impl Section {
             Section::Spectra => "[spectra]",
             Section::Earth => "[earth]",
             Section::Stereo => "[stereo]",
+            Section::Photometry => "[photometry]",
         }
     }
 }
@@ -219,7 +226,7 @@ const fn data(buffer: usize, history: bool) -> Pattern {
 }
 
 /// Every topic, in [`TopicId`] order.
-pub const TOPICS: [TopicSpec; 14] = [
+pub const TOPICS: [TopicSpec; 16] = [
     TopicSpec {
         id: TopicId::Frame,
         name: "frame",
@@ -416,10 +423,37 @@ pub const TOPICS: [TopicSpec; 14] = [
         truth: false,
         about: "each epoch's relative pose, rates, inertia ratios and covariance",
     },
+    TopicSpec {
+        id: TopicId::Photometry,
+        name: "photometry",
+        pattern: data(64, true),
+        section: Section::Photometry,
+        from: From::One(ServiceId::Sensor),
+        count: Count::Stream {
+            messages: |sc| sc.photometry.as_ref().map_or(0, |p| p.samples()),
+            period_ns: |sc| {
+                (sc.photometry.as_ref()).map(|p| ((p.cadence_s * 1e9).round() as u64).max(1))
+            },
+        },
+        replay: Replay::Remade,
+        truth: true,
+        about: "the telescope's light curve: magnitude, σ, Sun and observer, range (or a gap)",
+    },
+    TopicSpec {
+        id: TopicId::PhotometryEstimate,
+        name: "photometry_estimate",
+        pattern: data(16, false),
+        section: Section::Photometry,
+        from: From::One(ServiceId::Photometry),
+        count: Count::PerInput(TopicId::Photometry),
+        replay: Replay::OrchestratorOnly,
+        truth: false,
+        about: "each sample's identification (geometry, axis, spin, size) and UKF attitude",
+    },
 ];
 
 /// Every service, in [`ServiceId`] order (also the order they are started in).
-pub const SERVICES: [ServiceSpec; 7] = [
+pub const SERVICES: [ServiceSpec; 8] = [
     ServiceSpec {
         id: ServiceId::Orchestrator,
         name: "orchestrator",
@@ -435,6 +469,8 @@ pub const SERVICES: [ServiceSpec; 7] = [
             TopicId::EarthAttitude,
             TopicId::Stereo,
             TopicId::RelNav,
+            TopicId::Photometry,
+            TopicId::PhotometryEstimate,
         ],
         outputs: &[TopicId::Control],
         calls: &[TopicId::Solve],
@@ -451,6 +487,7 @@ pub const SERVICES: [ServiceSpec; 7] = [
             TopicId::Spectrum,
             TopicId::EarthFrame,
             TopicId::Stereo,
+            TopicId::Photometry,
             TopicId::Truth,
             TopicId::Range,
         ],
@@ -508,11 +545,21 @@ pub const SERVICES: [ServiceSpec; 7] = [
         code: "glint-relnav",
         about: "[004] relative pose, rates and inertia ratios of a tumbling target",
     },
+    ServiceSpec {
+        id: ServiceId::Photometry,
+        name: "photometry",
+        section: Section::Photometry,
+        inputs: &[TopicId::Photometry],
+        outputs: &[TopicId::PhotometryEstimate],
+        calls: &[],
+        code: "glint-photometry",
+        about: "[001] geometry, spin and size from a light curve; attitude by a UKF",
+    },
 ];
 
 impl ServiceId {
-    pub const ALL: [ServiceId; 7] = {
-        let mut all = [ServiceId::Orchestrator; 7];
+    pub const ALL: [ServiceId; 8] = {
+        let mut all = [ServiceId::Orchestrator; 8];
         let mut i = 0;
         while i < SERVICES.len() {
             all[i] = SERVICES[i].id;
@@ -554,8 +601,8 @@ impl ServiceId {
 }
 
 impl TopicId {
-    pub const ALL: [TopicId; 14] = {
-        let mut all = [TopicId::Frame; 14];
+    pub const ALL: [TopicId; 16] = {
+        let mut all = [TopicId::Frame; 16];
         let mut i = 0;
         while i < TOPICS.len() {
             all[i] = TOPICS[i].id;
@@ -628,6 +675,8 @@ pub fn visit<V: PayloadVisitor>(topic: TopicId, v: V) -> V::Out {
         TopicId::EarthAttitude => v.messages::<EarthAttitude>(spec),
         TopicId::Stereo => v.messages::<Stereo>(spec),
         TopicId::RelNav => v.messages::<RelNavEstimate>(spec),
+        TopicId::Photometry => v.messages::<PhotometrySample>(spec),
+        TopicId::PhotometryEstimate => v.messages::<PhotometryEstimate>(spec),
         TopicId::Range => v.calls::<RangeRequest, RangeResponse>(spec),
         TopicId::Solve => v.calls::<SolveRequest, SolveResponse>(spec),
     }

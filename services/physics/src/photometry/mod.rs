@@ -10,9 +10,11 @@
 pub mod ashikhmin_shirley;
 pub mod flux;
 pub mod mesh;
+pub mod site;
 pub mod visibility;
 
 pub use ashikhmin_shirley::{rho_total, Material, SpecularDenominator};
 pub use flux::{apparent_magnitude, flux_of_magnitude, normalised_flux, SUN_MAGNITUDE};
 pub use mesh::{parse_obj, Facet, FanTriangle, ObjError, Shape};
+pub use site::{geometry, geostationary, Geometry, Station, Unseen};
 pub use visibility::{facet_visible, moller_trumbore, visible_facets};
