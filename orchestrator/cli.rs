@@ -342,6 +342,9 @@ pub(crate) struct RunArgs {
     /// Replace the previous run in --out (a glint run directory not in use).
     #[arg(long)]
     pub force: bool,
+    /// Record every data topic the orchestrator taps to DIR/run.mcap (docs/recording.md).
+    #[arg(long)]
+    pub record: bool,
     /// Override the scenario's seed.
     #[arg(long)]
     pub seed: Option<u64>,

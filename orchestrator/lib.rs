@@ -15,9 +15,11 @@ mod plots;
 mod png;
 mod progress;
 pub mod report;
-/// A [004] campaign's `campaign.json`, where other tools look for it.
+/// A [001] campaign's `campaign.json`, where other tools look for it.
 #[cfg(feature = "lab")]
 pub use lab::photometry::PhotometryCampaign;
+/// A [004] campaign's `campaign.json`, where other tools look for it.
+#[cfg(feature = "lab")]
 pub use lab::relnav::RelNavCampaign;
 /// The fault matrix's report, where other tools look for it.
 pub use run::matrix;

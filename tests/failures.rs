@@ -184,12 +184,13 @@ fn a_run_past_its_timeout_fails_and_stops_every_service() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// A process outside the deployment that holds a node under its prefix when the run ends keeps
-/// the prefix's files alive: the run leaves them in place (they are that process's), lists
-/// them as leftovers, names the holder and fails. Once the holder is gone, `glint clean
+/// A process outside the deployment that holds a node under its prefix when the run ends (an
+/// observer: a Python client, `glint top`) keeps the prefix's files alive: the run leaves them
+/// in place (they are that process's), lists them as leftovers and names the holder, and
+/// passes: an observer never decides a run's outcome. Once the holder is gone, `glint clean
 /// --prefix` removes everything.
 #[test]
-fn a_prefix_still_held_at_the_end_fails_the_leftover_check_and_glint_clean_removes_it() {
+fn a_prefix_still_held_at_the_end_is_reported_not_failed_and_glint_clean_removes_it() {
     let dir = temp_dir("held-prefix");
     let out = dir.join("out");
     let mut run = start_run(&scenario("debris-geo.toml"), &out, &[]);
@@ -197,18 +198,19 @@ fn a_prefix_still_held_at_the_end_fails_the_leftover_check_and_glint_clean_remov
     let prefix = prefix_of(pid);
     let holder = glint_runtime::open_node(&prefix, "holder").expect("a node under the prefix");
     let status = wait_for_exit(&mut run, Duration::from_secs(120));
-    assert_eq!(status.code(), Some(1));
+    assert_eq!(status.code(), Some(0));
     let report = read_report(&out.join("report.json"));
     let shared_memory = &report.results.shared_memory;
     assert_eq!(shared_memory.held_by, ["holder"]);
     assert!(!shared_memory.leftover.is_empty(), "{shared_memory:?}");
-    let failure = report.results.failure.as_deref().unwrap_or_default();
-    assert!(
-        failure.contains("still held by node(s) holder") && failure.contains(&prefix),
-        "{failure}"
-    );
-    // The science itself completed.
+    assert!(report.results.success, "{:?}", report.results.failure);
     assert!(report.results.accounting.invariant_held);
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(
+        summary.contains("held by node(s) holder outside the deployment")
+            && summary.contains(&format!("glint clean --prefix {prefix}")),
+        "{summary}"
+    );
     // While the holder lives, `glint clean` leaves the prefix alone.
     let text = |o: std::process::Output| {
         assert!(o.status.success(), "{o:?}");

@@ -234,6 +234,7 @@ pub fn measure(sc: shared_types::Scenario, run_dir: PathBuf, progress: bool) -> 
         out_dir: Some(run_dir),
         replace: true,
         progress,
+        record: false,
     };
     let (dir, ok) = crate::run::run(opts)?;
     let report_path = dir.join("report.json");

@@ -99,6 +99,7 @@ pub fn run_value(
             // The campaign owns its directory: a sub-run there replaces the previous one.
             replace: true,
             progress,
+            record: false,
         })?;
         run::bail_if_interrupted("campaign")?;
         Ok((

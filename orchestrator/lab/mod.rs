@@ -86,6 +86,7 @@ pub fn run(
             // The campaign owns its directory: a sub-run there replaces the previous one.
             replace: true,
             progress,
+            record: false,
         })?;
         run::bail_if_interrupted("campaign")?;
         all_ok &= ok;

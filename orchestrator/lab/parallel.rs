@@ -52,6 +52,7 @@ fn deploy(
                 // The campaign owns its directory: a sub-run there replaces the previous one.
                 replace: true,
                 progress: false,
+                record: false,
             })
         })?;
     let report = Report::read(&run_dir.join("report.json"))?;

@@ -46,6 +46,8 @@ pub struct TopicFact {
 }
 
 pub struct RunFacts {
+    /// What `--record` wrote.
+    pub recording: Option<crate::run::record::RecordingReport>,
     /// The mission sections of the report ([`super::sections`]).
     pub sections: Vec<Box<dyn super::sections::Section>>,
     pub services: Vec<ServiceFact>,
@@ -196,6 +198,7 @@ impl RunFacts {
             membership: Default::default(),
             memory: BTreeMap::new(),
             soak_end: None,
+            recording: None,
         }
     }
 
@@ -213,7 +216,7 @@ impl RunFacts {
     pub fn success(&self) -> bool {
         self.failure.is_none()
             && self.invariant_held()
-            && self.shm_leftover.is_empty()
+            && (self.shm_leftover.is_empty() || !self.shm_held_by.is_empty())
             && self.services.iter().all(|s| s.ending == Ending::Shutdown)
     }
 }

@@ -142,6 +142,7 @@ pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
             pids: (f.services.iter())
                 .map(|s| (s.name.clone(), s.pid))
                 .collect(),
+            recording: f.recording.clone(),
         },
         timing: Timing {
             wall_s: f.wall_s,
@@ -332,6 +333,15 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
         f.shm_removed,
         f.shm_leftover.len()
     );
+    if !f.shm_held_by.is_empty() {
+        let _ = writeln!(
+            s,
+            "- the left-over entries are held by node(s) {} outside the deployment (observers, \
+             not a failure); `glint clean --prefix {}` removes them once those end",
+            f.shm_held_by.join(", "),
+            f.prefix
+        );
+    }
     for (label, latency, p) in [
         ("Frame", &f.frame_latency, &tm.frame_latency_us),
         ("Spectrum", &f.spectrum_latency, &tm.spectrum_latency_us),

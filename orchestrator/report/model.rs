@@ -143,7 +143,9 @@ pub struct LaserReport {
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct SharedMemory {
-    /// Entries of the deployment's prefix still there after it ended.
+    /// Entries of the deployment's prefix still there after it ended: a failure of the run,
+    /// unless live nodes outside the deployment hold them (`held_by`: observers such as a
+    /// Python client, whose files they are).
     pub leftover: Vec<String>,
     /// Live nodes outside the deployment that held them.
     pub held_by: Vec<String>,
@@ -225,6 +227,9 @@ pub struct RunInfo {
     pub shm_entries_removed: usize,
     /// Each service's last process id.
     pub pids: BTreeMap<String, u32>,
+    /// What `glint run --record` wrote.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recording: Option<crate::run::record::RecordingReport>,
 }
 
 /// Percentiles of a latency sample [µs].

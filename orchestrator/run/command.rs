@@ -143,6 +143,7 @@ pub(crate) fn command(args: RunArgs) -> ExitCode {
         seed,
         faults,
         soak,
+        record,
     } = args;
     glint_runtime::init_tracing("orchestrator");
     let (mut sc, file) = match load_with_seed(scenario.as_ref(), seed) {
@@ -172,6 +173,7 @@ pub(crate) fn command(args: RunArgs) -> ExitCode {
         out_dir: out,
         replace: force,
         progress: std::io::stderr().is_terminal(),
+        record,
     };
     if opts.scenario.matrix.is_some() {
         return finish(matrix::run_matrix(opts));

@@ -18,6 +18,7 @@ use shared_types::{deployment, Message, Scenario, ServiceId, TopicId};
 use xxhash_rust::xxh3::Xxh3;
 
 use crate::run::latency::Latency;
+use crate::run::record::{Recorder, RecordingReport};
 
 /// The pixels of one frame, kept for a picture.
 #[derive(Debug, Clone)]
@@ -36,10 +37,12 @@ pub struct Record {
     latency: Latency,
 }
 
-/// Where a tap hands what it takes: the report sections' folds and the stages' join.
+/// Where a tap hands what it takes: the report sections' folds, the stages' join and the
+/// recording (`glint run --record`).
 pub struct Takers<'a> {
     folds: &'a mut [Box<dyn Fold>],
     stages: &'a mut Stages,
+    recorder: Option<&'a mut Recorder>,
 }
 
 impl Takers<'_> {
@@ -100,6 +103,9 @@ impl<T: Message> Tap for MessageTap<T> {
             r.msg.fold_digest(&mut record.digest);
             record.latency.record(r.latency_ns);
             let meta = r.msg.meta();
+            if let Some(rec) = takers.recorder.as_deref_mut() {
+                rec.message(topic, r.msg);
+            }
             takers.take(topic, meta.seq, meta.send_mono_ns, r.msg);
             Ok(())
         })?;
@@ -134,6 +140,9 @@ impl Tap for FrameTap {
             record.digest.update(&h.meta.seq.to_le_bytes());
             record.digest.update(&h.pixels_xxh3.to_le_bytes());
             record.latency.record(latency_ns);
+            if let Some(rec) = takers.recorder.as_deref_mut() {
+                rec.frame(topic, h, pixels);
+            }
             takers.take(topic, h.meta.seq, h.meta.send_mono_ns, h);
             if Some(h.frame_index) == want {
                 *snap = Some(Snapshot {
@@ -273,6 +282,9 @@ pub struct Taps {
     taps: BTreeMap<TopicId, Box<dyn Tap>>,
     folds: Vec<Box<dyn Fold>>,
     stages: Stages,
+    recorder: Option<Recorder>,
+    /// What the recording holds, once finished.
+    pub recording: Option<RecordingReport>,
 }
 
 impl Taps {
@@ -281,6 +293,11 @@ impl Taps {
             folds,
             ..Default::default()
         }
+    }
+
+    /// Writes every message the taps take into `recorder` from now on.
+    pub fn record_into(&mut self, recorder: Recorder) {
+        self.recorder = Some(recorder);
     }
 
     pub fn insert(&mut self, topic: TopicId, tap: Box<dyn Tap>) {
@@ -300,6 +317,7 @@ impl Taps {
         let mut takers = Takers {
             folds: &mut self.folds,
             stages: &mut self.stages,
+            recorder: self.recorder.as_mut(),
         };
         let mut taken = vec![];
         for (topic, tap) in self.taps.iter_mut() {
@@ -313,6 +331,9 @@ impl Taps {
     pub fn finish(&mut self) {
         for f in &mut self.folds {
             f.finish();
+        }
+        if let Some(r) = self.recorder.take() {
+            self.recording = Some(r.finish());
         }
     }
 

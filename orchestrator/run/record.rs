@@ -1,0 +1,197 @@
+//! `glint run --record`: every data topic the orchestrator taps (the table's orchestrator row:
+//! frames, spectra, truth, detections, tracks, Earth frames and attitudes, stereo epochs,
+//! estimates, light-curve samples, and every topic a later service adds) written to
+//! `DIR/run.mcap` as the taps take it. One channel per topic, its schema named by the
+//! payload's contract type name (`glint.v7.Spectrum`), encoding `glint.repr-c`: the message's
+//! bytes exactly as they were in shared memory (a frame: its `FrameHeader`, then its `u16`
+//! pixels, little-endian). Log time is the producer's send time (`CLOCK_MONOTONIC` [ns]),
+//! publish time the simulated time the message describes [ns]. The resolved scenario is the
+//! file's `scenario` metadata. Chunked, uncompressed (frames do not compress worth the CPU).
+//!
+//! The recorder rides on the taps, which take every message anyway: it copies nothing but a
+//! frame's header and pixels into one buffer for the writer. A write that fails stops the
+//! recording, and the messages not written are counted, never silently missing.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use mcap::records::{MessageHeader, Metadata};
+use serde::{Deserialize, Serialize};
+use shared_types::table::{payload_type_name, visit, PayloadVisitor, TopicSpec};
+use shared_types::{deployment, FrameHeader, Message, Scenario, ServiceId, TopicId};
+
+/// The message encoding and schema encoding of every channel.
+pub const ENCODING: &str = "glint.repr-c";
+
+/// What a recording holds, for the run's report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct RecordingReport {
+    pub path: String,
+    /// Messages written, per topic.
+    pub messages: BTreeMap<String, u64>,
+    /// Messages taken but not written (the recording failed at the first of them), per topic.
+    pub not_written: BTreeMap<String, u64>,
+    /// Why the recording stopped early, if it did.
+    pub failure: Option<String>,
+}
+
+/// A payload's size and alignment, for the schema.
+struct Layout;
+
+impl PayloadVisitor for Layout {
+    type Out = (usize, usize);
+    fn frames(self, _: &'static TopicSpec) -> (usize, usize) {
+        (
+            std::mem::size_of::<FrameHeader>(),
+            std::mem::align_of::<FrameHeader>(),
+        )
+    }
+    fn messages<T: Message>(self, _: &'static TopicSpec) -> (usize, usize) {
+        (std::mem::size_of::<T>(), std::mem::align_of::<T>())
+    }
+    fn calls<Req: Message, Resp: Message>(self, _: &'static TopicSpec) -> (usize, usize) {
+        (std::mem::size_of::<Req>(), std::mem::align_of::<Req>())
+    }
+}
+
+/// The schema's data: what a reader without glint needs to find the type's layout.
+fn schema_data(topic: TopicId) -> Vec<u8> {
+    let spec = topic.spec();
+    let (size, align) = visit(topic, Layout);
+    let frames = matches!(spec.pattern, shared_types::table::Pattern::Frames { .. });
+    serde_json::json!({
+        "type": payload_type_name(topic),
+        "contract_version": shared_types::CONTRACT_VERSION,
+        "repr": "C, little-endian, explicit padding",
+        "size_bytes": size,
+        "align_bytes": align,
+        "frame": frames.then_some("the header, then width_px × height_px u16 pixels, row-major"),
+        "fields": "glint's shared-types/src/messages (pinned by shared-types/tests/layout.rs)",
+    })
+    .to_string()
+    .into_bytes()
+}
+
+pub struct Recorder {
+    path: PathBuf,
+    writer: Option<mcap::Writer<BufWriter<File>>>,
+    channels: BTreeMap<TopicId, u16>,
+    written: BTreeMap<TopicId, u64>,
+    not_written: BTreeMap<TopicId, u64>,
+    failure: Option<String>,
+    /// A frame's header and pixels, contiguous.
+    buffer: Vec<u8>,
+}
+
+impl Recorder {
+    /// Opens `path` with a channel for every topic the orchestrator taps in `scenario`.
+    pub fn create(path: &Path, scenario: &Scenario) -> Result<Self> {
+        let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        let mut writer = mcap::WriteOptions::new()
+            .compression(None)
+            .profile("glint")
+            .create(BufWriter::with_capacity(1 << 20, file))
+            .with_context(|| format!("starting {}", path.display()))?;
+        let mut channels = BTreeMap::new();
+        for t in deployment::inputs(scenario, ServiceId::Orchestrator) {
+            let schema = writer.add_schema(payload_type_name(t), ENCODING, &schema_data(t))?;
+            let spec = t.spec();
+            let metadata = BTreeMap::from([
+                ("about".to_string(), spec.about.to_string()),
+                (
+                    "producer".to_string(),
+                    spec.producer()
+                        .map_or("every service", |p| p.name())
+                        .to_string(),
+                ),
+            ]);
+            channels.insert(
+                t,
+                writer.add_channel(schema, spec.name, ENCODING, &metadata)?,
+            );
+        }
+        writer.write_metadata(&Metadata {
+            name: "scenario".to_string(),
+            metadata: BTreeMap::from([
+                ("name".to_string(), scenario.name.clone()),
+                ("seed".to_string(), scenario.seed.to_string()),
+                ("toml".to_string(), scenario.to_toml()),
+            ]),
+        })?;
+        Ok(Recorder {
+            path: path.to_path_buf(),
+            writer: Some(writer),
+            channels,
+            written: BTreeMap::new(),
+            not_written: BTreeMap::new(),
+            failure: None,
+            buffer: vec![],
+        })
+    }
+
+    fn write(&mut self, topic: TopicId, meta: &shared_types::Meta, parts: &[&[u8]]) {
+        let (Some(writer), Some(&channel_id)) = (self.writer.as_mut(), self.channels.get(&topic))
+        else {
+            *self.not_written.entry(topic).or_default() += 1;
+            return;
+        };
+        let data: &[u8] = match parts {
+            [one] => one,
+            _ => {
+                self.buffer.clear();
+                for p in parts {
+                    self.buffer.extend_from_slice(p);
+                }
+                &self.buffer
+            }
+        };
+        let header = MessageHeader {
+            channel_id,
+            sequence: meta.seq as u32,
+            log_time: meta.send_mono_ns,
+            publish_time: meta.t_ns,
+        };
+        match writer.write_to_known_channel(&header, data) {
+            Ok(()) => *self.written.entry(topic).or_default() += 1,
+            Err(e) => {
+                self.failure = Some(format!("writing {}: {e}", self.path.display()));
+                self.writer = None;
+                *self.not_written.entry(topic).or_default() += 1;
+            }
+        }
+    }
+
+    /// A message as it was in shared memory.
+    pub fn message<T: Message>(&mut self, topic: TopicId, msg: &T) {
+        self.write(topic, msg.meta(), &[bytemuck::bytes_of(msg)]);
+    }
+
+    /// A frame: its header, then its pixels.
+    pub fn frame(&mut self, topic: TopicId, header: &FrameHeader, pixels: &[u16]) {
+        let parts = [bytemuck::bytes_of(header), bytemuck::cast_slice(pixels)];
+        self.write(topic, &header.meta, &parts);
+    }
+
+    /// Closes the file (its summary and index); what it holds.
+    pub fn finish(mut self) -> RecordingReport {
+        if let Some(mut w) = self.writer.take() {
+            if let Err(e) = w.finish() {
+                self.failure = Some(format!("closing {}: {e}", self.path.display()));
+            }
+        }
+        let names = |m: &BTreeMap<TopicId, u64>| {
+            m.iter()
+                .map(|(t, n)| (t.name().to_string(), *n))
+                .collect::<BTreeMap<_, _>>()
+        };
+        RecordingReport {
+            path: self.path.display().to_string(),
+            messages: names(&self.written),
+            not_written: names(&self.not_written),
+            failure: self.failure,
+        }
+    }
+}
