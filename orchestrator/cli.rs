@@ -144,6 +144,10 @@ pub(crate) enum BenchCmd {
         /// Fire the laser at confirmed tracks.
         #[arg(long, value_enum, default_value = "on")]
         laser: OnOff,
+        /// Also deploy the same chain with `--record` (every frame to run.mcap) and give its
+        /// frames/s against the unrecorded deployment's of the same bench.
+        #[arg(long)]
+        record: bool,
     },
     /// The pipeline bench swept over frame size (at 4 debris) and number of debris (at
     /// 1024²): frames/s and each core's time per frame, and the exponent of their growth.

@@ -220,6 +220,49 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `glint bench pipeline --record`: the same chain deployed again with every tapped message
+/// recorded; its rate beside the unrecorded one's of the same bench, and the recording whole
+/// (the frames, their truth, detections and tracks: four messages a frame, none missing).
+#[test]
+fn bench_pipeline_record_gives_the_recording_cost_and_misses_nothing() {
+    let dir = temp_dir("bench-pipeline-record");
+    let out = glint()
+        .args([
+            "bench",
+            "pipeline",
+            "--frames",
+            "30",
+            "--size",
+            "256x256",
+            "--targets",
+            "2",
+            "--record",
+        ])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("recording: "), "{stdout}");
+    let bench = read_json(&dir.join("bench.json"));
+    let r = &bench["pipeline"]["recording"];
+    assert_eq!(r["success"], true, "{r}");
+    assert_eq!(r["messages_written"], 4 * 30, "{r}");
+    assert_eq!(r["messages_not_written"], 0, "{r}");
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert!(f(&r["frames_per_s"]) > 0.0, "{r}");
+    let cost = 1.0 - f(&r["frames_per_s"]) / f(&r["frames_per_s_unrecorded"]);
+    assert!((f(&r["cost"]) - cost).abs() < 1e-9, "{r}");
+    // 30 frames of 256² u16 at least
+    assert!(r["bytes"].as_u64().unwrap() > 30 * 256 * 256 * 2, "{r}");
+    assert!(dir.join("run-recorded").join("run.mcap").is_file());
+}
+
 #[test]
 fn bench_pipeline_rejects_a_bad_size_or_target_count() {
     for args in [["--size", "10x10"], ["--size", "1024"], ["--targets", "17"]] {

@@ -225,6 +225,42 @@ pub struct Point {
     pub run_dir: PathBuf,
 }
 
+/// A deployment with `--record`: its frames/s and what it recorded.
+pub struct Recorded {
+    pub fps: f64,
+    pub written: u64,
+    pub not_written: u64,
+    pub bytes: u64,
+    pub success: bool,
+}
+
+/// Deploys `sc` as processes into `run_dir`, every tapped message recorded to run.mcap.
+pub fn measure_recorded(
+    sc: shared_types::Scenario,
+    run_dir: PathBuf,
+    progress: bool,
+) -> Result<Recorded> {
+    let opts = crate::run::RunOptions {
+        scenario: sc,
+        scenario_file: "glint bench (debris-geo, recorded)".into(),
+        out_dir: Some(run_dir),
+        replace: true,
+        progress,
+        record: true,
+    };
+    let (dir, ok) = crate::run::run(opts)?;
+    let report = crate::report::Report::read(&dir.join("report.json"))?;
+    let rec = report.run.recording.as_ref();
+    let bytes = std::fs::metadata(dir.join("run.mcap")).map_or(0, |m| m.len());
+    Ok(Recorded {
+        fps: report.timing.frames_per_s,
+        written: rec.map_or(0, |r| r.messages.values().sum()),
+        not_written: rec.map_or(0, |r| r.not_written.values().sum()),
+        bytes,
+        success: ok && rec.is_some_and(|r| r.failure.is_none()),
+    })
+}
+
 /// Deploys `sc` as processes into `run_dir`, then does the same work in this process.
 pub fn measure(sc: shared_types::Scenario, run_dir: PathBuf, progress: bool) -> Result<Point> {
     let frames = sc.camera.as_ref().map_or(0, |c| c.frames);
@@ -267,9 +303,14 @@ pub fn measure(sc: shared_types::Scenario, run_dir: PathBuf, progress: bool) -> 
 
 /// Deploys the pipeline, runs the in-process baseline, writes `bench.json` and
 /// `pipeline.csv`, prints the table.
-pub fn run_pipeline(o: &pipeline::PipelineOptions, sc: shared_types::Scenario) -> Result<()> {
+pub fn run_pipeline(
+    o: &pipeline::PipelineOptions,
+    sc: shared_types::Scenario,
+    record: bool,
+) -> Result<()> {
     std::fs::create_dir_all(&o.out).with_context(|| format!("creating {}", o.out.display()))?;
     let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let recorded_sc = record.then(|| sc.clone());
     let Point {
         deployed,
         in_process: ip,
@@ -277,7 +318,30 @@ pub fn run_pipeline(o: &pipeline::PipelineOptions, sc: shared_types::Scenario) -
     } = measure(sc, o.out.join("run"), progress)?;
     pipeline::print(o, &deployed, &ip);
     pipeline::plot_time(&o.out, &deployed)?;
-    let section = pipeline::json(o, &deployed, &ip);
+    let mut section = pipeline::json(o, &deployed, &ip);
+    if let Some(sc) = recorded_sc {
+        let r = measure_recorded(sc, o.out.join("run-recorded"), progress)?;
+        let cost = 1.0 - r.fps / deployed.fps;
+        println!(
+            "recording: {:.1} frames/s with every message recorded, {:.1} without: {:.1} % \
+             slower; {} messages written ({:.0} MiB), {} not written",
+            r.fps,
+            deployed.fps,
+            100.0 * cost,
+            r.written,
+            r.bytes as f64 / (1u64 << 20) as f64,
+            r.not_written,
+        );
+        section["recording"] = json!({
+            "frames_per_s": r.fps,
+            "frames_per_s_unrecorded": deployed.fps,
+            "cost": cost,
+            "messages_written": r.written,
+            "messages_not_written": r.not_written,
+            "bytes": r.bytes,
+            "success": r.success,
+        });
+    }
     merge_bench_json(
         &o.out,
         json!({ "glint_version": env!("CARGO_PKG_VERSION"), "host": host(), "pipeline": section }),
@@ -322,6 +386,7 @@ pub(crate) fn command(bench: crate::cli::BenchCmd) -> std::process::ExitCode {
             targets,
             clock,
             laser,
+            record,
         } => {
             glint_runtime::init_tracing("orchestrator");
             let opts = crate::bench::pipeline::PipelineOptions {
@@ -346,7 +411,7 @@ pub(crate) fn command(bench: crate::cli::BenchCmd) -> std::process::ExitCode {
                     return ExitCode::from(2);
                 }
             };
-            match crate::bench::run_pipeline(&opts, sc) {
+            match crate::bench::run_pipeline(&opts, sc, record) {
                 Ok(()) => ExitCode::SUCCESS,
                 Err(e) => {
                     eprintln!("error: {e:#}");
