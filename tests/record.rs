@@ -49,6 +49,32 @@ impl PayloadVisitor for Fold<'_> {
     }
 }
 
+/// The offset of `meta.seq` in a channel's payload, from its schema's JSON only.
+fn seq_offset(schema: &[u8]) -> usize {
+    let v: serde_json::Value = serde_json::from_slice(schema).expect("the schema is JSON");
+    let types = v["types"].as_array().expect("the schema's types");
+    let field = |ty: &str, name: &str| {
+        let t = types
+            .iter()
+            .find(|t| t["name"] == ty)
+            .expect("a described type");
+        let f = (t["fields"].as_array().unwrap().iter())
+            .find(|f| f["name"] == name)
+            .expect("a described field");
+        (
+            f["offset"].as_u64().unwrap() as usize,
+            f["type"].as_str().unwrap().to_string(),
+        )
+    };
+    let top = types[0]["name"].as_str().unwrap();
+    assert_eq!(types[0]["contract_name"], v["type"]);
+    let (meta_at, meta_ty) = field(top, "meta");
+    assert_eq!(meta_ty, "Meta");
+    let (seq_at, seq_ty) = field("Meta", "seq");
+    assert_eq!(seq_ty, "u64");
+    meta_at + seq_at
+}
+
 /// Runs `scenario` with `--record` and checks the recording against its report.
 fn recorded_run_matches_its_report(scenario: &std::path::Path, dir: &std::path::Path) {
     let r = run_ok(Some(scenario), dir, &["--record"]);
@@ -74,6 +100,10 @@ fn recorded_run_matches_its_report(scenario: &std::path::Path, dir: &std::path::
             ),
             ("glint.repr-c", "glint.repr-c")
         );
+        // the schema alone locates the header: `meta.seq` read at the offsets it gives
+        let seq_at = seq_offset(&schema.data);
+        let seq = u64::from_le_bytes(m.data[seq_at..seq_at + 8].try_into().unwrap());
+        assert_eq!(seq as u32, m.sequence, "{}", m.channel.topic);
         // log time is the producer's send time: increasing per topic
         let last = last_log_time.entry(m.channel.topic.clone()).or_default();
         assert!(m.log_time >= *last);

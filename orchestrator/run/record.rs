@@ -2,7 +2,8 @@
 //! frames, spectra, truth, detections, tracks, Earth frames and attitudes, stereo epochs,
 //! estimates, light-curve samples, and every topic a later service adds) written to
 //! `DIR/run.mcap` as the taps take it. One channel per topic, its schema named by the
-//! payload's contract type name (`glint.v7.Spectrum`), encoding `glint.repr-c`: the message's
+//! payload's contract type name (`glint.v7.Spectrum`), encoding `glint.repr-c`, its data the
+//! type's layout (every field's name, offset, size and type, nested types too): the message's
 //! bytes exactly as they were in shared memory (a frame: its `FrameHeader`, then its `u16`
 //! pixels, little-endian). Log time is the producer's send time (`CLOCK_MONOTONIC` [ns]),
 //! publish time the simulated time the message describes [ns]. The resolved scenario is the
@@ -20,7 +21,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use mcap::records::{MessageHeader, Metadata};
 use serde::{Deserialize, Serialize};
-use shared_types::table::{payload_type_name, visit, PayloadVisitor, TopicSpec};
+use shared_types::messages::layout::layout_with_nested;
+use shared_types::table::payload_type_name;
 use shared_types::{deployment, FrameHeader, Message, Scenario, ServiceId, TopicId};
 
 /// The message encoding and schema encoding of every channel.
@@ -38,38 +40,19 @@ pub struct RecordingReport {
     pub failure: Option<String>,
 }
 
-/// A payload's size and alignment, for the schema.
-struct Layout;
-
-impl PayloadVisitor for Layout {
-    type Out = (usize, usize);
-    fn frames(self, _: &'static TopicSpec) -> (usize, usize) {
-        (
-            std::mem::size_of::<FrameHeader>(),
-            std::mem::align_of::<FrameHeader>(),
-        )
-    }
-    fn messages<T: Message>(self, _: &'static TopicSpec) -> (usize, usize) {
-        (std::mem::size_of::<T>(), std::mem::align_of::<T>())
-    }
-    fn calls<Req: Message, Resp: Message>(self, _: &'static TopicSpec) -> (usize, usize) {
-        (std::mem::size_of::<Req>(), std::mem::align_of::<Req>())
-    }
-}
-
-/// The schema's data: what a reader without glint needs to find the type's layout.
+/// The schema's data: the payload's layout and every type its fields name, so that a reader
+/// without glint decodes the bytes (`shared_types::messages::layout`).
 fn schema_data(topic: TopicId) -> Vec<u8> {
-    let spec = topic.spec();
-    let (size, align) = visit(topic, Layout);
-    let frames = matches!(spec.pattern, shared_types::table::Pattern::Frames { .. });
+    let frames = matches!(
+        topic.spec().pattern,
+        shared_types::table::Pattern::Frames { .. }
+    );
     serde_json::json!({
         "type": payload_type_name(topic),
         "contract_version": shared_types::CONTRACT_VERSION,
         "repr": "C, little-endian, explicit padding",
-        "size_bytes": size,
-        "align_bytes": align,
         "frame": frames.then_some("the header, then width_px × height_px u16 pixels, row-major"),
-        "fields": "glint's shared-types/src/messages (pinned by shared-types/tests/layout.rs)",
+        "types": layout_with_nested(payload_type_name(topic)),
     })
     .to_string()
     .into_bytes()

@@ -20,6 +20,7 @@ use crate::CONTRACT_VERSION;
 mod camera;
 mod earth;
 mod housekeeping;
+pub mod layout;
 mod photometry;
 mod range;
 mod spectrum;
