@@ -174,8 +174,9 @@ impl Consumer {
     }
 
     pub fn poll_heartbeats(&mut self) -> Result<()> {
-        let seen = &mut self.seen;
+        let (seen, taps) = (&mut self.seen, &mut self.taps);
         self.heartbeats.drain(|r| {
+            taps.record_message(TopicId::Heartbeat, r.msg);
             if let Some(id) = ServiceId::from_u32(r.msg.meta.producer) {
                 if !seen.contains_key(&id) {
                     tracing::debug!(service = id.name(), state = r.msg.state, "first heartbeat");

@@ -1,7 +1,7 @@
 //! `glint run --record`: every data topic the orchestrator taps (the table's orchestrator row:
 //! frames, spectra, truth, detections, tracks, Earth frames and attitudes, stereo epochs,
-//! estimates, light-curve samples, and every topic a later service adds) written to
-//! `DIR/run.mcap` as the taps take it. One channel per topic, its schema named by the
+//! estimates, light-curve samples, and every topic a later service adds) and every service's
+//! heartbeats, written to `DIR/run.mcap` as the orchestrator takes them. One channel per topic, its schema named by the
 //! payload's contract type name (`glint.v7.Spectrum`), encoding `glint.repr-c`, its data the
 //! type's layout (every field's name, offset, size and type, nested types too): the message's
 //! bytes exactly as they were in shared memory (a frame: its `FrameHeader`, then its `u16`
@@ -79,7 +79,8 @@ impl Recorder {
             .create(BufWriter::with_capacity(1 << 20, file))
             .with_context(|| format!("starting {}", path.display()))?;
         let mut channels = BTreeMap::new();
-        for t in deployment::inputs(scenario, ServiceId::Orchestrator) {
+        let tapped = deployment::inputs(scenario, ServiceId::Orchestrator);
+        for t in tapped.into_iter().chain([TopicId::Heartbeat]) {
             let schema = writer.add_schema(payload_type_name(t), ENCODING, &schema_data(t))?;
             let spec = t.spec();
             let metadata = BTreeMap::from([

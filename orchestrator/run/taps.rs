@@ -295,6 +295,13 @@ impl Taps {
         }
     }
 
+    /// Records a message the orchestrator took outside the taps (a heartbeat).
+    pub fn record_message<T: Message>(&mut self, topic: TopicId, msg: &T) {
+        if let Some(r) = self.recorder.as_mut() {
+            r.message(topic, msg);
+        }
+    }
+
     /// Writes every message the taps take into `recorder` from now on.
     pub fn record_into(&mut self, recorder: Recorder) {
         self.recorder = Some(recorder);
