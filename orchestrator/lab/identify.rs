@@ -118,7 +118,9 @@ fn trial(
     }
 }
 
-fn median_and_worst(mut v: Vec<f64>) -> (f64, f64) {
+/// The median and the largest of the finite values (NaN, NaN without any).
+pub(crate) fn median_and_worst(mut v: Vec<f64>) -> (f64, f64) {
+    v.retain(|x| x.is_finite());
     if v.is_empty() {
         return (f64::NAN, f64::NAN);
     }

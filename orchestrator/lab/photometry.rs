@@ -15,6 +15,7 @@ use serde::{Deserialize, Serialize};
 use shared_types::scenario::Campaign;
 use shared_types::Scenario;
 
+use crate::lab::identify::median_and_worst;
 use crate::lab::parallel::{deploy_all, Deployed};
 
 /// Whether a campaign of `scenario` is a [001] one: it sweeps a `photometry.*` parameter, or
@@ -135,15 +136,6 @@ fn figures(d: Deployed, truth: &str) -> (IdentificationRun, bool) {
     };
     let ok = f.success;
     (f, ok)
-}
-
-fn median_and_worst(mut v: Vec<f64>) -> (f64, f64) {
-    v.retain(|x| x.is_finite());
-    if v.is_empty() {
-        return (f64::NAN, f64::NAN);
-    }
-    v.sort_by(f64::total_cmp);
-    (v[v.len() / 2], v[v.len() - 1])
 }
 
 /// The confusion table and the errors of the correctly identified.

@@ -16,6 +16,7 @@ use glint_runtime::rpc::RangeServer;
 use glint_runtime::waitloop::{Step, Wake};
 use glint_runtime::{Io, NoInput, Output, Service, Setup, TopicStats};
 use shared_types::deployment::realtime_period_ns;
+use shared_types::topics::IpcNode;
 use shared_types::{Command, DropReason, Scenario, ServiceId, TopicId, Truth};
 
 use crate::service_core::SensorCore;
@@ -74,6 +75,20 @@ struct Frames<S: FrameStream> {
     period_ns: Option<u64>,
 }
 
+impl<S: FrameStream + 'static> Frames<S> {
+    /// The stream with its port, ending where the scenario says, paced in realtime mode.
+    fn open(stream: S, node: &IpcNode, sc: &Scenario) -> Result<Box<dyn Emitter>> {
+        let out = FrameOutbox::open(node, stream.topic(), sc)?;
+        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
+        Ok(Box::new(Frames {
+            stream,
+            out,
+            end,
+            period_ns,
+        }))
+    }
+}
+
 impl<S: FrameStream> Emitter for Frames<S> {
     fn stream(&self) -> &dyn Stream {
         &self.stream
@@ -109,6 +124,20 @@ struct Messages<S: MessageStream> {
     period_ns: Option<u64>,
 }
 
+impl<S: MessageStream + 'static> Messages<S> {
+    /// The stream with its port, ending where the scenario says, paced in realtime mode.
+    fn open(stream: S, node: &IpcNode, sc: &Scenario) -> Result<Box<dyn Emitter>> {
+        let out = Outbox::open(node, stream.topic(), ServiceId::Sensor)?;
+        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
+        Ok(Box::new(Messages {
+            stream,
+            out,
+            end,
+            period_ns,
+        }))
+    }
+}
+
 impl<S: MessageStream> Emitter for Messages<S> {
     fn stream(&self) -> &dyn Stream {
         &self.stream
@@ -140,61 +169,25 @@ impl<S: MessageStream> Emitter for Messages<S> {
 /// the one list a new sensor mode joins.
 fn emitters(setup: &Setup<'_>, core: &SensorCore) -> Result<Vec<Box<dyn Emitter>>> {
     let (node, sc): (_, &Scenario) = (setup.node, setup.scenario);
-    let id = ServiceId::Sensor;
     let mut all: Vec<Box<dyn Emitter>> = vec![];
     if let Some(stream) = core.debris_stream() {
-        let out = FrameOutbox::open(node, stream.topic(), sc)?;
-        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
-        all.push(Box::new(Frames {
-            stream,
-            out,
-            end,
-            period_ns,
-        }));
+        all.push(Frames::open(stream, node, sc)?);
     }
     if let Some(sp) = &sc.spectra {
-        let stream = SpectraStream::new(sp, sc.seed)?;
-        let out = Outbox::open(node, stream.topic(), id)?;
-        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
-        all.push(Box::new(Messages {
-            stream,
-            out,
-            end,
-            period_ns,
-        }));
+        all.push(Messages::open(SpectraStream::new(sp, sc.seed)?, node, sc)?);
     }
     if let Some(e) = &sc.earth {
-        let stream = EarthStream::new(e, sc.seed);
-        let out = FrameOutbox::open(node, stream.topic(), sc)?;
-        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
-        all.push(Box::new(Frames {
-            stream,
-            out,
-            end,
-            period_ns,
-        }));
+        all.push(Frames::open(EarthStream::new(e, sc.seed), node, sc)?);
     }
     if let Some(st) = &sc.stereo {
-        let stream = StereoStream::new(st, sc.seed);
-        let out = Outbox::open(node, stream.topic(), id)?;
-        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
-        all.push(Box::new(Messages {
-            stream,
-            out,
-            end,
-            period_ns,
-        }));
+        all.push(Messages::open(StereoStream::new(st, sc.seed), node, sc)?);
     }
     if let Some(p) = &sc.photometry {
-        let stream = PhotometryStream::new(p, sc.seed)?;
-        let out = Outbox::open(node, stream.topic(), id)?;
-        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
-        all.push(Box::new(Messages {
-            stream,
-            out,
-            end,
-            period_ns,
-        }));
+        all.push(Messages::open(
+            PhotometryStream::new(p, sc.seed)?,
+            node,
+            sc,
+        )?);
     }
     all.sort_by_key(|e| e.topic());
     Ok(all)
