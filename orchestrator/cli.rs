@@ -22,6 +22,9 @@ pub(crate) struct Cli {
 pub(crate) enum Cmd {
     /// Deploy the chain for a scenario, run it to the end, write the report.
     Run(RunArgs),
+    /// Publish a recording's sensor streams into a fresh deployment of its consumers and hold
+    /// their results against the recording's (docs/recording.md); `--inspect`: what it holds.
+    Replay(ReplayArgs),
     /// Remove what crashed deployments left in shared memory (/dev/shm and iceoryx2's node
     /// directory); a deployment still running is left alone.
     Clean {
@@ -246,6 +249,9 @@ pub(crate) fn parse_point(s: &str) -> Result<(f64, f64), String> {
 
 #[derive(Subcommand)]
 pub(crate) enum ToolCmd {
+    /// Every message topic's payload type and every wire type's layout, as JSON (what a
+    /// client decodes glint's messages with: docs/recording.md).
+    Layouts,
     /// Detect objects in a 16-bit binary PGM (P5); prints JSON.
     Detect {
         frame: PathBuf,
@@ -333,6 +339,34 @@ pub(crate) enum ToolCmd {
         #[arg(long)]
         earth: bool,
     },
+}
+
+#[derive(clap::Args)]
+pub(crate) struct ReplayArgs {
+    /// A recording (`glint run --record`'s DIR/run.mcap).
+    pub recording: PathBuf,
+    /// Print the topics, their counts and time spans, and the scenario; deploy nothing.
+    #[arg(long)]
+    pub inspect: bool,
+    /// Consumers to deploy (repeatable; default: every one the scenario deploys).
+    #[arg(long = "service")]
+    pub services: Vec<String>,
+    /// Publish at this multiple of the recorded simulated time (0.01 to 1000).
+    #[arg(long, conflicts_with = "as_fast_as_possible")]
+    pub speed: Option<f64>,
+    /// Publish as fast as the consumers take it (the default).
+    #[arg(long)]
+    pub as_fast_as_possible: bool,
+    /// The consumers' settings from this scenario instead of the recording's (its streams
+    /// must be the recording's).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Run directory (default: runs/<name>-<UTC timestamp>-<run id>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Replace the previous run in --out.
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(clap::Args)]

@@ -36,6 +36,7 @@ use cli::{Cli, Cmd};
 pub fn main() -> ExitCode {
     match Cli::parse().command {
         Cmd::Run(args) => run::command::command(args),
+        Cmd::Replay(args) => run::replay::command(args),
         Cmd::Clean { prefix, list } => run::clean::command(prefix, list),
         Cmd::Validate { scenario } => run::command::validate(scenario),
         Cmd::Report { schema } => report::command(schema),

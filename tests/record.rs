@@ -161,7 +161,15 @@ fn recorded_run_matches_its_report(scenario: &std::path::Path, dir: &std::path::
     assert_eq!(rec.messages["heartbeat"], beats);
     // the scenario rides along as metadata
     let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary");
-    assert_eq!(summary.channels.len(), digests.len() + 1);
+    // the heartbeats' channel and the faults' (none injected: no message)
+    assert_eq!(summary.channels.len(), digests.len() + 2);
+    // the report rides along as an attachment, as written
+    let index = (summary.attachment_indexes.iter())
+        .find(|a| a.name == "report.json")
+        .expect("the report attached");
+    let attached = mcap::read::attachment(&bytes, index).unwrap();
+    let attached: serde_json::Value = serde_json::from_slice(&attached.data).unwrap();
+    assert_eq!(attached, read_json(&r.dir.join("report.json")));
     let meta = summary
         .metadata_indexes
         .iter()

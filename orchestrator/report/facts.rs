@@ -48,6 +48,8 @@ pub struct TopicFact {
 pub struct RunFacts {
     /// What `--record` wrote.
     pub recording: Option<crate::run::record::RecordingReport>,
+    /// The open recording, closed with the report in it once that is written.
+    pub recorder: Option<crate::run::record::Recorder>,
     /// The mission sections of the report ([`super::sections`]).
     pub sections: Vec<Box<dyn super::sections::Section>>,
     pub services: Vec<ServiceFact>,
@@ -199,6 +201,7 @@ impl RunFacts {
             memory: BTreeMap::new(),
             soak_end: None,
             recording: None,
+            recorder: None,
         }
     }
 

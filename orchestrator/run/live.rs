@@ -629,7 +629,7 @@ impl<'a> Live<'a> {
     /// What the report needs of the stopped run.
     pub fn facts(mut self) -> RunFacts {
         self.consumer.taps.finish();
-        let recording = self.consumer.taps.recording.take();
+        let recorder = self.consumer.taps.take_recorder();
         let t_stopped = self.t_stopped.unwrap_or_else(Instant::now);
         // A run that failed produced until it stopped: its rates are over that time.
         let production_s = (self.t_running).map_or(0.0, |a| {
@@ -666,7 +666,8 @@ impl<'a> Live<'a> {
         facts.membership = self.membership.report();
         facts.memory = self.memory.traces();
         facts.soak_end = self.soak_end;
-        facts.recording = recording;
+        facts.recording = recorder.as_ref().map(|r| r.summary());
+        facts.recorder = recorder;
         facts
     }
 }

@@ -12,6 +12,7 @@ pub mod matrix;
 pub mod membership;
 pub mod memory;
 pub mod record;
+pub mod replay;
 pub mod run_dir;
 pub mod sequence;
 pub mod supervise;
@@ -90,7 +91,20 @@ pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
         (facts.orchestrator_cpu_s.zip(cpu0_s)).map(|(c, c0)| (c - c0).max(0.0));
     facts.prefix = prefix;
     facts.scenario_file = opts.scenario_file.clone();
-    let report = report::write(&out_dir, scenario, &facts)?;
+    let recorder = facts.recorder.take();
+    let mut report = report::write(&out_dir, scenario, &facts)?;
+    if let Some(r) = recorder {
+        let json = serde_json::to_string_pretty(&report)? + "\n";
+        if let Some(failure) = r.close(&json, &report.faults) {
+            // The report said the recording was whole: it says now why it is not.
+            eprintln!("error: {failure}");
+            if let Some(rec) = report.run.recording.as_mut() {
+                rec.failure = Some(failure);
+            }
+            report.results.success = false;
+            report::rewrite(&out_dir, &report)?;
+        }
+    }
     // A soak also holds its own verdict: every fault recovered, memory flat.
     let ok = report.results.success && report.soak.as_ref().is_none_or(|s| s.passed);
     drop(dir);

@@ -7,7 +7,9 @@
 //! bytes exactly as they were in shared memory (a frame: its `FrameHeader`, then its `u16`
 //! pixels, little-endian). Log time is the producer's send time (`CLOCK_MONOTONIC` [ns]),
 //! publish time the simulated time the message describes [ns]. The resolved scenario is the
-//! file's `scenario` metadata. Chunked, uncompressed (frames do not compress worth the CPU).
+//! file's `scenario` metadata, the run's `report.json` an attachment, and every injected fault
+//! a JSON message on the `faults` channel (its log time the recording's start plus the fault's
+//! `injected_s`). Chunked, uncompressed (frames do not compress worth the CPU).
 //!
 //! The recorder rides on the taps, which take every message anyway: it copies nothing but a
 //! frame's header and pixels into one buffer for the writer. A write that fails stops the
@@ -24,6 +26,8 @@ use serde::{Deserialize, Serialize};
 use shared_types::messages::layout::layout_with_nested;
 use shared_types::table::payload_type_name;
 use shared_types::{deployment, FrameHeader, Message, Scenario, ServiceId, TopicId};
+
+use crate::report::FaultReport;
 
 /// The message encoding and schema encoding of every channel.
 pub const ENCODING: &str = "glint.repr-c";
@@ -58,8 +62,30 @@ fn schema_data(topic: TopicId) -> Vec<u8> {
     .into_bytes()
 }
 
+/// The channel of the injected faults (JSON, one [`FaultReport`] each).
+pub const FAULTS_CHANNEL: &str = "faults";
+
+/// Every message topic's payload type and every wire type's layout, as one JSON document
+/// (`glint tool layouts`): what a client without a recording (the Python package's bundled
+/// `glint_client/layouts/glint_v<N>.json`) decodes live messages with.
+pub fn layouts_document() -> serde_json::Value {
+    let topics: serde_json::Map<String, serde_json::Value> = (TopicId::ALL.iter())
+        .filter(|t| !matches!(t.spec().pattern, shared_types::table::Pattern::Calls { .. }))
+        .map(|t| (t.name().to_string(), payload_type_name(*t).into()))
+        .collect();
+    serde_json::json!({
+        "about": "glint's wire-type layouts, as `glint run --record` writes them in each MCAP channel's schema; regenerate with `glint tool layouts`",
+        "contract_version": shared_types::CONTRACT_VERSION,
+        "topics": topics,
+        "types": shared_types::messages::layout::layouts(),
+    })
+}
+
 pub struct Recorder {
     path: PathBuf,
+    /// `CLOCK_MONOTONIC` when it was opened [ns].
+    started_mono_ns: u64,
+    faults_channel: u16,
     writer: Option<mcap::Writer<BufWriter<File>>>,
     channels: BTreeMap<TopicId, u16>,
     written: BTreeMap<TopicId, u64>,
@@ -97,6 +123,13 @@ impl Recorder {
                 writer.add_channel(schema, spec.name, ENCODING, &metadata)?,
             );
         }
+        let fault_schema = writer.add_schema(
+            "glint.FaultReport",
+            "jsonschema",
+            serde_json::to_string(&schemars::schema_for!(FaultReport))?.as_bytes(),
+        )?;
+        let faults_channel =
+            writer.add_channel(fault_schema, FAULTS_CHANNEL, "json", &BTreeMap::new())?;
         writer.write_metadata(&Metadata {
             name: "scenario".to_string(),
             metadata: BTreeMap::from([
@@ -107,6 +140,8 @@ impl Recorder {
         })?;
         Ok(Recorder {
             path: path.to_path_buf(),
+            started_mono_ns: glint_runtime::mono_ns(),
+            faults_channel,
             writer: Some(writer),
             channels,
             written: BTreeMap::new(),
@@ -159,13 +194,8 @@ impl Recorder {
         self.write(topic, &header.meta, &parts);
     }
 
-    /// Closes the file (its summary and index); what it holds.
-    pub fn finish(mut self) -> RecordingReport {
-        if let Some(mut w) = self.writer.take() {
-            if let Err(e) = w.finish() {
-                self.failure = Some(format!("closing {}: {e}", self.path.display()));
-            }
-        }
+    /// What it holds so far.
+    pub fn summary(&self) -> RecordingReport {
         let names = |m: &BTreeMap<TopicId, u64>| {
             m.iter()
                 .map(|(t, n)| (t.name().to_string(), *n))
@@ -175,7 +205,59 @@ impl Recorder {
             path: self.path.display().to_string(),
             messages: names(&self.written),
             not_written: names(&self.not_written),
-            failure: self.failure,
+            failure: self.failure.clone(),
         }
+    }
+
+    /// Writes the run's faults and report, then closes the file (its summary and index);
+    /// `None` if it closed cleanly, else why not.
+    pub fn close(mut self, report_json: &str, faults: &[FaultReport]) -> Option<String> {
+        let result = self.close_with(report_json, faults);
+        result
+            .err()
+            .map(|e| format!("closing {}: {e}", self.path.display()))
+    }
+
+    fn close_with(&mut self, report_json: &str, faults: &[FaultReport]) -> Result<()> {
+        let Some(mut w) = self.writer.take() else {
+            return Ok(());
+        };
+        for (i, f) in faults.iter().enumerate() {
+            let at_ns = (f.injected_s.unwrap_or(0.0) * 1e9).max(0.0) as u64;
+            let header = MessageHeader {
+                channel_id: self.faults_channel,
+                sequence: i as u32,
+                log_time: self.started_mono_ns + at_ns,
+                publish_time: 0,
+            };
+            w.write_to_known_channel(&header, serde_json::to_string(f)?.as_bytes())?;
+        }
+        w.attach(&mcap::Attachment {
+            log_time: glint_runtime::mono_ns(),
+            create_time: glint_runtime::mono_ns(),
+            name: "report.json".to_string(),
+            media_type: "application/json".to_string(),
+            data: std::borrow::Cow::Borrowed(report_json.as_bytes()),
+        })?;
+        w.finish()?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The Python package's bundled layouts are this build's.
+    #[test]
+    fn the_python_package_bundles_these_layouts() {
+        let bundled: serde_json::Value = serde_json::from_str(include_str!(
+            "../../python/glint_client/layouts/glint_v7.json"
+        ))
+        .unwrap();
+        assert_eq!(
+            bundled,
+            super::layouts_document(),
+            "python/glint_client/layouts/glint_v7.json is stale: \
+             `glint tool layouts > python/glint_client/layouts/glint_v7.json`"
+        );
     }
 }

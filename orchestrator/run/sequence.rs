@@ -51,6 +51,10 @@ impl Sequencer {
         let Some(sp) = &scenario.spectra else {
             return Ok(None);
         };
+        // A replay that leaves the inversion out has no one to ask.
+        if !shared_types::deployment::carries(scenario, shared_types::TopicId::Solve) {
+            return Ok(None);
+        }
         Ok(Some(Sequencer {
             client: RpcClient::open(node, ServiceId::Orchestrator)?,
             stable_samples: sp.stable_samples,

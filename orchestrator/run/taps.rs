@@ -18,7 +18,7 @@ use shared_types::{deployment, Message, Scenario, ServiceId, TopicId};
 use xxhash_rust::xxh3::Xxh3;
 
 use crate::run::latency::Latency;
-use crate::run::record::{Recorder, RecordingReport};
+use crate::run::record::Recorder;
 
 /// The pixels of one frame, kept for a picture.
 #[derive(Debug, Clone)]
@@ -283,8 +283,6 @@ pub struct Taps {
     folds: Vec<Box<dyn Fold>>,
     stages: Stages,
     recorder: Option<Recorder>,
-    /// What the recording holds, once finished.
-    pub recording: Option<RecordingReport>,
 }
 
 impl Taps {
@@ -339,9 +337,11 @@ impl Taps {
         for f in &mut self.folds {
             f.finish();
         }
-        if let Some(r) = self.recorder.take() {
-            self.recording = Some(r.finish());
-        }
+    }
+
+    /// The recorder, to be closed once the report is written.
+    pub fn take_recorder(&mut self) -> Option<Recorder> {
+        self.recorder.take()
     }
 
     /// The fold of type `F` (a section's), if the run has one.

@@ -290,6 +290,9 @@ pub(crate) fn command(tool: crate::cli::ToolCmd) -> std::process::ExitCode {
     use crate::cli::ToolCmd;
     use std::process::ExitCode;
     let result = match tool {
+        ToolCmd::Layouts => serde_json::to_string_pretty(&crate::run::record::layouts_document())
+            .map(|j| println!("{j}"))
+            .map_err(anyhow::Error::from),
         ToolCmd::Detect { frame, threshold } => {
             detect(&frame, threshold).map(|json| println!("{json}"))
         }

@@ -7,13 +7,20 @@ use crate::table::{Count, TopicSpec, SERVICES, TOPICS};
 use crate::topics::{ServiceId, TopicId};
 
 /// Whether `scenario` deploys `service`.
+/// A replay (`[replay]`) deploys the consumers it names.
 pub fn deploys(scenario: &Scenario, service: ServiceId) -> bool {
     service.spec().section.present(scenario)
+        && scenario.replay.as_ref().is_none_or(|r| r.runs(service))
 }
 
 /// Whether `topic` exists in `scenario` (its section is there).
+/// A topic whose producer a replay leaves out is not carried.
 pub fn carries(scenario: &Scenario, topic: TopicId) -> bool {
-    topic.spec().section.present(scenario)
+    let spec = topic.spec();
+    spec.section.present(scenario)
+        && spec.producer().is_none_or(|p| {
+            p == ServiceId::Orchestrator || p == ServiceId::Sensor || deploys(scenario, p)
+        })
 }
 
 /// Services the orchestrator spawns for a scenario, in start order.
@@ -31,7 +38,7 @@ pub fn consumers(scenario: &Scenario, topic: TopicId) -> Vec<ServiceId> {
     }
     SERVICES
         .iter()
-        .filter(|s| s.inputs.contains(&topic) && s.section.present(scenario))
+        .filter(|s| s.inputs.contains(&topic) && deploys(scenario, s.id))
         .map(|s| s.id)
         .collect()
 }
@@ -39,7 +46,7 @@ pub fn consumers(scenario: &Scenario, topic: TopicId) -> Vec<ServiceId> {
 /// Messages a topic carries over the whole run (0 for housekeeping and calls).
 pub fn expected_messages(scenario: &Scenario, topic: TopicId) -> u64 {
     let spec = topic.spec();
-    if !spec.section.present(scenario) {
+    if !carries(scenario, topic) {
         return 0;
     }
     match spec.count {
@@ -47,7 +54,7 @@ pub fn expected_messages(scenario: &Scenario, topic: TopicId) -> u64 {
         Count::PerInput(input) => expected_messages(scenario, input),
         Count::Truth => TOPICS
             .iter()
-            .filter(|t| t.truth)
+            .filter(|t| t.truth.is_some())
             .map(|t| expected_messages(scenario, t.id))
             .sum(),
         Count::Open => 0,

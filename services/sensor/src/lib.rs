@@ -15,6 +15,8 @@ pub mod laser;
 #[cfg(feature = "node")]
 pub mod node;
 pub mod photometry_scene;
+pub mod recorded;
+pub mod recording;
 pub mod render;
 pub mod service_core;
 pub mod spectra_scene;

@@ -8,6 +8,8 @@
 //! orchestrator's [`Command::Continue`]): what came due while it was down was never made, and
 //! its consumers count the gap.
 
+use std::path::Path;
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Result;
@@ -15,10 +17,12 @@ use glint_runtime::ports::{FrameOutbox, Outbox};
 use glint_runtime::rpc::RangeServer;
 use glint_runtime::waitloop::{Step, Wake};
 use glint_runtime::{Io, NoInput, Output, Service, Setup, TopicStats};
-use shared_types::deployment::realtime_period_ns;
+use shared_types::deployment::{self, realtime_period_ns};
 use shared_types::topics::IpcNode;
-use shared_types::{Command, DropReason, Scenario, ServiceId, TopicId, Truth};
+use shared_types::{Command, DropReason, Message, Scenario, ServiceId, TopicId, Truth};
 
+use crate::recorded::{self, RecordedFrames, RecordedMessages, RecordedVisitor};
+use crate::recording::Recording;
 use crate::service_core::SensorCore;
 use crate::streams::{
     next_in_time, EarthStream, FrameStream, MessageStream, PhotometryStream, SpectraStream,
@@ -39,8 +43,8 @@ trait Emitter {
     fn end(&self) -> u64;
     /// Ends the stream after `messages` (or where it is, if it has sent more).
     fn end_at(&mut self, messages: u64);
-    /// Realtime mode: the period of its messages ([`deployment::realtime_period_ns`]).
-    fn period_ns(&self) -> Option<u64>;
+    /// What paces it beside credit.
+    fn pace(&self) -> Pace;
 
     fn topic(&self) -> TopicId {
         self.stream().topic()
@@ -57,10 +61,19 @@ trait Emitter {
         let k = self.next_seq();
         (k < self.end()).then(|| self.stream().t_ns(k))
     }
-    /// Realtime: when the next message is due after `Start` [ns]; `None`: as soon as it is
-    /// its turn.
+    /// When the next message is due after `Start` [ns] (realtime, or a paced replay); `None`:
+    /// as soon as it is its turn.
     fn due_ns(&self) -> Option<u64> {
-        self.period_ns().map(|p| p * self.next_seq())
+        let k = self.next_seq();
+        match self.pace() {
+            Pace::Credit => None,
+            Pace::Period(p) => Some(p * k),
+            Pace::Speed(x) => {
+                let s = self.stream();
+                let since_ns = s.t_ns(k.min(self.end().saturating_sub(1))) - s.t_ns(0);
+                Some((since_ns as f64 / x) as u64)
+            }
+        }
     }
     /// Whether the next message is a replay (a consumer restarted).
     fn replaying(&self) -> bool {
@@ -68,23 +81,47 @@ trait Emitter {
     }
 }
 
+/// What paces a stream beside its consumers' credit.
+#[derive(Debug, Clone, Copy)]
+enum Pace {
+    /// Credit alone (sim clock): as fast as the consumers take it.
+    Credit,
+    /// Realtime mode: one message every period [ns] ([`realtime_period_ns`]).
+    Period(u64),
+    /// A replay at a speed (`[replay] speed`): message `k` at its recorded simulated time
+    /// since the first, divided by the speed.
+    Speed(f64),
+}
+
+impl Pace {
+    fn of(sc: &Scenario, topic: TopicId) -> Pace {
+        let realtime = sc.clock == shared_types::scenario::Clock::Realtime;
+        let period_ns = realtime_period_ns(sc, topic).filter(|_| realtime);
+        match (period_ns, sc.replay.as_ref().map(|r| r.speed)) {
+            (Some(p), _) => Pace::Period(p),
+            (None, Some(x)) if x > 0.0 => Pace::Speed(x),
+            (None, _) => Pace::Credit,
+        }
+    }
+}
+
 struct Frames<S: FrameStream> {
     stream: S,
     out: FrameOutbox,
     end: u64,
-    period_ns: Option<u64>,
+    pace: Pace,
 }
 
 impl<S: FrameStream + 'static> Frames<S> {
     /// The stream with its port, ending where the scenario says, paced in realtime mode.
     fn open(stream: S, node: &IpcNode, sc: &Scenario) -> Result<Box<dyn Emitter>> {
         let out = FrameOutbox::open(node, stream.topic(), sc)?;
-        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
+        let (end, pace) = (stream.messages(), Pace::of(sc, stream.topic()));
         Ok(Box::new(Frames {
             stream,
             out,
             end,
-            period_ns,
+            pace,
         }))
     }
 }
@@ -112,8 +149,8 @@ impl<S: FrameStream> Emitter for Frames<S> {
     fn end_at(&mut self, messages: u64) {
         self.end = self.end.min(messages.max(self.out.next_seq()));
     }
-    fn period_ns(&self) -> Option<u64> {
-        self.period_ns
+    fn pace(&self) -> Pace {
+        self.pace
     }
 }
 
@@ -121,19 +158,19 @@ struct Messages<S: MessageStream> {
     stream: S,
     out: Outbox<S::Msg>,
     end: u64,
-    period_ns: Option<u64>,
+    pace: Pace,
 }
 
 impl<S: MessageStream + 'static> Messages<S> {
     /// The stream with its port, ending where the scenario says, paced in realtime mode.
     fn open(stream: S, node: &IpcNode, sc: &Scenario) -> Result<Box<dyn Emitter>> {
         let out = Outbox::open(node, stream.topic(), ServiceId::Sensor)?;
-        let (end, period_ns) = (stream.messages(), realtime_period_ns(sc, stream.topic()));
+        let (end, pace) = (stream.messages(), Pace::of(sc, stream.topic()));
         Ok(Box::new(Messages {
             stream,
             out,
             end,
-            period_ns,
+            pace,
         }))
     }
 }
@@ -160,8 +197,8 @@ impl<S: MessageStream> Emitter for Messages<S> {
     fn end_at(&mut self, messages: u64) {
         self.end = self.end.min(messages.max(self.out.next_seq()));
     }
-    fn period_ns(&self) -> Option<u64> {
-        self.period_ns
+    fn pace(&self) -> Pace {
+        self.pace
     }
 }
 
@@ -169,6 +206,9 @@ impl<S: MessageStream> Emitter for Messages<S> {
 /// the one list a new sensor mode joins.
 fn emitters(setup: &Setup<'_>, core: &SensorCore) -> Result<Vec<Box<dyn Emitter>>> {
     let (node, sc): (_, &Scenario) = (setup.node, setup.scenario);
+    if let Some(replay) = &sc.replay {
+        return recorded_emitters(node, sc, &replay.recording);
+    }
     let mut all: Vec<Box<dyn Emitter>> = vec![];
     if let Some(stream) = core.debris_stream() {
         all.push(Frames::open(stream, node, sc)?);
@@ -191,6 +231,30 @@ fn emitters(setup: &Setup<'_>, core: &SensorCore) -> Result<Vec<Box<dyn Emitter>
     }
     all.sort_by_key(|e| e.topic());
     Ok(all)
+}
+
+/// `[replay]`: every stream of `sc` from the recording, in table order.
+fn recorded_emitters(node: &IpcNode, sc: &Scenario, path: &str) -> Result<Vec<Box<dyn Emitter>>> {
+    struct Port<'a> {
+        node: &'a IpcNode,
+        sc: &'a Scenario,
+    }
+    impl RecordedVisitor for Port<'_> {
+        type Out = Box<dyn Emitter>;
+        fn frames(self, stream: RecordedFrames) -> Result<Box<dyn Emitter>> {
+            Frames::open(stream, self.node, self.sc)
+        }
+        fn messages<T: Message>(self, stream: RecordedMessages<T>) -> Result<Box<dyn Emitter>> {
+            Messages::open(stream, self.node, self.sc)
+        }
+    }
+    let recording = Arc::new(Recording::open(Path::new(path))?);
+    let streams = deployment::outputs(sc, ServiceId::Sensor)
+        .into_iter()
+        .filter(|t| t.spec().truth.is_some());
+    streams
+        .map(|t| recorded::open(&recording, t, sc, Port { node, sc }))
+        .collect()
 }
 
 pub struct SensorNode {
@@ -297,25 +361,26 @@ impl Service for SensorNode {
                     continue;
                 }
                 let replay = stream.replaying();
-                let due = if io.realtime {
-                    match stream.due_ns() {
-                        Some(at) => {
-                            let now = io.now_ns() - t0_ns;
-                            if now < at {
-                                let wait = at - now;
-                                next_wake_ns = Some(next_wake_ns.map_or(wait, |w| w.min(wait)));
-                            }
-                            now >= at
+                let paced = match stream.due_ns() {
+                    Some(at) => {
+                        let now = io.now_ns() - t0_ns;
+                        if now < at {
+                            let wait = at - now;
+                            next_wake_ns = Some(next_wake_ns.map_or(wait, |w| w.min(wait)));
                         }
-                        None => true,
+                        now >= at
                     }
-                } else {
-                    // Its turn, credit for it, and credit for its truth (a replay sends none).
-                    let truth_ok = io.allows(TopicId::Truth, self.truth.stats.published);
-                    in_turn == Some(i)
-                        && io.allows(stream.topic(), stream.next_seq())
-                        && (truth_ok || replay)
+                    None => true,
                 };
+                // Sim clock: its turn, credit for it, and credit for its truth (a message sent
+                // again to a restarted consumer sends none).
+                let due = paced
+                    && (io.realtime || {
+                        let truth_ok = io.allows(TopicId::Truth, self.truth.stats.published);
+                        in_turn == Some(i)
+                            && io.allows(stream.topic(), stream.next_seq())
+                            && (truth_ok || replay)
+                    });
                 if !due {
                     continue;
                 }
@@ -342,7 +407,7 @@ impl Service for SensorNode {
         // (sim) or the next frame time (realtime), never spin.
         Ok(match next_wake_ns {
             _ if produced == BATCH => Step::WaitAtMost(Duration::ZERO),
-            Some(ns) if io.realtime => Step::WaitAtMost(Duration::from_nanos(ns)),
+            Some(ns) => Step::WaitAtMost(Duration::from_nanos(ns)),
             _ => Step::Wait,
         })
     }

@@ -13,6 +13,7 @@ mod earth;
 mod fault;
 mod matrix;
 mod photometry;
+mod replay;
 mod soak;
 mod spectra;
 mod stereo;
@@ -24,6 +25,7 @@ pub use earth::*;
 pub use fault::*;
 pub use matrix::*;
 pub use photometry::*;
+pub use replay::*;
 pub use soak::*;
 pub use spectra::*;
 pub use stereo::*;
@@ -125,6 +127,9 @@ pub struct Scenario {
     /// Restarts of failed services (`[supervision]`).
     #[serde(default)]
     pub supervision: Supervision,
+    /// The sensor's streams from a recording instead of rendered (`[replay]`; `glint replay`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub replay: Option<ReplayScenario>,
 }
 
 fn default_seed() -> u64 {
@@ -313,6 +318,7 @@ impl Scenario {
         supervision::check_supervision(&mut c, self);
         matrix::check_matrix(&mut c, self);
         soak::check_soak(&mut c, self);
+        replay::check_replay(&mut c, self);
         if let Some(camp) = &self.campaign {
             c.range_u("campaign.values (count)", camp.values.len() as u64, 1, 100);
             c.range_u("campaign.seeds", camp.seeds as u64, 1, 1000);

@@ -184,8 +184,9 @@ pub struct TopicSpec {
     pub from: From,
     pub count: Count,
     pub replay: Replay,
-    /// The sensor publishes one truth message with each of its messages (scoring).
-    pub truth: bool,
+    /// The sensor publishes one truth message with each of its messages (scoring), of this
+    /// kind ([`Truth::kind`](crate::Truth)).
+    pub truth: Option<u32>,
     /// What it carries, for people.
     pub about: &'static str,
 }

@@ -33,7 +33,7 @@ pub const TOPICS: [TopicSpec; 16] = [
             period_ns: |sc| sc.camera.as_ref().map(|c| c.frame_period_ns().max(1)),
         },
         replay: Replay::Remade,
-        truth: true,
+        truth: Some(Truth::KIND_FRAME),
         about: "debris camera frames ([u16] in place)",
     },
     TopicSpec {
@@ -47,7 +47,7 @@ pub const TOPICS: [TopicSpec; 16] = [
             period_ns: |_| None,
         },
         replay: Replay::Remade,
-        truth: true,
+        truth: Some(Truth::KIND_SPECTRUM),
         about: "the satellite's spectrum, one per sample of the stable and motion windows",
     },
     TopicSpec {
@@ -58,7 +58,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::One(ServiceId::Sensor),
         count: Count::Truth,
         replay: Replay::OrchestratorOnly,
-        truth: false,
+        truth: None,
         about: "what the sensor rendered, for scoring (never read by a service)",
     },
     TopicSpec {
@@ -74,7 +74,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::Every,
         count: Count::Open,
         replay: Replay::Never,
-        truth: false,
+        truth: None,
         about: "each service's state and counters",
     },
     TopicSpec {
@@ -90,7 +90,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::One(ServiceId::Orchestrator),
         count: Count::Open,
         replay: Replay::Never,
-        truth: false,
+        truth: None,
         about: "start, pause, shutdown, replay orders, in-band faults",
     },
     TopicSpec {
@@ -107,7 +107,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::Every,
         count: Count::Open,
         replay: Replay::Never,
-        truth: false,
+        truth: None,
         about: "what each consumer has taken: the producers' sim-clock credit",
     },
     TopicSpec {
@@ -122,7 +122,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::One(ServiceId::Sensor),
         count: Count::Open,
         replay: Replay::Never,
-        truth: false,
+        truth: None,
         about: "the laser rangefinder: a shot and its echo",
     },
     TopicSpec {
@@ -133,7 +133,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::One(ServiceId::Detector),
         count: Count::PerInput(TopicId::Frame),
         replay: Replay::Logged,
-        truth: false,
+        truth: None,
         about: "each frame's detections: ellipse features, matched ids, angles",
     },
     TopicSpec {
@@ -144,7 +144,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::One(ServiceId::Tracker),
         count: Count::PerInput(TopicId::Detections),
         replay: Replay::OrchestratorOnly,
-        truth: false,
+        truth: None,
         about: "each frame's tracks: angle filter and CW EKF states",
     },
     TopicSpec {
@@ -159,7 +159,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::One(ServiceId::Inversion),
         count: Count::Open,
         replay: Replay::Never,
-        truth: false,
+        truth: None,
         about: "the three-stage attitude solve, one call per stage",
     },
     TopicSpec {
@@ -175,7 +175,7 @@ pub const TOPICS: [TopicSpec; 16] = [
             period_ns: |sc| sc.earth.as_ref().map(|e| e.exposure_end_ns(0).max(1)),
         },
         replay: Replay::Remade,
-        truth: true,
+        truth: Some(Truth::KIND_EARTH),
         about: "fisheye infrared Earth frames ([u16] in place)",
     },
     TopicSpec {
@@ -186,7 +186,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::One(ServiceId::Earth),
         count: Count::PerInput(TopicId::EarthFrame),
         replay: Replay::Logged,
-        truth: false,
+        truth: None,
         about: "each Earth frame's attitude angle β and tilt, per method",
     },
     TopicSpec {
@@ -202,7 +202,7 @@ pub const TOPICS: [TopicSpec; 16] = [
             },
         },
         replay: Replay::Remade,
-        truth: true,
+        truth: Some(Truth::KIND_STEREO),
         about: "the stereo rig's epochs: every feature seen, normalised image coordinates",
     },
     TopicSpec {
@@ -213,7 +213,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::One(ServiceId::RelNav),
         count: Count::PerInput(TopicId::Stereo),
         replay: Replay::OrchestratorOnly,
-        truth: false,
+        truth: None,
         about: "each epoch's relative pose, rates, inertia ratios and covariance",
     },
     TopicSpec {
@@ -229,7 +229,7 @@ pub const TOPICS: [TopicSpec; 16] = [
             },
         },
         replay: Replay::Remade,
-        truth: true,
+        truth: Some(Truth::KIND_PHOTOMETRY),
         about: "the telescope's light curve: magnitude, σ, Sun and observer, range (or a gap)",
     },
     TopicSpec {
@@ -240,7 +240,7 @@ pub const TOPICS: [TopicSpec; 16] = [
         from: From::One(ServiceId::Photometry),
         count: Count::PerInput(TopicId::Photometry),
         replay: Replay::OrchestratorOnly,
-        truth: false,
+        truth: None,
         about: "each sample's identification (geometry, axis, spin, size) and UKF attitude",
     },
 ];
