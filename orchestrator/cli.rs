@@ -25,6 +25,18 @@ pub(crate) enum Cmd {
     /// Publish a recording's sensor streams into a fresh deployment of its consumers and hold
     /// their results against the recording's (docs/recording.md); `--inspect`: what it holds.
     Replay(ReplayArgs),
+    /// A live view of a running deployment: per service its state, pid, restarts, rates,
+    /// latency, drops, CPU and memory, from its heartbeats and /proc.
+    Top {
+        /// The deployment's prefix (`glint_<hex>_`); default: the one running.
+        prefix: Option<String>,
+        /// Print one snapshot (after watching 1.5 s) and exit.
+        #[arg(long)]
+        once: bool,
+        /// With --once: the snapshot as JSON.
+        #[arg(long, requires = "once")]
+        json: bool,
+    },
     /// Remove what crashed deployments left in shared memory (/dev/shm and iceoryx2's node
     /// directory); a deployment still running is left alone.
     Clean {

@@ -26,6 +26,7 @@ pub use run::matrix;
 pub mod run;
 mod service;
 mod tools;
+mod top;
 
 use std::process::ExitCode;
 
@@ -37,6 +38,7 @@ pub fn main() -> ExitCode {
     match Cli::parse().command {
         Cmd::Run(args) => run::command::command(args),
         Cmd::Replay(args) => run::replay::command(args),
+        Cmd::Top { prefix, once, json } => top::command(prefix, once, json),
         Cmd::Clean { prefix, list } => run::clean::command(prefix, list),
         Cmd::Validate { scenario } => run::command::validate(scenario),
         Cmd::Report { schema } => report::command(schema),

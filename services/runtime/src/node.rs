@@ -70,6 +70,7 @@ pub fn shm_entries(prefix: &str) -> Vec<std::path::PathBuf> {
 /// The deployment prefixes (`glint_<hex>_`) that have anything in `/dev/shm` or in iceoryx2's
 /// node and service directories, sorted.
 pub fn glint_prefixes() -> Vec<String> {
+    set_log_level_from_env_or(LogLevel::Error);
     let root = Config::global_config().global.root_path().to_string();
     let mut dirs = vec![
         std::path::PathBuf::from("/dev/shm"),
@@ -175,6 +176,7 @@ pub fn live_nodes(prefix: &str) -> Vec<(String, Option<u32>)> {
     let Ok(name) = FileName::new(prefix.as_bytes()) else {
         return out;
     };
+    set_log_level_from_env_or(LogLevel::Error);
     let mut config = Config::global_config().clone();
     config.global.prefix = name;
     let _ = Node::<ipc::Service>::list(&config, |state| {
