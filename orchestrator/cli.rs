@@ -163,6 +163,11 @@ pub(crate) enum BenchCmd {
         /// frames/s against the unrecorded deployment's of the same bench.
         #[arg(long)]
         record: bool,
+        /// The chain of a recording (`glint run --record`'s run.mcap: its camera, detector
+        /// and tracker), deployed rendered and then fed the recorded frames (memory-mapped, no
+        /// rendering): the chain's own frames/s against the rendered deployment's.
+        #[arg(long, conflicts_with_all = ["frames", "size", "targets"])]
+        source: Option<PathBuf>,
     },
     /// The pipeline bench swept over frame size (at 4 debris) and number of debris (at
     /// 1024²): frames/s and each core's time per frame, and the exponent of their growth.

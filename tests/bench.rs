@@ -222,7 +222,8 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
 
 /// `glint bench pipeline --record`: the same chain deployed again with every tapped message
 /// recorded; its rate beside the unrecorded one's of the same bench, and the recording whole
-/// (the frames, their truth, detections and tracks: four messages a frame, none missing).
+/// (the frames, their truth, detections and tracks: four messages a frame, none missing);
+/// then `--source` feeds that recording to the chain.
 #[test]
 fn bench_pipeline_record_gives_the_recording_cost_and_misses_nothing() {
     let dir = temp_dir("bench-pipeline-record");
@@ -260,7 +261,39 @@ fn bench_pipeline_record_gives_the_recording_cost_and_misses_nothing() {
     assert!((f(&r["cost"]) - cost).abs() < 1e-9, "{r}");
     // 30 frames of 256² u16 at least
     assert!(r["bytes"].as_u64().unwrap() > 30 * 256 * 256 * 2, "{r}");
-    assert!(dir.join("run-recorded").join("run.mcap").is_file());
+    let recording = dir.join("run-recorded").join("run.mcap");
+    assert!(recording.is_file());
+
+    // `--source`: the chain fed that recording's frames, against the chain rendering them
+    let from = temp_dir("bench-pipeline-source");
+    let out = glint()
+        .args(["bench", "pipeline", "--source"])
+        .arg(&recording)
+        .arg("--out")
+        .arg(&from)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("from the recording: "), "{stdout}");
+    let s = &read_json(&from.join("bench.json"))["pipeline"]["from_recording"];
+    assert!(f(&s["frames_per_s"]) > 0.0, "{s}");
+    assert!((f(&s["ratio"]) - f(&s["frames_per_s"]) / f(&s["frames_per_s_rendered"])).abs() < 1e-9);
+    // the recorded frames themselves, every one of them: the frame and detection digests of the
+    // deployment fed from the recording are the rendered deployment's of the same scenario
+    let fed = read_report(&from.join("run-from-recording").join("report.json"));
+    let rendered = read_report(&from.join("run").join("report.json"));
+    assert_eq!(fed.results.topics["frame"].published, Some(30));
+    for topic in ["frame", "detections", "tracks"] {
+        let (a, b) = (&fed.results.topics[topic], &rendered.results.topics[topic]);
+        assert!(a.digest_xxh3.is_some(), "{topic}");
+        assert_eq!(a.digest_xxh3, b.digest_xxh3, "{topic}");
+    }
+    let _ = std::fs::remove_dir_all(&from);
 }
 
 #[test]

@@ -267,6 +267,33 @@ pub fn measure_recorded(
     })
 }
 
+/// Deploys `sc` (a `[replay]`: the frames from a recording) as processes into `run_dir`; its
+/// frames/s.
+pub fn measure_replayed(
+    sc: shared_types::Scenario,
+    run_dir: PathBuf,
+    progress: bool,
+) -> Result<f64> {
+    let opts = crate::run::RunOptions {
+        scenario: sc,
+        scenario_file: "glint bench (from a recording)".into(),
+        out_dir: Some(run_dir),
+        replace: true,
+        progress,
+        record: false,
+    };
+    let (dir, ok) = crate::run::run(opts)?;
+    let report = crate::report::Report::read(&dir.join("report.json"))?;
+    if !ok {
+        anyhow::bail!(
+            "the deployment fed from the recording failed: {} (see {})",
+            report.results.failure.as_deref().unwrap_or("unknown"),
+            dir.join("summary.md").display()
+        );
+    }
+    Ok(report.timing.frames_per_s)
+}
+
 /// Deploys `sc` as processes into `run_dir`, then does the same work in this process.
 pub fn measure(sc: shared_types::Scenario, run_dir: PathBuf, progress: bool) -> Result<Point> {
     let frames = sc.camera.as_ref().map_or(0, |c| c.frames);
@@ -313,6 +340,7 @@ pub fn run_pipeline(
     o: &pipeline::PipelineOptions,
     sc: shared_types::Scenario,
     record: bool,
+    replayed: Option<shared_types::Scenario>,
 ) -> Result<()> {
     std::fs::create_dir_all(&o.out).with_context(|| format!("creating {}", o.out.display()))?;
     let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
@@ -325,6 +353,20 @@ pub fn run_pipeline(
     pipeline::print(o, &deployed, &ip);
     pipeline::plot_time(&o.out, &deployed)?;
     let mut section = pipeline::json(o, &deployed, &ip);
+    if let Some(sc) = replayed {
+        let fps = measure_replayed(sc, o.out.join("run-from-recording"), progress)?;
+        println!(
+            "from the recording: {fps:.1} frames/s (the chain alone, no rendering), rendered: \
+             {:.1} frames/s: {:.2}×",
+            deployed.fps,
+            fps / deployed.fps
+        );
+        section["from_recording"] = json!({
+            "frames_per_s": fps,
+            "frames_per_s_rendered": deployed.fps,
+            "ratio": fps / deployed.fps,
+        });
+    }
     if let Some(sc) = recorded_sc {
         let r = measure_recorded(sc, o.out.join("run-recorded"), progress)?;
         let cost = 1.0 - r.fps / deployed.fps;
@@ -393,6 +435,7 @@ pub(crate) fn command(bench: crate::cli::BenchCmd) -> std::process::ExitCode {
             clock,
             laser,
             record,
+            source,
         } => {
             glint_runtime::init_tracing("orchestrator");
             let opts = crate::bench::pipeline::PipelineOptions {
@@ -410,14 +453,23 @@ pub(crate) fn command(bench: crate::cli::BenchCmd) -> std::process::ExitCode {
                 },
                 laser: matches!(laser, OnOff::On),
             };
-            let sc = match crate::bench::pipeline::scenario(&opts) {
-                Ok(sc) => sc,
-                Err(e) => {
-                    eprintln!("error: the bench's scenario: {e}");
-                    return ExitCode::from(2);
-                }
+            let (sc, replayed) = match &source {
+                Some(path) => match crate::run::replay::bench_scenarios(path) {
+                    Ok((sc, replayed)) => (sc, Some(replayed)),
+                    Err(e) => {
+                        eprintln!("error: {e:#}");
+                        return ExitCode::from(2);
+                    }
+                },
+                None => match crate::bench::pipeline::scenario(&opts) {
+                    Ok(sc) => (sc, None),
+                    Err(e) => {
+                        eprintln!("error: the bench's scenario: {e}");
+                        return ExitCode::from(2);
+                    }
+                },
             };
-            match crate::bench::run_pipeline(&opts, sc, record) {
+            match crate::bench::run_pipeline(&opts, sc, record, replayed) {
                 Ok(()) => ExitCode::SUCCESS,
                 Err(e) => {
                     eprintln!("error: {e:#}");

@@ -186,6 +186,40 @@ fn scenario(recording: &Recording, args: &ReplayArgs) -> Result<Scenario, String
     Ok(sc)
 }
 
+/// `glint bench pipeline --source run.mcap`: the recording's [002] chain (its camera, detector
+/// and tracker; every other stream left out), rendered, and the same fed from the recording.
+pub fn bench_scenarios(path: &Path) -> Result<(Scenario, Scenario)> {
+    let recording = Recording::open(path)?;
+    let toml = (recording.scenario_toml.as_deref())
+        .with_context(|| format!("{}: holds no scenario", path.display()))?;
+    let mut sc = Scenario::from_toml_str(toml, &format!("{} (its scenario)", path.display()))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let frames = (recording.channels())
+        .find(|c| c.topic == shared_types::TopicId::Frame.name())
+        .map_or(0, |c| c.messages);
+    let Some(cam) = sc.camera.as_mut() else {
+        anyhow::bail!(
+            "{}: its scenario has no [camera]: no frames to feed",
+            path.display()
+        );
+    };
+    cam.frames = frames;
+    (sc.spectra, sc.earth, sc.stereo, sc.photometry) = (None, None, None, None);
+    (sc.soak, sc.matrix) = (None, None);
+    sc.fault.clear();
+    let mut replayed = sc.clone();
+    let absolute = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    replayed.replay = Some(ReplayScenario {
+        recording: absolute.display().to_string(),
+        services: vec![],
+        speed: 0.0,
+    });
+    replayed
+        .validate()
+        .map_err(|e| anyhow::anyhow!("{}: {e:?}", path.display()))?;
+    Ok((sc, replayed))
+}
+
 /// Each topic the replay carried, against the recording's report.
 fn compare(
     path: &Path,
