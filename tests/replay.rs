@@ -58,7 +58,7 @@ fn replay_reproduces(scenario: &Path, tag: &str) {
     }
     // the replay rendered nothing: its sensor read the recording
     let log = std::fs::read_to_string(dir.join("replay/logs/sensor.log")).unwrap();
-    assert!(log.contains("sensor scenes built"), "{log}");
+    assert!(log.contains("replaying from the recording"), "{log}");
     let scenario = std::fs::read_to_string(dir.join("replay/scenario.toml")).unwrap();
     assert!(scenario.contains("[replay]"), "{scenario}");
 }
@@ -159,14 +159,21 @@ fn the_detector_alone_replays_to_the_recorded_detections() {
         replayed.results.topics["detections"].digest_xxh3,
         recorded.typed.results.topics["detections"].digest_xxh3
     );
-    // paced at 100 × the recorded time: the same detections
+    // paced at 4 × the recorded time: the same detections, and the 50 frames' 1.96 s of
+    // simulated time take at least 0.49 s
     let (o, json) = replay(
         &rec,
         &dir.join("paced"),
-        &["--service", "detector", "--speed", "100"],
+        &["--service", "detector", "--speed", "4"],
     );
     assert_success(&o);
     assert_eq!(json.expect("replay.json")["equal"], true);
+    let paced = read_report(&dir.join("paced").join("report.json"));
+    assert!(
+        paced.timing.production_s >= 0.49 * 0.99,
+        "{}",
+        paced.timing.production_s
+    );
 
     // a consumer whose input no one would publish is refused, naming what is missing
     let (o, _) = replay(&rec, &dir.join("bad"), &["--service", "tracker"]);
@@ -257,4 +264,79 @@ fn a_faulted_run_records_its_fault_and_report_and_replays_equal() {
     let (o, json) = replay(&rec, &dir.join("replay"), &[]);
     assert_success(&o);
     assert_eq!(json.expect("replay.json")["equal"], true);
+}
+
+/// What a replay cannot reproduce is refused before anything is deployed, naming the message:
+/// a recording whose sensor dropped a frame (a fault); a scenario file whose `[replay]` names
+/// no recording. A scenario file's `[replay]` is relative to the file, and a `--scenario` with
+/// fewer frames than were recorded replays those (the run passes; its results differ).
+#[test]
+fn what_a_replay_cannot_reproduce_is_refused_and_a_scenario_file_may_replay() {
+    let dir = temp_dir("replay-refused");
+    let r = run_ok(
+        Some(&scenario("debris-geo.toml")),
+        &dir.join("gap"),
+        &["--record", "--fault", "sensor:drop@10"],
+    );
+    assert!(r.typed.results.success, "{:?}", r.typed.results.failure);
+    let dropped: u64 = (r.typed.results.topics["frame"].consumers.values())
+        .map(|c| c.dropped.unwrap_or(0))
+        .sum();
+    assert!(dropped > 0, "the sensor's drop took effect");
+    let (o, json) = replay(&r.dir.join("run.mcap"), &dir.join("gap-replay"), &[]);
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("of topic frame is missing"), "{stderr}");
+    assert!(json.is_none());
+
+    // a scenario file with `[replay]`, its recording relative to the file
+    let (_, recorded) = record(&scenario("debris-geo.toml"), &dir);
+    let text = std::fs::read_to_string(scenario("debris-geo.toml")).unwrap();
+    let file = dir.join("from-recording.toml");
+    std::fs::write(
+        &file,
+        format!("{text}\n[replay]\nrecording = \"rec/run.mcap\"\n"),
+    )
+    .unwrap();
+    let replayed = run_ok(Some(&file), &dir.join("from-file"), &[]);
+    assert!(replayed.typed.results.success);
+    assert_eq!(
+        replayed.typed.results.science.digest_xxh3,
+        recorded.typed.results.science.digest_xxh3
+    );
+    std::fs::write(
+        &file,
+        format!("{text}\n[replay]\nrecording = \"none.mcap\"\n"),
+    )
+    .unwrap();
+    let o = glint()
+        .arg("run")
+        .arg(&file)
+        .arg("--out")
+        .arg(dir.join("none"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        stderr.contains("replay.recording") && stderr.contains("none.mcap"),
+        "{stderr}"
+    );
+
+    // fewer frames than recorded: those frames, every one accounted for
+    let shorter = scenario_variant("debris-geo.toml", &[("frames = 50", "frames = 30")], &dir);
+    let shorter = shorter.display().to_string();
+    let (o, json) = replay(
+        &recorded.dir.join("run.mcap"),
+        &dir.join("short"),
+        &["--scenario", &shorter],
+    );
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    assert_eq!(
+        json.expect("replay.json")["topics"]["frame"]["equal"],
+        false
+    );
+    let short = read_report(&dir.join("short").join("report.json"));
+    assert!(short.results.success, "{:?}", short.results.failure);
+    assert_eq!(short.results.topics["frame"].published, Some(30));
 }

@@ -368,13 +368,13 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
     s
 }
 
-/// Writes `report.json`, `summary.md` and the pictures; returns the report.
 /// Writes `report` again as `dir/report.json` (a verdict changed after it was written).
 pub fn rewrite(dir: &Path, report: &Report) -> Result<()> {
     let text = serde_json::to_string_pretty(report)? + "\n";
     std::fs::write(dir.join("report.json"), text).context("writing report.json")
 }
 
+/// Writes `report.json`, `summary.md` and the pictures; returns the report.
 pub fn write(dir: &Path, scenario: &Scenario, facts: &RunFacts) -> Result<Report> {
     let report = build(scenario, facts);
     let text = serde_json::to_string_pretty(&report)? + "\n";

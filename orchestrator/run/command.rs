@@ -46,6 +46,12 @@ pub(crate) fn load(path: Option<&PathBuf>) -> Result<(Scenario, String), Scenari
                     ));
                 }
             }
+            if let Some(r) = &sc.replay {
+                let path = std::path::Path::new(&r.recording);
+                glint_sensor::recording::Recording::open(path)
+                    .and_then(|rec| crate::run::replay::complete(&rec, &sc))
+                    .map_err(|e| invalid("replay.recording", format!("{e:#}")))?;
+            }
             Ok((sc, p.display().to_string()))
         }
         None => Ok((

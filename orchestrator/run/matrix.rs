@@ -98,7 +98,7 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
             out_dir: Some(root.join(case)),
             replace: opts.replace,
             progress: false,
-            record: false,
+            record: opts.record,
         })?;
         run::bail_if_interrupted("the fault matrix")?;
         Report::read(&sub.join("report.json")).with_context(|| format!("{case}'s report"))

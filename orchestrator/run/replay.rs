@@ -70,8 +70,7 @@ pub(crate) fn command(args: ReplayArgs) -> ExitCode {
         .filter(|s| *s != ServiceId::Sensor)
         .map(|s| s.name().to_string())
         .collect();
-    let recorded: Option<Report> =
-        (recording.report_json.as_deref()).and_then(|text| serde_json::from_str(text).ok());
+    let recorded = recorded_report(&recording);
     let file = format!("replay of {}", args.recording.display());
     drop(recording);
     let opts = run::RunOptions {
@@ -111,6 +110,23 @@ pub(crate) fn command(args: ReplayArgs) -> ExitCode {
     }
 }
 
+/// The recording's report, if it has one; one that does not parse (another glint's) is said,
+/// and nothing is compared.
+fn recorded_report(recording: &Recording) -> Option<Report> {
+    let text = recording.report_json.as_deref()?;
+    match serde_json::from_str(text) {
+        Ok(r) => Some(r),
+        Err(e) => {
+            eprintln!(
+                "warning: {}: its report.json does not read as this glint's report ({e}); the \
+                 replay is not compared with it",
+                recording.path().display()
+            );
+            None
+        }
+    }
+}
+
 /// The scenario a replay deploys: the recording's (or `--scenario`'s: the consumers' settings
 /// changed), its streams from the recording, the consumers named.
 fn scenario(recording: &Recording, args: &ReplayArgs) -> Result<Scenario, String> {
@@ -128,6 +144,9 @@ fn scenario(recording: &Recording, args: &ReplayArgs) -> Result<Scenario, String
                 .map_err(|e| e.to_string())?
         }
     };
+    // A replay runs on the sim clock, paced by `--speed` alone: the streams come from the
+    // recording, and every consumer takes every message.
+    sc.clock = shared_types::scenario::Clock::Sim;
     // The recording holds what the recorded run's faults did; a replay injects none (a
     // `--scenario`'s faults it does).
     if args.scenario.is_none() {
@@ -164,26 +183,32 @@ fn scenario(recording: &Recording, args: &ReplayArgs) -> Result<Scenario, String
         let all: Vec<String> = errors.iter().map(|e| e.to_string()).collect();
         format!("{}: {}", path.display(), all.join("; "))
     })?;
-    // Every message the scenario's streams carry must be in the recording.
-    let counts: BTreeMap<&str, u64> = (recording.channels())
-        .map(|c| (c.topic.as_str(), c.messages))
-        .collect();
-    for t in deployment::outputs(&sc, ServiceId::Sensor) {
-        if t.spec().truth.is_none() {
+    complete(recording, &sc).map_err(|e| format!("{e:#}"))?;
+    Ok(sc)
+}
+
+/// Every message the scenario's sensor streams carry, and its truth, is in the recording: a
+/// replay needs every one (a recorded run whose sensor dropped or lost messages, or a
+/// `--scenario` asking for more, is refused before anything is deployed).
+pub fn complete(recording: &Recording, sc: &Scenario) -> Result<()> {
+    for t in deployment::outputs(sc, ServiceId::Sensor) {
+        let Some(kind) = t.spec().truth else {
             continue;
-        }
-        let want = deployment::expected_messages(&sc, t);
-        let have = counts.get(t.name()).copied().unwrap_or(0);
-        if have < want {
-            return Err(format!(
-                "{}: holds {have} of the {want} {} messages its scenario makes (the recorded run \
-                 ended early, or --scenario asks for more): a replay needs every one",
-                path.display(),
+        };
+        let want = deployment::expected_messages(sc, t);
+        recording
+            .first(t, want)
+            .context("a replay needs every message its scenario makes")?;
+        let truths = recording.truths(kind)?.len() as u64;
+        if truths < want {
+            anyhow::bail!(
+                "{}: holds {truths} truths of topic {} for its {want} messages",
+                recording.path().display(),
                 t.name()
-            ));
+            );
         }
     }
-    Ok(sc)
+    Ok(())
 }
 
 /// `glint bench pipeline --source run.mcap`: the recording's [002] chain (its camera, detector
@@ -314,10 +339,11 @@ fn inspect(recording: &Recording) -> String {
         Some(Err(e)) => out += &format!("scenario: unreadable ({e})\n"),
         None => out += "scenario: none\n",
     }
-    let report: Option<Report> =
-        (recording.report_json.as_deref()).and_then(|text| serde_json::from_str(text).ok());
+    let report: Option<Result<Report, String>> = (recording.report_json.as_deref())
+        .map(|text| serde_json::from_str(text).map_err(|e| e.to_string()));
     out += &match &report {
-        Some(r) => format!(
+        Some(Err(e)) => format!("report: unreadable by this glint ({e})\n"),
+        Some(Ok(r)) => format!(
             "report: {} ({} faults); science digest {}\n",
             if r.results.success {
                 "success"

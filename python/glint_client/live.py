@@ -127,7 +127,7 @@ class _Topic:
                 self._listener = None  # polls instead
         #: Whether a publisher was ever seen: "no publisher" then means the producer ended.
         self._seen_publisher = False
-        client._topics.add(self)
+        client._topics.append(self)  # held by the client until closed: stream() reads it
 
     def publishers(self) -> int:
         n = int(self._service.dynamic_config.number_of_publishers)
@@ -177,6 +177,8 @@ class _Topic:
             self._sub = None
         self._events = None
         self._service = None
+        if self in self.client._topics:
+            self.client._topics.remove(self)
 
 
 class Frame:
@@ -434,7 +436,7 @@ class Client:
                           .create(iox.ServiceType.Ipc))
         self.verifier = iox.AttributeVerifier.new().require(
             iox.AttributeKey.new(CONTRACT_KEY), iox.AttributeValue.new(str(contract_version)))
-        self._topics: weakref.WeakSet[_Topic] = weakref.WeakSet()
+        self._topics: list[_Topic] = []
         self._waitset: Any = None
         self._guards: list[tuple[Any, _Topic]] = []
         _open_clients.add(self)
@@ -530,7 +532,7 @@ class Client:
                 t.close(force=force)
             else:
                 t.close()
-        self._topics = weakref.WeakSet()
+        self._topics = []
         self.node = None
         _open_clients.discard(self)
 

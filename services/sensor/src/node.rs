@@ -69,9 +69,8 @@ trait Emitter {
             Pace::Credit => None,
             Pace::Period(p) => Some(p * k),
             Pace::Speed(x) => {
-                let s = self.stream();
-                let since_ns = s.t_ns(k.min(self.end().saturating_sub(1))) - s.t_ns(0);
-                Some((since_ns as f64 / x) as u64)
+                let t_ns = self.stream().t_ns(k.min(self.end().saturating_sub(1)));
+                Some((t_ns as f64 / x) as u64)
             }
         }
     }
@@ -89,7 +88,7 @@ enum Pace {
     /// Realtime mode: one message every period [ns] ([`realtime_period_ns`]).
     Period(u64),
     /// A replay at a speed (`[replay] speed`): message `k` at its recorded simulated time
-    /// since the first, divided by the speed.
+    /// (since the scenario's start, the same origin for every stream) over the speed.
     Speed(f64),
 }
 
@@ -249,10 +248,14 @@ fn recorded_emitters(node: &IpcNode, sc: &Scenario, path: &str) -> Result<Vec<Bo
         }
     }
     let recording = Arc::new(Recording::open(Path::new(path))?);
-    let streams = deployment::outputs(sc, ServiceId::Sensor)
+    let streams: Vec<TopicId> = deployment::outputs(sc, ServiceId::Sensor)
         .into_iter()
-        .filter(|t| t.spec().truth.is_some());
+        .filter(|t| t.spec().truth.is_some())
+        .collect();
+    let names: Vec<&str> = streams.iter().map(|t| t.name()).collect();
+    tracing::info!(recording = path, topics = ?names, "replaying from the recording");
     streams
+        .into_iter()
         .map(|t| recorded::open(&recording, t, sc, Port { node, sc }))
         .collect()
 }

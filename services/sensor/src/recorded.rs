@@ -8,6 +8,7 @@
 use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
+use shared_types::deployment::expected_messages;
 use shared_types::table::{visit, PayloadVisitor, TopicSpec};
 use shared_types::{FrameHeader, Message, Scenario, TopicId, Truth};
 
@@ -23,8 +24,10 @@ struct Recorded {
 }
 
 impl Recorded {
-    fn open(recording: Arc<Recording>, topic: TopicId) -> Result<Self> {
-        let messages = recording.messages(topic)?;
+    /// The first `n` messages of `topic` (the scenario's count: a `--scenario` may ask for
+    /// fewer than were recorded).
+    fn open(recording: Arc<Recording>, topic: TopicId, n: u64) -> Result<Self> {
+        let messages = recording.first(topic, n)?;
         let t_ns = messages
             .iter()
             .map(|m| meta_of(m).map(|meta| meta.t_ns).unwrap_or(0))
@@ -79,7 +82,7 @@ pub struct RecordedFrames(Recorded);
 impl RecordedFrames {
     /// `topic`'s frames in `recording`, each checked against the scenario's frame size.
     pub fn open(recording: Arc<Recording>, topic: TopicId, sc: &Scenario) -> Result<Self> {
-        let r = Recorded::open(recording, topic)?;
+        let r = Recorded::open(recording, topic, expected_messages(sc, topic))?;
         let want = shared_types::topics::frame_pixels(topic, sc);
         for k in 0..r.messages() {
             let (h, _) = split_frame(r.bytes(k)).with_context(|| {
@@ -137,10 +140,11 @@ pub struct RecordedMessages<T: Message> {
 }
 
 impl<T: Message> RecordedMessages<T> {
-    pub fn open(recording: Arc<Recording>, topic: TopicId) -> Result<Self> {
-        let messages = recording.typed::<T>(topic)?;
+    pub fn open(recording: Arc<Recording>, topic: TopicId, sc: &Scenario) -> Result<Self> {
+        let n = expected_messages(sc, topic);
+        let messages = recording.typed::<T>(topic, Some(n))?;
         Ok(RecordedMessages {
-            recorded: Recorded::open(recording, topic)?,
+            recorded: Recorded::open(recording, topic, n)?,
             messages,
         })
     }
@@ -198,6 +202,7 @@ pub fn open<V: RecordedVisitor>(
             self.v.messages(RecordedMessages::<T>::open(
                 self.recording.clone(),
                 self.topic,
+                self.sc,
             )?)
         }
         fn calls<Req: Message, Resp: Message>(self, _: &'static TopicSpec) -> Self::Out {

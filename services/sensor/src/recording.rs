@@ -180,24 +180,45 @@ impl Recording {
 
     /// Messages of `topic` with sequence numbers 0, 1, …, without a gap.
     pub fn messages(&self, topic: TopicId) -> Result<Vec<&[u8]>> {
+        let n = self.by_seq.get(&topic).map_or(0, |v| v.len() as u64);
+        self.first(topic, n)
+    }
+
+    /// Messages 0 … `n - 1` of `topic`; an error names the first one missing.
+    pub fn first(&self, topic: TopicId, n: u64) -> Result<Vec<&[u8]>> {
         let all = self.by_seq.get(&topic).map_or(&[][..], |v| v.as_slice());
-        all.iter()
-            .enumerate()
-            .map(|(k, b)| match b {
-                Some(b) => Ok(self.bytes(b)),
-                None => bail!(
-                    "{}: message {k} of topic {} is missing (the recording has {} after it)",
+        (0..n)
+            .map(|k| match all.get(k as usize) {
+                Some(Some(b)) => Ok(self.bytes(b)),
+                Some(None) => bail!(
+                    "{}: message {k} of topic {} is missing (the recording has {} after it; \
+                     a fault dropped it, or a realtime run lost it)",
                     self.path.display(),
                     topic.name(),
-                    all.len() - k - 1
+                    all.len() - k as usize - 1
+                ),
+                None => bail!(
+                    "{}: holds {} of the {n} {} messages asked for",
+                    self.path.display(),
+                    all.len(),
+                    topic.name()
                 ),
             })
             .collect()
     }
 
-    /// The messages of a fixed-size type `T` on `topic`, each checked for its size.
-    pub fn typed<T: bytemuck::AnyBitPattern>(&self, topic: TopicId) -> Result<Vec<T>> {
-        self.messages(topic)?
+    /// The messages of a fixed-size type `T` on `topic` (its first `n`, or all), each checked
+    /// for its size.
+    pub fn typed<T: bytemuck::AnyBitPattern>(
+        &self,
+        topic: TopicId,
+        n: Option<u64>,
+    ) -> Result<Vec<T>> {
+        let messages = match n {
+            Some(n) => self.first(topic, n)?,
+            None => self.messages(topic)?,
+        };
+        messages
             .into_iter()
             .enumerate()
             .map(|(k, b)| {
@@ -219,7 +240,7 @@ impl Recording {
     /// stream whose truth is of that kind: the `k`-th).
     pub fn truths(&self, kind: u32) -> Result<Vec<Truth>> {
         Ok(self
-            .typed::<Truth>(TopicId::Truth)?
+            .typed::<Truth>(TopicId::Truth, None)?
             .into_iter()
             .filter(|t| t.kind == kind)
             .collect())

@@ -250,6 +250,14 @@ impl Scenario {
                 p.shapes = std::path::absolute(&joined).unwrap_or(joined);
             }
         }
+        if let Some(r) = scenario.replay.as_mut() {
+            if std::path::Path::new(&r.recording).is_relative() {
+                let joined = dir.join(&r.recording);
+                r.recording = (std::path::absolute(&joined).unwrap_or(joined))
+                    .display()
+                    .to_string();
+            }
+        }
         Ok(scenario)
     }
 
