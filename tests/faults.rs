@@ -584,3 +584,35 @@ fn a_restart_resumes_from_its_checkpoint_and_replays_only_what_came_after() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A delay counted in inputs whose order lands with fewer inputs left than it counts (here 40
+/// from frame 20 of 50; in the fault matrix the producers run ahead of the order by up to
+/// their credit window, further on a faster host): it is over when the inputs are, so the
+/// verdict does not depend on how far ahead the producers were.
+#[test]
+fn a_delay_counted_past_the_last_input_ends_with_the_run() {
+    let dir = temp_dir("fault-delay-past-end");
+    let r = run_ok(
+        Some(&scenario("debris-geo.toml")),
+        &dir.join("out"),
+        &["--fault", "detector:delay@20,count=40,delay_ms=5"],
+    );
+    assert!(r.typed.results.success, "{:?}", r.typed.results.failure);
+    let f = fault(&r.typed);
+    assert!(f.injected_s.is_some(), "{f:?}");
+    assert_eq!(f.not_reached, None, "{f:?}");
+    let (ended, recovered) = (f.ended_s.unwrap(), f.recovered_s.unwrap());
+    assert!(recovered >= ended, "{f:?}");
+    // it took effect: the detector slept 5 ms before each input it had left (at least 4)
+    let log = std::fs::read_to_string(r.dir.join("logs/detector.log")).unwrap();
+    assert!(
+        log.contains("injected fault") && log.contains("delay"),
+        "{log}"
+    );
+    assert!(
+        r.typed.timing.time_s["detector"].busy_s >= 0.02,
+        "{:?}",
+        r.typed.timing.time_s["detector"]
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

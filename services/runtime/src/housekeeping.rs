@@ -188,6 +188,16 @@ impl Housekeeping {
         self.beat_if_due()
     }
 
+    /// The run is over (`Shutdown`): no input is left to slow, so a delay counted in inputs is
+    /// over — its order may have landed with fewer inputs left than it counts (sim-clock
+    /// producers run ahead of the orders by up to their credit window, more on a faster host).
+    /// A delay by time that outlasts the run is still on.
+    pub fn inputs_ended(&mut self) {
+        if matches!(self.delay, Some((_, DelayEnd::After(_)))) {
+            self.delay = None;
+        }
+    }
+
     /// Repeats the last heartbeat's counters when a heartbeat is due: a service working
     /// through a burst of inputs, or slowed, still beats on time (busy is not hung).
     pub fn beat_if_due(&mut self) -> Result<()> {

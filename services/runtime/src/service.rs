@@ -487,6 +487,7 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
         }
         if hk.shutdown_requested {
             hk.state = Heartbeat::STOPPING;
+            hk.inputs_ended();
             timer.asleep(false);
             hk.time = timer.time(&input, &svc);
             hk.beat(0, &all_stats(&input, &svc))?;
