@@ -168,6 +168,10 @@ pub(crate) enum BenchCmd {
         /// rendering): the chain's own frames/s against the rendered deployment's.
         #[arg(long, conflicts_with_all = ["frames", "size", "targets"])]
         source: Option<PathBuf>,
+        /// Pin a service to a CPU, SERVICE=CPU (repeatable; `[services.<name>] cpu` of a
+        /// scenario): e.g. `--cpu sensor=0 --cpu detector=1`.
+        #[arg(long, value_parser = parse_placement)]
+        cpu: Vec<(String, u32)>,
     },
     /// The pipeline bench swept over frame size (at 4 debris) and number of debris (at
     /// 1024²): frames/s and each core's time per frame, and the exponent of their growth.
@@ -204,7 +208,15 @@ pub(crate) enum OnOff {
 }
 
 /// `WIDTHxHEIGHT`, each side 16–4096 px.
-pub(crate) fn parse_size(s: &str) -> Result<(u32, u32), String> {
+pub(crate) fn parse_placement(s: &str) -> Result<(String, u32), String> {
+    let (name, cpu) =
+        (s.split_once('=')).ok_or_else(|| format!("`{s}`: give SERVICE=CPU, e.g. detector=1"))?;
+    let cpu =
+        (cpu.parse::<u32>()).map_err(|_| format!("`{s}`: the CPU `{cpu}` is not a number"))?;
+    Ok((name.to_string(), cpu))
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s
         .split_once(['x', 'X'])
         .ok_or_else(|| format!("`{s}`: expected WIDTHxHEIGHT, e.g. 1024x1024"))?;

@@ -101,6 +101,8 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
             "256x256",
             "--targets",
             "2",
+            "--cpu",
+            "detector=0",
         ])
         .arg("--out")
         .arg(&dir)
@@ -113,13 +115,32 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(stdout.starts_with("pipeline: "), "{stdout}");
+    assert!(
+        stdout.contains("(placement: detector on CPU 0)"),
+        "{stdout}"
+    );
     let bench = read_json(&dir.join("bench.json"));
     let p = &bench["pipeline"];
     assert_eq!(p["frames"], 30, "{p}");
     assert_eq!(p["dropped"], 0, "{p}");
     assert_eq!(p["success"], true, "{p}");
     assert_eq!(p["in_process"]["frames"], 30, "{p}");
+    // a fair baseline: as many frame buffers as the deployment circulates (256² frames: a
+    // 16-frame history and one loan), and the detector's check of every frame
+    assert_eq!(p["in_process"]["pool_frames"], 17, "{p}");
+    assert_eq!(p["scenario"]["cpu"]["detector"], 0, "{p}");
+    assert!(
+        p["in_process"]["stages"]["verify"]["mean_us"]
+            .as_f64()
+            .unwrap()
+            > 0.0,
+        "{p}"
+    );
     let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert!(
+        f(&p["floor"]["pass_l3_us"]) > 0.0 && f(&p["floor"]["pass_dram_us"]) > 0.0,
+        "{p}"
+    );
     assert!(f(&p["fps"]) > 0.0 && f(&p["in_process_fps"]) > 0.0, "{p}");
     let ratio = f(&p["fps"]) / f(&p["in_process_fps"]);
     assert!((f(&p["speedup"]) - ratio).abs() < 1e-9 * ratio, "{p}");
@@ -298,7 +319,14 @@ fn bench_pipeline_record_gives_the_recording_cost_and_misses_nothing() {
 
 #[test]
 fn bench_pipeline_rejects_a_bad_size_or_target_count() {
-    for args in [["--size", "10x10"], ["--size", "1024"], ["--targets", "17"]] {
+    for args in [
+        ["--size", "10x10"],
+        ["--size", "1024"],
+        ["--targets", "17"],
+        ["--cpu", "detector"],
+        ["--cpu", "laser=0"],
+        ["--cpu", "detector=1023"],
+    ] {
         let out = glint()
             .args(["bench", "pipeline"])
             .args(args)

@@ -202,3 +202,46 @@ fn no_file_of_a_deployment_is_open_to_other_users() {
     glint_runtime::remove_shm(prefix);
     assert!(glint_runtime::shm_entries(prefix).is_empty());
 }
+
+/// `[services.<name>] cpu`: the service runs on that CPU (its affinity read back in its log,
+/// every frame accounted for, the science as unpinned); a CPU the host does not give glint is
+/// refused before anything is deployed, naming the field and the CPUs there are.
+#[test]
+fn a_service_pinned_to_a_cpu_runs_there_and_a_missing_cpu_is_refused() {
+    let dir = temp_dir("placement");
+    let base = run_ok(Some(&scenario("debris-geo.toml")), &dir.join("base"), &[]);
+    let pinned = dir.join("pinned.toml");
+    let text = std::fs::read_to_string(scenario("debris-geo.toml")).unwrap();
+    std::fs::write(&pinned, format!("{text}\n[services.detector]\ncpu = 0\n")).unwrap();
+    let r = run_ok(Some(&pinned), &dir.join("pinned"), &[]);
+    assert!(r.typed.results.success, "{:?}", r.typed.results.failure);
+    let log = std::fs::read_to_string(r.dir.join("logs/detector.log")).unwrap();
+    assert!(log.contains("detector pinned to CPU 0 cpus=[0]"), "{log}");
+    let sensor = std::fs::read_to_string(r.dir.join("logs/sensor.log")).unwrap();
+    assert!(!sensor.contains("pinned"), "{sensor}");
+    assert_eq!(
+        r.typed.results.science.digest_xxh3,
+        base.typed.results.science.digest_xxh3
+    );
+
+    std::fs::write(
+        &pinned,
+        format!("{text}\n[services.detector]\ncpu = 1023\n"),
+    )
+    .unwrap();
+    let o = glint()
+        .arg("run")
+        .arg(&pinned)
+        .arg("--out")
+        .arg(dir.join("missing"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        stderr.contains("services.detector.cpu") && stderr.contains("CPU 1023 is not one"),
+        "{stderr}"
+    );
+    assert!(!dir.join("missing").join("report.json").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -10,7 +10,7 @@ pub mod scaling;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use serde_json::json;
+use serde_json::{json, Value};
 
 use crate::plots::{self, Series};
 use ipc::{Row, Transport};
@@ -267,6 +267,25 @@ pub fn measure_recorded(
     })
 }
 
+/// Pins the bench's services as `--cpu` says (`[services.<name>] cpu`), checked as a scenario's
+/// placement is.
+fn place(sc: &mut shared_types::Scenario, cpus: &[(String, u32)]) -> Result<(), String> {
+    for (name, cpu) in cpus {
+        sc.services.entry(name.clone()).or_default().cpu = Some(*cpu);
+        let checked = sc.validate().map_err(|errs| {
+            let all: Vec<String> = errs.iter().map(|e| e.to_string()).collect();
+            all.join("; ")
+        });
+        checked
+            .and_then(|()| {
+                crate::run::command::host_has_cpus(sc)
+                    .map_err(|(field, message)| format!("{field}: {message}"))
+            })
+            .map_err(|e| format!("`{name}={cpu}`: {e}"))?;
+    }
+    Ok(())
+}
+
 /// Deploys `sc` (a `[replay]`: the frames from a recording) as processes into `run_dir`; its
 /// frames/s.
 pub fn measure_replayed(
@@ -345,14 +364,24 @@ pub fn run_pipeline(
     std::fs::create_dir_all(&o.out).with_context(|| format!("creating {}", o.out.display()))?;
     let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let recorded_sc = record.then(|| sc.clone());
+    let placement: serde_json::Map<String, Value> = (sc.services.iter())
+        .filter_map(|(name, p)| Some((name.clone(), json!(p.cpu?))))
+        .collect();
     let Point {
         deployed,
         in_process: ip,
         run_dir: dir,
     } = measure(sc, o.out.join("run"), progress)?;
     pipeline::print(o, &deployed, &ip);
+    if !placement.is_empty() {
+        let pins: Vec<String> = (placement.iter())
+            .map(|(name, cpu)| format!("{name} on CPU {cpu}"))
+            .collect();
+        println!("(placement: {})", pins.join(", "));
+    }
     pipeline::plot_time(&o.out, &deployed)?;
     let mut section = pipeline::json(o, &deployed, &ip);
+    section["scenario"]["cpu"] = Value::Object(placement);
     if let Some(sc) = replayed {
         let fps = measure_replayed(sc, o.out.join("run-from-recording"), progress)?;
         println!(
@@ -436,6 +465,7 @@ pub(crate) fn command(bench: crate::cli::BenchCmd) -> std::process::ExitCode {
             laser,
             record,
             source,
+            cpu,
         } => {
             glint_runtime::init_tracing("orchestrator");
             let opts = crate::bench::pipeline::PipelineOptions {
@@ -469,6 +499,13 @@ pub(crate) fn command(bench: crate::cli::BenchCmd) -> std::process::ExitCode {
                     }
                 },
             };
+            let (mut sc, mut replayed) = (sc, replayed);
+            for s in std::iter::once(&mut sc).chain(replayed.as_mut()) {
+                if let Err(e) = place(s, &cpu) {
+                    eprintln!("error: --cpu {e}");
+                    return ExitCode::from(2);
+                }
+            }
             match crate::bench::run_pipeline(&opts, sc, record, replayed) {
                 Ok(()) => ExitCode::SUCCESS,
                 Err(e) => {

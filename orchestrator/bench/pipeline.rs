@@ -91,6 +91,48 @@ pub struct InProcess {
     pub frames: u64,
     pub wall_s: f64,
     pub stages: Vec<(&'static str, Vec<u64>)>,
+    /// Frame buffers it renders into in turn: as many as the deployment's frame samples in
+    /// circulation (the topic's history and one loan).
+    pub pool_frames: usize,
+    /// The physical floor: one read pass over a frame [µs], from L3 (a frame just read) and
+    /// from DRAM (frames of a pool far larger than any L3).
+    pub pass_l3_us: f64,
+    pub pass_dram_us: f64,
+}
+
+/// Reads every byte of `frame` once (a sum of its 64-bit words).
+fn read_pass(frame: &[u16]) -> u64 {
+    let words: &[u64] = bytemuck::cast_slice(&frame[..frame.len() / 4 * 4]);
+    words.iter().fold(0u64, |a, w| a.wrapping_add(*w))
+}
+
+/// The median time [µs] of one read pass over a frame of `px` pixels: over the same frame
+/// again and again (it stays in L3), and over the frames of a 256 MiB pool in turn (each
+/// comes from DRAM).
+fn floor_us(px: usize) -> (f64, f64) {
+    const POOL_BYTES: usize = 256 << 20;
+    const PASSES: usize = 64;
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let time = |f: &[u16]| {
+        let t0 = Instant::now();
+        std::hint::black_box(read_pass(std::hint::black_box(f)));
+        t0.elapsed().as_secs_f64() * 1e6
+    };
+    let hot = vec![1u16; px];
+    read_pass(&hot);
+    let l3 = median((0..PASSES).map(|_| time(&hot)).collect());
+    let n = (POOL_BYTES / (2 * px).max(1)).max(2);
+    let pool: Vec<Vec<u16>> = (0..n).map(|k| vec![k as u16; px]).collect();
+    // frames of the pool's first half, each once: the second half's writes evicted them
+    let dram = median(
+        (0..PASSES)
+            .map(|i| time(&pool[(i * 7) % (n / 2)]))
+            .collect(),
+    );
+    (l3, dram)
 }
 
 /// The chain's cores called one after the other on every frame of `sc`.
@@ -105,47 +147,64 @@ pub fn in_process(sc: &Scenario, bar: &indicatif::ProgressBar) -> Result<InProce
         next_id: 0,
         busy_ns: 0,
     };
-    let mut pixels = vec![0u16; cam.pixels()];
-    let (mut render, mut checksum, mut detect, mut track, mut ranging) =
-        (vec![], vec![], vec![], vec![], vec![]);
+    // The same pool of frames as the deployment's samples, written in turn: a frame rendered
+    // into a buffer last used that many frames ago, as the sensor's loan is.
+    let pool_frames = shared_types::topics::frame_window(cam.pixels()) + 1;
+    let mut pool: Vec<Vec<u16>> = (0..pool_frames).map(|_| vec![0u16; cam.pixels()]).collect();
+    let (mut render, mut checksum, mut verify, mut detect, mut track, mut ranging) =
+        (vec![], vec![], vec![], vec![], vec![], vec![]);
     let wall = Instant::now();
     for frame in 0..frames.messages() {
+        let pixels = &mut pool[frame as usize % pool_frames];
         let t_ns = frames.t_ns(frame);
         let mut header = FrameHeader {
             meta: Meta::new(frame, t_ns, 0, ServiceId::Sensor),
             ..Default::default()
         };
         let t0 = Instant::now();
-        frames.render(frame, &mut header, &mut pixels);
+        frames.render(frame, &mut header, pixels);
         let t1 = Instant::now();
-        header.pixels_xxh3 = shared_types::pixels_xxh3(&pixels);
+        header.pixels_xxh3 = shared_types::pixels_xxh3(pixels);
         let t2 = Instant::now();
-        let d = match detector.process(&header, &pixels) {
+        // the detector's check of what it received (its port verifies every frame)
+        if shared_types::pixels_xxh3(pixels) != header.pixels_xxh3 {
+            bail!("frame {frame}: its checksum does not hold in one process");
+        }
+        let t3 = Instant::now();
+        let d = match detector.process(&header, pixels) {
             Ok(d) => d,
             Err(reason) => bail!("frame {frame} rejected by the detector: {reason:?}"),
         };
-        let t3 = Instant::now();
+        let t4 = Instant::now();
         let before = laser.busy_ns;
         std::hint::black_box(tracker.process(&d, &mut laser)?);
-        let t4 = Instant::now();
+        let t5 = Instant::now();
         let laser_ns = laser.busy_ns - before;
         render.push((t1 - t0).as_nanos() as u64);
         checksum.push((t2 - t1).as_nanos() as u64);
-        detect.push((t3 - t2).as_nanos() as u64);
-        track.push(((t4 - t3).as_nanos() as u64).saturating_sub(laser_ns));
+        verify.push((t3 - t2).as_nanos() as u64);
+        detect.push((t4 - t3).as_nanos() as u64);
+        track.push(((t5 - t4).as_nanos() as u64).saturating_sub(laser_ns));
         ranging.push(laser_ns);
         bar.inc(1);
     }
+    let wall_s = wall.elapsed().as_secs_f64();
+    drop(pool);
+    let (pass_l3_us, pass_dram_us) = floor_us(cam.pixels());
     Ok(InProcess {
         frames: frames.messages(),
-        wall_s: wall.elapsed().as_secs_f64(),
+        wall_s,
         stages: vec![
             ("render", render),
             ("checksum", checksum),
+            ("verify", verify),
             ("detect", detect),
             ("track", track),
             ("laser", ranging),
         ],
+        pool_frames,
+        pass_l3_us,
+        pass_dram_us,
     })
 }
 
@@ -240,7 +299,10 @@ pub fn json(o: &PipelineOptions, d: &Deployed, ip: &InProcess) -> Value {
                    (sensor: its render in the in-process run; detector: frame sent → detections \
                    sent; tracker: detections sent → tracks sent; orchestrator: frame sent → \
                    received); cpu_s = user + system time of each process (/proc); in_process = \
-                   the same cores called sequentially in one process on the same frames",
+                   the same cores called sequentially in one process on the same frames, \
+                   rendered into a pool of as many frames as the deployment circulates, \
+                   checksummed and verified as the ports do; floor = one read pass over a \
+                   frame from L3 and from DRAM, in the same run",
         "scenario": {
             "frames": o.frames, "width_px": o.width_px, "height_px": o.height_px,
             "targets": o.targets, "clock": format!("{:?}", o.clock).to_lowercase(),
@@ -261,7 +323,11 @@ pub fn json(o: &PipelineOptions, d: &Deployed, ip: &InProcess) -> Value {
             "end_to_end": stage("end_to_end", "all"),
         },
         "time_s": d.time_s,
-        "in_process": { "frames": ip.frames, "wall_s": ip.wall_s, "stages": breakdown },
+        "in_process": {
+            "frames": ip.frames, "wall_s": ip.wall_s, "stages": breakdown,
+            "pool_frames": ip.pool_frames,
+        },
+        "floor": { "pass_l3_us": ip.pass_l3_us, "pass_dram_us": ip.pass_dram_us },
     })
 }
 
@@ -269,7 +335,7 @@ pub fn json(o: &PipelineOptions, d: &Deployed, ip: &InProcess) -> Value {
 pub fn print(o: &PipelineOptions, d: &Deployed, ip: &InProcess) {
     let in_fps = ip.frames as f64 / ip.wall_s.max(1e-9);
     println!(
-        "pipeline: {:.0} frames/s as processes, {:.0} frames/s in one process ({:.2}× faster); \
+        "pipeline: {:.0} frames/s as processes, {:.0} frames/s in one process: {:.2}×; \
          {} dropped; {} frames of {}×{}, {} debris, laser {}, {} clock",
         d.fps,
         in_fps,
@@ -310,6 +376,11 @@ pub fn print(o: &PipelineOptions, d: &Deployed, ip: &InProcess) {
         let (mean, p50, p99) = stats_us(ns);
         println!("{name:<13} {mean:>10.1} {p50:>10.1} {p99:>10.1}");
     }
+    println!(
+        "\n(one process: {} frame buffers in turn, as the deployment's samples; the floor, one \
+         read pass over a frame: {:.1} µs from L3, {:.1} µs from DRAM)",
+        ip.pool_frames, ip.pass_l3_us, ip.pass_dram_us
+    );
 }
 
 /// The parts of a process's time in the deployment (heading, the report's `time_s` key): busy

@@ -46,6 +46,9 @@ pub(crate) fn load(path: Option<&PathBuf>) -> Result<(Scenario, String), Scenari
                     ));
                 }
             }
+            if let Err((field, message)) = host_has_cpus(&sc) {
+                return Err(invalid(&field, message));
+            }
             if let Some(r) = &sc.replay {
                 let path = std::path::Path::new(&r.recording);
                 glint_sensor::recording::Recording::open(path)
@@ -59,6 +62,21 @@ pub(crate) fn load(path: Option<&PathBuf>) -> Result<(Scenario, String), Scenari
             "(built-in default)".to_string(),
         )),
     }
+}
+
+/// Every CPU the scenario pins a service to is one this host gives glint; else the field and
+/// what is wrong.
+pub(crate) fn host_has_cpus(sc: &Scenario) -> Result<(), (String, String)> {
+    let cpus = glint_runtime::placement::allowed_cpus();
+    for (name, place) in &sc.services {
+        if let Some(cpu) = place.cpu.filter(|c| !cpus.contains(c)) {
+            return Err((
+                format!("services.{name}.cpu"),
+                format!("CPU {cpu} is not one this host gives glint; allowed: {cpus:?}"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The built-in default scenario.

@@ -11,6 +11,7 @@ pub mod housekeeping;
 pub mod lifeline;
 mod loop_timer;
 pub mod node;
+pub mod placement;
 pub mod ports;
 pub mod rpc;
 pub mod service;

@@ -405,6 +405,8 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
     if restarted {
         tracing::info!("restarted");
     }
+    // Before any thread of its own: they inherit the CPU.
+    crate::placement::apply(name, scenario.cpu_of(S::ID))?;
     let node = crate::open_node(prefix, name)?;
     let (mut hk, control_l) = Housekeeping::open(&node, S::ID)?;
     hk.faults_enabled = scenario.faults.enabled;

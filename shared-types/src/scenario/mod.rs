@@ -13,6 +13,7 @@ mod earth;
 mod fault;
 mod matrix;
 mod photometry;
+mod placement;
 mod replay;
 mod soak;
 mod spectra;
@@ -25,6 +26,7 @@ pub use earth::*;
 pub use fault::*;
 pub use matrix::*;
 pub use photometry::*;
+pub use placement::*;
 pub use replay::*;
 pub use soak::*;
 pub use spectra::*;
@@ -130,6 +132,9 @@ pub struct Scenario {
     /// The sensor's streams from a recording instead of rendered (`[replay]`; `glint replay`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub replay: Option<ReplayScenario>,
+    /// Where each process runs (`[services.detector] cpu = 1`), by service name.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub services: std::collections::BTreeMap<String, ServicePlacement>,
 }
 
 fn default_seed() -> u64 {
@@ -327,6 +332,7 @@ impl Scenario {
         matrix::check_matrix(&mut c, self);
         soak::check_soak(&mut c, self);
         replay::check_replay(&mut c, self);
+        placement::check_placement(&mut c, self);
         if let Some(camp) = &self.campaign {
             c.range_u("campaign.values (count)", camp.values.len() as u64, 1, 100);
             c.range_u("campaign.seeds", camp.seeds as u64, 1, 1000);
