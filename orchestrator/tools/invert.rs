@@ -55,6 +55,17 @@ pub fn invert(path: &Path, options: &InvertOptions) -> Result<(serde_json::Value
         file.set.motion.len(),
     );
     text += &answer_lines(&result.answer, truth);
+    if let Some([stable, motion]) = &file.estimated_sigma_w {
+        let bands: Vec<String> = (file.set.wavelengths_nm.iter().zip(stable).zip(motion))
+            .map(|((w, s), m)| format!("{w} nm {s:.2e} / {m:.2e} W"))
+            .collect();
+        text += &format!(
+            "σ estimated from the data (no sigma_* columns; the light curve's scatter, stable / \
+             motion window): {}\n",
+            bands.join(", ")
+        );
+        j["estimated_sigma_w"] = json!({ "stable": stable, "motion": motion });
+    }
     if options.verbose {
         text += &stage_lines(&result, truth);
     }

@@ -26,6 +26,7 @@ use nalgebra::Vector3;
 use shared_types::{Spectrum, Window};
 
 mod columns;
+mod noise;
 use columns::{columns, Columns};
 
 const FIXED: [&str; 10] = [
@@ -47,6 +48,10 @@ pub struct ObservationFile {
     pub truth_rate_deg_per_frame: Option<[f64; 3]>,
     /// Header columns glint does not read (named to the user).
     pub ignored_columns: Vec<String>,
+    /// Each band's σ [W] estimated from the light curve's scatter, per window (stable,
+    /// motion), when the file has no `sigma_*` columns (used to tell noise from a flux that
+    /// cannot be).
+    pub estimated_sigma_w: Option<[Vec<f64>; 2]>,
 }
 
 /// Writes spectra (as received in a run) in the observation format.
@@ -130,6 +135,9 @@ pub fn parse(text: &str, file: &str) -> Result<ObservationFile> {
         .from_reader(text.as_bytes());
     let mut header: Option<Columns> = None;
     let mut set = ObservationSet::default();
+    // Without σ columns: per window, each band's lowest flux and its line, held to the σ
+    // estimated from the whole file after.
+    let mut lowest: [Vec<(f64, u64)>; 2] = [vec![], vec![]];
     let mut record = csv::StringRecord::new();
     // Line numbers come from byte offsets: csv's own counter loses a line per blank CRLF line.
     let mut lines = LineCounter::new(text);
@@ -162,6 +170,15 @@ pub fn parse(text: &str, file: &str) -> Result<ObservationFile> {
             );
         }
         let (obs, window) = row(&cells, cols, file, line_no)?;
+        if cols.sigma.is_empty() {
+            let lowest = &mut lowest[window as usize];
+            lowest.resize(obs.flux_w.len(), (f64::INFINITY, 0));
+            for (low, &f) in lowest.iter_mut().zip(&obs.flux_w) {
+                if f < low.0 {
+                    *low = (f, line_no);
+                }
+            }
+        }
         match window {
             Window::Stable => set.stable.push(obs),
             Window::Motion => set.motion.push(obs),
@@ -177,10 +194,27 @@ pub fn parse(text: &str, file: &str) -> Result<ObservationFile> {
             set.motion.len()
         );
     }
+    let bands = set.wavelengths_nm.len();
+    let estimated_sigma_w = (cols.sigma.is_empty())
+        .then(|| [&set.stable, &set.motion].map(|rows| noise::estimate_sigma_w(rows, bands)));
+    let held = (lowest.iter())
+        .zip(estimated_sigma_w.iter().flatten())
+        .flat_map(|(low, sigma)| low.iter().zip(sigma).enumerate());
+    for (b, (&(flux, line), sigma)) in held {
+        if flux < -MAX_NEGATIVE_SIGMAS * sigma {
+            bail!(
+                "{file}:{line}: column `{}`: flux {flux} W is negative beyond the noise: below \
+                 −{MAX_NEGATIVE_SIGMAS}σ, with σ = {sigma:.3e} W estimated from the light curve's \
+                 scatter (the file has no sigma_* columns; give them if its noise is larger)",
+                cols.names[cols.flux[b]]
+            );
+        }
+    }
     Ok(ObservationFile {
         set,
         truth_rate_deg_per_frame: truth,
         ignored_columns: cols.ignored,
+        estimated_sigma_w,
     })
 }
 
@@ -252,14 +286,17 @@ fn row(cells: &[&str], cols: &Columns, file: &str, line: u64) -> Result<(Observa
         }
     }
     for (b, &k) in cols.flux.iter().enumerate() {
-        let floor = if noise_free {
+        // Without σ columns, the floor comes from the σ the whole file gives (after it is read).
+        let floor = if cols.sigma.is_empty() {
+            f64::NEG_INFINITY
+        } else if noise_free {
             0.0
         } else {
             -MAX_NEGATIVE_SIGMAS * sigma_w[b]
         };
         if flux_w[b] < floor {
             bail!(
-                "{file}:{line}: column `{}`: flux {} W is negative beyond the noise (allowed ≥ 0, or ≥ −{MAX_NEGATIVE_SIGMAS}σ with σ given)",
+                "{file}:{line}: column `{}`: flux {} W is negative beyond the noise (allowed ≥ −{MAX_NEGATIVE_SIGMAS}σ; σ all 0 declares noise-free data, ≥ 0)",
                 at(k).0,
                 flux_w[b]
             );
@@ -363,6 +400,61 @@ mod tests {
 
     fn error(text: &str) -> String {
         parse(text, "obs.csv").err().expect("refused").to_string()
+    }
+
+    /// Another tool's light curve: no σ columns, Gaussian noise of 3e-16 W about a faint
+    /// curve, so some fluxes are negative. Read, with σ estimated near the noise; a flux far
+    /// below any such noise is refused, naming its line, the column and the σ used.
+    #[test]
+    fn without_sigma_columns_noise_below_zero_is_read_and_sigma_estimated() {
+        let sigma = 3e-16;
+        let mut state = 7u64;
+        let mut gauss = || {
+            let mut u = || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (a, b) = (u(), u());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        };
+        let mut text = String::from(
+            "window,frame_index,t_s,sun_x,sun_y,sun_z,obs_x,obs_y,obs_z,range_m,flux_500\n",
+        );
+        for window in ["stable", "motion"] {
+            for k in 0..200 {
+                let flux = 4e-16 * (1.0 + (k as f64 * 0.03).sin()) + sigma * gauss();
+                text += &format!("{window},{k},{k}.0,1,0,0,0,0,1,2.1e6,{flux:e}\n");
+            }
+        }
+        let negatives = text.lines().filter(|l| l.contains(",-")).count();
+        assert!(negatives > 10, "{negatives}");
+        let f = parse(&text, "other.csv").expect("read");
+        let [stable, motion] = f.estimated_sigma_w.expect("σ estimated");
+        for s in [stable[0], motion[0]] {
+            assert!((s / sigma - 1.0).abs() < 0.15, "σ̂ {s}");
+        }
+        assert!(f.set.motion.iter().all(|o| o.sigma_w.is_empty()));
+        // line 1 is the header: frame 40 of the motion window is on line 242
+        let far = (text.lines())
+            .map(|l| {
+                if l.starts_with("motion,40,") {
+                    "motion,40,40.0,1,0,0,0,0,1,2.1e6,-1e-13".to_string()
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        let e = format!("{:#}", parse(&far, "other.csv").err().expect("refused"));
+        assert!(
+            e.contains("other.csv:242")
+                && e.contains("flux_500")
+                && e.contains("estimated from the light curve")
+                && e.contains("sigma_*"),
+            "{e}"
+        );
     }
 
     /// The gaps an adversarial probe found: each is refused with line and column.
