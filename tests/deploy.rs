@@ -212,11 +212,19 @@ fn a_service_pinned_to_a_cpu_runs_there_and_a_missing_cpu_is_refused() {
     let base = run_ok(Some(&scenario("debris-geo.toml")), &dir.join("base"), &[]);
     let pinned = dir.join("pinned.toml");
     let text = std::fs::read_to_string(scenario("debris-geo.toml")).unwrap();
-    std::fs::write(&pinned, format!("{text}\n[services.detector]\ncpu = 0\n")).unwrap();
+    let cpu = first_allowed_cpu();
+    std::fs::write(
+        &pinned,
+        format!("{text}\n[services.detector]\ncpu = {cpu}\n"),
+    )
+    .unwrap();
     let r = run_ok(Some(&pinned), &dir.join("pinned"), &[]);
     assert!(r.typed.results.success, "{:?}", r.typed.results.failure);
     let log = std::fs::read_to_string(r.dir.join("logs/detector.log")).unwrap();
-    assert!(log.contains("detector pinned to CPU 0 cpus=[0]"), "{log}");
+    assert!(
+        log.contains(&format!("detector pinned to CPU {cpu} cpus=[{cpu}]")),
+        "{log}"
+    );
     let sensor = std::fs::read_to_string(r.dir.join("logs/sensor.log")).unwrap();
     assert!(!sensor.contains("pinned"), "{sensor}");
     assert_eq!(

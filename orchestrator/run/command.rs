@@ -72,7 +72,10 @@ pub(crate) fn host_has_cpus(sc: &Scenario) -> Result<(), (String, String)> {
         if let Some(cpu) = place.cpu.filter(|c| !cpus.contains(c)) {
             return Err((
                 format!("services.{name}.cpu"),
-                format!("CPU {cpu} is not one this host gives glint; allowed: {cpus:?}"),
+                format!(
+                    "CPU {cpu} is not one glint may run on here; allowed: {cpus:?} (the host's \
+                     CPUs, or the affinity glint was started with: taskset, a cpuset)"
+                ),
             ));
         }
     }

@@ -201,6 +201,14 @@ pub fn parse(text: &str, file: &str) -> Result<ObservationFile> {
         .zip(estimated_sigma_w.iter().flatten())
         .flat_map(|(low, sigma)| low.iter().zip(sigma).enumerate());
     for (b, (&(flux, line), sigma)) in held {
+        if flux < 0.0 && *sigma == 0.0 {
+            bail!(
+                "{file}:{line}: column `{}`: flux {flux} W is negative, and the file has no \
+                 sigma_* columns and too few rows in this window (3 or more, not all on one \
+                 line) to estimate its noise: give sigma_* columns",
+                cols.names[cols.flux[b]]
+            );
+        }
         if flux < -MAX_NEGATIVE_SIGMAS * sigma {
             bail!(
                 "{file}:{line}: column `{}`: flux {flux} W is negative beyond the noise: below \

@@ -268,3 +268,17 @@ pub fn ending<'a>(report: &'a Report, name: &str) -> &'a str {
         .map(|s| s.ending.as_str())
         .unwrap_or_else(|| panic!("no service {name} in the report"))
 }
+
+/// The first CPU this process may run on (`Cpus_allowed_list` in /proc/self/status): what a
+/// test pins a service to, on any host or cpuset.
+pub fn first_allowed_cpu() -> u32 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    let list = (status.lines())
+        .find_map(|l| l.strip_prefix("Cpus_allowed_list:"))
+        .expect("Cpus_allowed_list");
+    list.trim()
+        .split([',', '-'])
+        .next()
+        .and_then(|c| c.parse().ok())
+        .expect("a CPU")
+}

@@ -36,6 +36,8 @@ pub struct Housekeeping {
     pub faults_obeyed: u32,
     /// An injected delay: added before each message until it ends.
     delay: Option<(std::time::Duration, DelayEnd)>,
+    /// Inputs the current delay has slowed.
+    slowed: u64,
     /// Drop and corrupt orders not yet armed on an output ([`Housekeeping::take_output_faults`]).
     output_faults: Vec<InBandFault>,
     /// The scenario's `run.heartbeat_period_ms`: a slowed service still beats this often.
@@ -82,6 +84,7 @@ impl Housekeeping {
                 faults_refused: 0,
                 faults_obeyed: 0,
                 delay: None,
+                slowed: 0,
                 output_faults: vec![],
                 heartbeat_period: std::time::Duration::from_millis(100),
                 last_beat: None,
@@ -154,6 +157,7 @@ impl Housekeeping {
                             + std::time::Duration::from_millis(u64::from(f.duration_ms)),
                     )
                 };
+                self.slowed = 0;
                 self.delay = Some((std::time::Duration::from_millis(u64::from(f.delay_ms)), end));
             }
             FaultKind::Drop | FaultKind::Corrupt => self.output_faults.push(f),
@@ -177,15 +181,29 @@ impl Housekeeping {
             }
         };
         if over {
-            self.delay = None;
+            self.end_delay("its time or count ran out");
             return Ok(());
         }
         std::thread::sleep(*d);
+        self.slowed += 1;
         // The last input of a delay by inputs: over now, not at the next message.
         if matches!(self.delay, Some((_, DelayEnd::After(0)))) {
-            self.delay = None;
+            self.end_delay("its count ran out");
         }
         self.beat_if_due()
+    }
+
+    /// Ends the delay, and logs how many inputs it slowed (what shows it took effect).
+    fn end_delay(&mut self, why: &str) {
+        if let Some((d, _)) = self.delay.take() {
+            tracing::info!(
+                slowed = self.slowed,
+                delay_ms = d.as_millis() as u64,
+                "delay over ({why}): {} inputs slowed",
+                self.slowed
+            );
+        }
+        self.slowed = 0;
     }
 
     /// The run is over (`Shutdown`): no input is left to slow, so a delay counted in inputs is
@@ -194,7 +212,7 @@ impl Housekeeping {
     /// A delay by time that outlasts the run is still on.
     pub fn inputs_ended(&mut self) {
         if matches!(self.delay, Some((_, DelayEnd::After(_)))) {
-            self.delay = None;
+            self.end_delay("the run's inputs ended first");
         }
     }
 
