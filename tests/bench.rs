@@ -5,24 +5,34 @@
 
 mod common;
 
+use std::path::Path;
+
 use common::{first_allowed_cpu, glint, read_json, read_report, temp_dir, Svg};
 
-#[test]
-fn bench_ipc_measures_every_transport_and_size() {
-    let dir = temp_dir("bench-ipc");
+/// `glint bench ARGS --out DIR`, which must succeed; its stdout.
+fn glint_bench(args: &[&str], dir: &Path) -> String {
     let out = glint()
-        .args([
-            "bench", "ipc", "--scale", "0.01", "--size", "8", "--size", "2097152",
-        ])
+        .arg("bench")
+        .args(args)
         .arg("--out")
-        .arg(&dir)
+        .arg(dir)
         .output()
         .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(
         out.status.success(),
         "{stdout}\n{}",
         String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+#[test]
+fn bench_ipc_measures_every_transport_and_size() {
+    let dir = temp_dir("bench-ipc");
+    let stdout = glint_bench(
+        &["ipc", "--scale", "0.01", "--size", "8", "--size", "2097152"],
+        &dir,
     );
     // One clear answer first: the zero-copy ratios, then the table.
     assert!(stdout.starts_with("2 MiB hop: iceoryx2 "), "{stdout}");
@@ -91,9 +101,9 @@ fn bench_ipc_rejects_a_bad_scale() {
 #[test]
 fn bench_pipeline_deploys_and_compares_with_one_process() {
     let dir = temp_dir("bench-pipeline");
-    let out = glint()
-        .args([
-            "bench",
+    let cpu = format!("detector={}", first_allowed_cpu());
+    let stdout = glint_bench(
+        &[
             "pipeline",
             "--frames",
             "30",
@@ -102,23 +112,13 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
             "--targets",
             "2",
             "--cpu",
-            format!("detector={}", first_allowed_cpu()).as_str(),
-        ])
-        .arg("--out")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
+            &cpu,
+        ],
+        &dir,
     );
     assert!(stdout.starts_with("pipeline: "), "{stdout}");
-    assert!(
-        stdout.contains("(placement: detector on CPU 0)"),
-        "{stdout}"
-    );
+    let placement = format!("(placement: detector on CPU {})", first_allowed_cpu());
+    assert!(stdout.contains(&placement), "{stdout}");
     let bench = read_json(&dir.join("bench.json"));
     let p = &bench["pipeline"];
     assert_eq!(p["frames"], 30, "{p}");
@@ -248,9 +248,8 @@ fn bench_pipeline_deploys_and_compares_with_one_process() {
 #[test]
 fn bench_pipeline_record_gives_the_recording_cost_and_misses_nothing() {
     let dir = temp_dir("bench-pipeline-record");
-    let out = glint()
-        .args([
-            "bench",
+    let stdout = glint_bench(
+        &[
             "pipeline",
             "--frames",
             "30",
@@ -259,16 +258,8 @@ fn bench_pipeline_record_gives_the_recording_cost_and_misses_nothing() {
             "--targets",
             "2",
             "--record",
-        ])
-        .arg("--out")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
+        ],
+        &dir,
     );
     assert!(stdout.contains("recording: "), "{stdout}");
     let bench = read_json(&dir.join("bench.json"));
@@ -287,18 +278,9 @@ fn bench_pipeline_record_gives_the_recording_cost_and_misses_nothing() {
 
     // `--source`: the chain fed that recording's frames, against the chain rendering them
     let from = temp_dir("bench-pipeline-source");
-    let out = glint()
-        .args(["bench", "pipeline", "--source"])
-        .arg(&recording)
-        .arg("--out")
-        .arg(&from)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
+    let stdout = glint_bench(
+        &["pipeline", "--source", recording.to_str().unwrap()],
+        &from,
     );
     assert!(stdout.contains("from the recording: "), "{stdout}");
     let s = &read_json(&from.join("bench.json"))["pipeline"]["from_recording"];
@@ -345,19 +327,23 @@ fn bench_pipeline_rejects_a_bad_size_or_target_count() {
 #[test]
 fn bench_scaling_sweeps_size_and_targets() {
     let dir = temp_dir("bench-scaling");
-    let out = glint()
-        .args(["bench", "scaling", "--frames", "2", "--laser", "off"])
-        .args(["--size", "128x128", "--size", "256x256"])
-        .args(["--targets", "1", "--targets", "3"])
-        .arg("--out")
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
+    let stdout = glint_bench(
+        &[
+            "scaling",
+            "--frames",
+            "2",
+            "--laser",
+            "off",
+            "--size",
+            "128x128",
+            "--size",
+            "256x256",
+            "--targets",
+            "1",
+            "--targets",
+            "3",
+        ],
+        &dir,
     );
     assert!(
         stdout.starts_with("scaling: detector cost ∝ pixels^"),

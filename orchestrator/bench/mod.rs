@@ -234,22 +234,35 @@ pub struct Recorded {
     pub success: bool,
 }
 
+/// One of the bench's deployments (`what` names it), run into `run_dir`: its directory,
+/// whether it passed, and its report.
+fn deploy(
+    sc: shared_types::Scenario,
+    what: &str,
+    run_dir: PathBuf,
+    progress: bool,
+    record: bool,
+) -> Result<(PathBuf, bool, crate::report::Report)> {
+    let opts = crate::run::RunOptions {
+        scenario: sc,
+        scenario_file: format!("glint bench ({what})"),
+        out_dir: Some(run_dir),
+        replace: true,
+        progress,
+        record,
+    };
+    let (dir, ok) = crate::run::run(opts)?;
+    let report = crate::report::Report::read(&dir.join("report.json"))?;
+    Ok((dir, ok, report))
+}
+
 /// Deploys `sc` as processes into `run_dir`, every tapped message recorded to run.mcap.
 pub fn measure_recorded(
     sc: shared_types::Scenario,
     run_dir: PathBuf,
     progress: bool,
 ) -> Result<Recorded> {
-    let opts = crate::run::RunOptions {
-        scenario: sc,
-        scenario_file: "glint bench (debris-geo, recorded)".into(),
-        out_dir: Some(run_dir),
-        replace: true,
-        progress,
-        record: true,
-    };
-    let (dir, ok) = crate::run::run(opts)?;
-    let report = crate::report::Report::read(&dir.join("report.json"))?;
+    let (dir, ok, report) = deploy(sc, "debris-geo, recorded", run_dir, progress, true)?;
     let rec = report.run.recording.as_ref();
     let bytes = std::fs::metadata(dir.join("run.mcap")).map_or(0, |m| m.len());
     Ok(Recorded {
@@ -293,16 +306,7 @@ pub fn measure_replayed(
     run_dir: PathBuf,
     progress: bool,
 ) -> Result<f64> {
-    let opts = crate::run::RunOptions {
-        scenario: sc,
-        scenario_file: "glint bench (from a recording)".into(),
-        out_dir: Some(run_dir),
-        replace: true,
-        progress,
-        record: false,
-    };
-    let (dir, ok) = crate::run::run(opts)?;
-    let report = crate::report::Report::read(&dir.join("report.json"))?;
+    let (dir, ok, report) = deploy(sc, "from a recording", run_dir, progress, false)?;
     if !ok {
         anyhow::bail!(
             "the deployment fed from the recording failed: {} (see {})",

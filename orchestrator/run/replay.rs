@@ -110,6 +110,13 @@ pub(crate) fn command(args: ReplayArgs) -> ExitCode {
     }
 }
 
+/// Camera frames the recording holds.
+fn recorded_frames(recording: &Recording) -> u64 {
+    (recording.channels())
+        .find(|c| c.topic == shared_types::TopicId::Frame.name())
+        .map_or(0, |c| c.messages)
+}
+
 /// The recording's report, if it has one; one that does not parse (another glint's) is said,
 /// and nothing is compared.
 fn recorded_report(recording: &Recording) -> Option<Report> {
@@ -158,9 +165,7 @@ fn scenario(recording: &Recording, args: &ReplayArgs) -> Result<Scenario, String
     if sc.soak.take().is_some() {
         sc.fault.clear();
         if let Some(cam) = &mut sc.camera {
-            cam.frames = (recording.channels())
-                .find(|c| c.topic == shared_types::TopicId::Frame.name())
-                .map_or(0, |c| c.messages);
+            cam.frames = recorded_frames(recording);
         }
     }
     // Paced, the replay takes the recorded span over the speed: its time limit grows by that.
@@ -219,9 +224,7 @@ pub fn bench_scenarios(path: &Path) -> Result<(Scenario, Scenario)> {
         .with_context(|| format!("{}: holds no scenario", path.display()))?;
     let mut sc = Scenario::from_toml_str(toml, &format!("{} (its scenario)", path.display()))
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let frames = (recording.channels())
-        .find(|c| c.topic == shared_types::TopicId::Frame.name())
-        .map_or(0, |c| c.messages);
+    let frames = recorded_frames(&recording);
     let Some(cam) = sc.camera.as_mut() else {
         anyhow::bail!(
             "{}: its scenario has no [camera]: no frames to feed",

@@ -200,6 +200,20 @@ impl Checker {
             self.fail(field, format!("{v} is out of range; allowed {lo}..={hi}"));
         }
     }
+    /// `name` (at `field`) is a service `scenario` deploys; else the error lists those.
+    fn deployed_service(&mut self, field: &str, name: &str, scenario: &Scenario) {
+        let deployed = crate::deployment::services(scenario);
+        if !deployed.iter().any(|s| s.name() == name) {
+            let names: Vec<&str> = deployed.iter().map(|s| s.name()).collect();
+            self.fail(
+                field,
+                format!(
+                    "`{name}` is not a service this scenario deploys; allowed: {}",
+                    names.join(", ")
+                ),
+            );
+        }
+    }
     fn fail(&mut self, field: &str, message: String) {
         self.errors.push(FieldError {
             field: field.to_string(),

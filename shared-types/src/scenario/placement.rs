@@ -15,7 +15,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::Checker;
-use crate::{deployment, ServiceId};
+use crate::ServiceId;
 
 /// Placement of one process.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -37,19 +37,8 @@ impl super::Scenario {
 }
 
 pub(super) fn check_placement(c: &mut Checker, scenario: &super::Scenario) {
-    let names: Vec<&str> = (deployment::services(scenario).iter())
-        .map(|s| s.name())
-        .collect();
     for (name, p) in &scenario.services {
-        if !names.contains(&name.as_str()) {
-            c.fail(
-                &format!("services.{name}"),
-                format!(
-                    "`{name}` is not a service this scenario deploys; allowed: {}",
-                    names.join(", ")
-                ),
-            );
-        }
+        c.deployed_service(&format!("services.{name}"), name, scenario);
         if let Some(cpu) = p.cpu {
             c.range_u(
                 &format!("services.{name}.cpu"),

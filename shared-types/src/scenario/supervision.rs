@@ -18,7 +18,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use super::Checker;
-use crate::{deployment, ServiceId};
+use crate::ServiceId;
 
 /// When a service is restarted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -140,18 +140,8 @@ pub(super) fn check_supervision(c: &mut Checker, scenario: &super::Scenario) {
         s.backoff_ms,
         600_000,
     );
-    let deployed = deployment::services(scenario);
-    let names: Vec<&str> = deployed.iter().map(|s| s.name()).collect();
     for (name, o) in &s.services {
-        if !names.contains(&name.as_str()) {
-            c.fail(
-                &format!("supervision.services.{name}"),
-                format!(
-                    "`{name}` is not a service this scenario deploys; allowed: {}",
-                    names.join(", ")
-                ),
-            );
-        }
+        c.deployed_service(&format!("supervision.services.{name}"), name, scenario);
         if let Some(m) = o.max_restarts {
             c.range_u(
                 &format!("supervision.services.{name}.max_restarts"),
