@@ -252,6 +252,11 @@ pub(crate) fn parse_positive(s: &str) -> Result<f64, String> {
     parse_within(s, 1.0, 1e5, "")
 }
 
+/// A lens's field half-angle in degrees, 10 to 180.
+pub(crate) fn parse_field(s: &str) -> Result<f64, String> {
+    parse_within(s, 10.0, 180.0, "°")
+}
+
 /// An altitude in km, 100 to 100000.
 pub(crate) fn parse_altitude(s: &str) -> Result<f64, String> {
     parse_within(s, 100.0, 1e5, " km")
@@ -304,6 +309,13 @@ pub(crate) enum ToolCmd {
         /// Orbit altitude [km], 100 to 100000 (the limb's angular radius).
         #[arg(long = "altitude-km", default_value_t = 950.0, value_parser = parse_altitude)]
         altitude_km: f64,
+        /// The lens's field: the largest angle from the optical axis it images [deg], 10 to
+        /// 180 (90: a 180° fisheye). Edges at the field's boundary are never limb points.
+        #[arg(long = "field-deg", default_value_t = 90.0, value_parser = parse_field)]
+        field_deg: f64,
+        /// The image circle's radius [px] when the lens vignettes inside its field.
+        #[arg(long = "image-circle-px", value_parser = parse_positive)]
+        image_circle_px: Option<f64>,
         /// The lookup version's σ(μ) table (`glint tool earth-calibrate`); without it, the
         /// frame's own fitted σ.
         #[arg(long = "sigma-table")]
@@ -328,6 +340,10 @@ pub(crate) enum ToolCmd {
         center: Option<(f64, f64)>,
         #[arg(long = "altitude-km", default_value_t = 950.0, value_parser = parse_altitude)]
         altitude_km: f64,
+        #[arg(long = "field-deg", default_value_t = 90.0, value_parser = parse_field)]
+        field_deg: f64,
+        #[arg(long = "image-circle-px", value_parser = parse_positive)]
+        image_circle_px: Option<f64>,
         /// The table file to write.
         #[arg(long)]
         out: PathBuf,

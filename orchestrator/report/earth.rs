@@ -50,6 +50,8 @@ pub struct MethodScore {
     pub intervals: [IntervalScore; 3],
     /// Frames with truth the method gave no answer on.
     pub missed: u64,
+    /// Those frames by the reason the method gave (`EarthMethod::UNDETERMINED_NAMES`).
+    pub not_determined: BTreeMap<&'static str, u64>,
     /// Frames outside the paper's intervals (|angle| > 50°), scored nowhere.
     pub outside: u64,
     /// Mean compute time per answered frame, the shared edge extraction included [µs].
@@ -116,6 +118,7 @@ pub fn score(truths: &[Truth], answers: &[EarthAttitude]) -> EarthScore {
                 let r = a.methods[i];
                 if r.valid != 1 {
                     m.missed += 1;
+                    *m.not_determined.entry(r.undetermined_name()).or_default() += 1;
                     continue;
                 }
                 let signed = if r.tilt_deg < 0.0 {
@@ -177,6 +180,9 @@ impl EarthScore {
                     from_10_to_40: interval(&m.intervals[1]),
                     from_40_to_50: interval(&m.intervals[2]),
                     missed: m.missed,
+                    not_determined: (m.not_determined.iter())
+                        .map(|(k, v)| (k.to_string(), *v))
+                        .collect(),
                     outside_intervals: m.outside,
                 };
                 (m.name.to_string(), r)
@@ -234,8 +240,17 @@ impl EarthScore {
         );
         let _ = writeln!(
             s,
-            "| method | ≤ 10° | 10–40° | 40–50° | missed | time/frame [µs] |\n|---|---|---|---|---|---|"
+            "| method | ≤ 10° | 10–40° | 40–50° | not determined | time/frame [µs] |\n|---|---|---|---|---|---|"
         );
+        let missed = |m: &MethodScore| {
+            let why: Vec<String> = (m.not_determined.iter())
+                .map(|(k, v)| format!("{} {v}", k.replace('_', " ")))
+                .collect();
+            match why.is_empty() {
+                true => m.missed.to_string(),
+                false => format!("{} ({})", m.missed, why.join(", ")),
+            }
+        };
         for m in &self.methods {
             let cell = |i: &IntervalScore| {
                 if i.frames == 0 {
@@ -254,7 +269,7 @@ impl EarthScore {
                 cell(&m.intervals[0]),
                 cell(&m.intervals[1]),
                 cell(&m.intervals[2]),
-                m.missed,
+                missed(m),
                 f(m.time_us_per_frame, 0)
             );
         }
@@ -462,8 +477,11 @@ pub struct MethodReport {
     pub from_10_to_40: IntervalReport,
     #[serde(rename = "40_to_50")]
     pub from_40_to_50: IntervalReport,
-    /// Frames with truth the method gave no answer on.
+    /// Frames with truth the method gave no answer on: the frame did not determine its β.
     pub missed: u64,
+    /// Those frames by the reason the method gave: no_limb, imprecise, off_the_limb,
+    /// circle_model_bias, mode_off_location (docs/earth-sensor.md, "Not determined").
+    pub not_determined: BTreeMap<String, u64>,
     /// Frames outside the paper's intervals (|angle| > 50°).
     pub outside_intervals: u64,
 }

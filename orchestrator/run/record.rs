@@ -2,7 +2,7 @@
 //! frames, spectra, truth, detections, tracks, Earth frames and attitudes, stereo epochs,
 //! estimates, light-curve samples, and every topic a later service adds) and every service's
 //! heartbeats, written to `DIR/run.mcap` as the orchestrator takes them. One channel per topic, its schema named by the
-//! payload's contract type name (`glint.v7.Spectrum`), encoding `glint.repr-c`, its data the
+//! payload's contract type name (`glint.v8.Spectrum`), encoding `glint.repr-c`, its data the
 //! type's layout (every field's name, offset, size and type, nested types too): the message's
 //! bytes exactly as they were in shared memory (a frame: its `FrameHeader`, then its `u16`
 //! pixels, little-endian). Log time is the producer's send time (`CLOCK_MONOTONIC` [ns]),
@@ -250,14 +250,14 @@ mod tests {
     #[test]
     fn the_python_package_bundles_these_layouts() {
         let bundled: serde_json::Value = serde_json::from_str(include_str!(
-            "../../python/glint_client/layouts/glint_v7.json"
+            "../../python/glint_client/layouts/glint_v8.json"
         ))
         .unwrap();
         assert_eq!(
             bundled,
             super::layouts_document(),
-            "python/glint_client/layouts/glint_v7.json is stale: \
-             `glint tool layouts > python/glint_client/layouts/glint_v7.json`"
+            "python/glint_client/layouts/glint_v8.json is stale: \
+             `glint tool layouts > python/glint_client/layouts/glint_v8.json`"
         );
     }
 }

@@ -146,6 +146,10 @@ pub struct EarthTool {
     pub f_px: f64,
     pub center_px: (f64, f64),
     pub altitude_km: f64,
+    /// The lens's field half-angle [deg]: nothing beyond it is imaged.
+    pub field_deg: f64,
+    /// The image circle [px], when the lens vignettes inside its field.
+    pub image_circle_px: Option<f64>,
 }
 
 impl EarthTool {
@@ -160,6 +164,9 @@ impl EarthTool {
         };
         let mut config = glint_earth::pipeline::EarthConfig::new(camera, self.altitude_km);
         config.sigma_table = table;
+        let field_px = self.f_px * self.field_deg.to_radians();
+        config.edges.image_circle_px =
+            Some(self.image_circle_px.map_or(field_px, |r| r.min(field_px)));
         glint_earth::pipeline::EarthCore::new(config)
     }
 }
@@ -226,25 +233,38 @@ pub fn earth(path: &Path, tool: &EarthTool, table: Option<&Path>) -> Result<Stri
     let r = core
         .process(&img.pixels, img.width, img.height)
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let beta = |m: &Option<glint_earth::pipeline::MethodResult>| m.map(|m| m.beta_deg);
-    let time = |m: &Option<glint_earth::pipeline::MethodResult>| m.map(|m| m.time_us);
+    type Answer = Result<glint_earth::pipeline::MethodResult, glint_earth::validity::Undetermined>;
+    let methods = [
+        ("cross_product", &r.cross_product),
+        ("lookup", &r.lookup),
+        ("hough", &r.hough),
+    ];
+    let each =
+        |f: &dyn Fn(&Answer) -> serde_json::Value| -> serde_json::Map<String, serde_json::Value> {
+            methods
+                .iter()
+                .map(|(name, m)| (name.to_string(), f(m)))
+                .collect()
+        };
     let out = json!({
         "file": path.display().to_string(),
-        "beta_deg": {
-            "cross_product": beta(&r.cross_product),
-            "lookup": beta(&r.lookup),
-            "hough": beta(&r.hough),
-        },
-        "tilt_deg": r.cross_product.map(|m| m.tilt_deg),
+        "beta_deg": each(&|m| json!(m.as_ref().ok().map(|m| m.beta_deg))),
+        "tilt_deg": r.cross_product.as_ref().ok().map(|m| m.tilt_deg),
+        "valid_methods": methods.iter().filter(|(_, m)| m.is_ok()).map(|(n, _)| *n).collect::<Vec<_>>(),
+        "not_determined": methods
+            .iter()
+            .filter_map(|(n, m)| m.as_ref().err().map(|why| (n.to_string(), json!(why.to_string()))))
+            .collect::<serde_json::Map<_, _>>(),
         "edge_points": r.edge_points,
         "samples": r.samples,
-        "fit": r.fit.map(|f| json!({"mu_deg": f.mu, "sigma_deg": f.sigma, "nu": f.nu})),
+        "fit": r.fit.map(|f| json!({"mu_deg": f.mu, "sigma_deg": f.sigma, "nu": f.nu,
+            "standard_error_deg": r.standard_error_deg})),
         "lookup_sigma": if calibrated { "the calibrated table" } else { "the frame's fitted σ (no --sigma-table)" },
         "time_us": {
             "edges": r.edges_us,
-            "cross_product": time(&r.cross_product),
-            "lookup": time(&r.lookup),
-            "hough": time(&r.hough),
+            "cross_product": r.cross_product.as_ref().ok().map(|m| m.time_us),
+            "lookup": r.lookup.as_ref().ok().map(|m| m.time_us),
+            "hough": r.hough.as_ref().ok().map(|m| m.time_us),
         },
     });
     Ok(serde_json::to_string_pretty(&out)?)
@@ -301,12 +321,16 @@ pub(crate) fn command(tool: crate::cli::ToolCmd) -> std::process::ExitCode {
             f_px,
             center,
             altitude_km,
+            field_deg,
+            image_circle_px,
             sigma_table,
         } => {
             let tool = EarthTool {
                 f_px,
                 center_px: center,
                 altitude_km,
+                field_deg,
+                image_circle_px,
             };
             earth(&frame, &tool, sigma_table.as_deref()).map(|j| println!("{j}"))
         }
@@ -317,6 +341,8 @@ pub(crate) fn command(tool: crate::cli::ToolCmd) -> std::process::ExitCode {
             f_px,
             center,
             altitude_km,
+            field_deg,
+            image_circle_px,
             out,
         } => match (scenario, f_px, center) {
             (Some(file), _, _) => match Scenario::from_file(&file) {
@@ -328,6 +354,8 @@ pub(crate) fn command(tool: crate::cli::ToolCmd) -> std::process::ExitCode {
                     f_px,
                     center_px: center,
                     altitude_km,
+                    field_deg,
+                    image_circle_px,
                 };
                 earth_calibrate(&frames, &tool, &out).map(|j| println!("{j}"))
             }

@@ -2,14 +2,14 @@
 
 A layout (``TypeLayout``) is what ``glint run --record`` writes into each MCAP channel's schema
 (``shared-types/src/messages/layout.rs``): the Rust name, the contract type name
-(``glint.v7.Detections``), size, alignment and each field's name, offset, size and Rust type
+(``glint.v8.Detections``), size, alignment and each field's name, offset, size and Rust type
 (``u64``, ``[f64; 3]``, ``Meta``, ``[Detection; 32]``). Nothing here hard-codes an offset: the
 numpy dtypes and ctypes structures are built from the layouts and checked against them.
 
-The same layouts ship with this package (``layouts/glint_v7.json``, extracted from recordings)
+The same layouts ship with this package (``layouts/glint_v8.json``, extracted from recordings)
 for the live client, which has no recording to read them from. Regenerate that file with::
 
-    python -m glint_client.layout RUN.mcap [RUN.mcap ...] > glint_client/layouts/glint_v7.json
+    python -m glint_client.layout RUN.mcap [RUN.mcap ...] > glint_client/layouts/glint_v8.json
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Any, Iterable, Iterator, Mapping
 import numpy as np
 
 #: The wire contract this package was written against (``glint.contract`` attribute).
-CONTRACT_VERSION = 7
+CONTRACT_VERSION = 8
 
 _PRIMITIVES: dict[str, tuple[str, type[ctypes._SimpleCData[Any]]]] = {
     "u8": ("<u1", ctypes.c_uint8),
@@ -155,7 +155,7 @@ class Layouts:
         return t
 
     def topic_type(self, topic: str) -> TypeLayout:
-        """The payload layout of a topic (``detections`` -> ``glint.v7.Detections``)."""
+        """The payload layout of a topic (``detections`` -> ``glint.v8.Detections``)."""
         if topic not in self.topics:
             raise LayoutError(f"unknown topic `{topic}`; known: {sorted(self.topics)}")
         return self.get(self.topics[topic])
@@ -229,7 +229,7 @@ _BUNDLED: Layouts | None = None
 def _bundled() -> Layouts:
     global _BUNDLED
     if _BUNDLED is None:
-        text = resources.files(__package__).joinpath("layouts/glint_v7.json").read_text()
+        text = resources.files(__package__).joinpath("layouts/glint_v8.json").read_text()
         obj = json.loads(text)
         if obj.get("contract_version") != CONTRACT_VERSION:
             raise LayoutError("bundled layouts are of another contract version")

@@ -264,7 +264,7 @@ def pixel_view(sample: Any, header: View, loans: weakref.WeakSet[_Loan] | None =
 
 class FrameSubscriber(_Topic):
     """Frames of a frame topic (``frame``, ``earth_frame``): ``[u16]`` pixels with a
-    ``glint.v7.FrameHeader`` user header."""
+    ``glint.v8.FrameHeader`` user header."""
 
     def __init__(self, client: Client, topic: str = "frame", *, buffer_size: int | None = None,
                  wake: bool = True):
@@ -364,7 +364,7 @@ class Message:
 
 class MessageSubscriber(_Topic):
     """A message topic (``detections``, ``tracks`` …): one ``#[repr(C)]`` struct per sample,
-    its iceoryx2 type name the contract name (``glint.v7.Detections``)."""
+    its iceoryx2 type name the contract name (``glint.v8.Detections``)."""
 
     def __init__(self, client: Client, topic: str, *, type_name: str | None = None,
                  buffer_size: int | None = None, wake: bool = True):

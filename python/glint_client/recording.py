@@ -36,7 +36,7 @@ class RecordingError(ValueError):
 class Channel:
     id: int
     topic: str
-    type_name: str  #: the schema's name: a contract type name, ``glint.v7.Detections``
+    type_name: str  #: the schema's name: a contract type name, ``glint.v8.Detections``
     layout: TypeLayout | None  #: a ``glint.repr-c`` channel's payload layout
     is_frame: bool  #: the header, then the pixels
     message_count: int

@@ -35,15 +35,15 @@ def test_every_bundled_layout_builds_and_agrees() -> None:
 
 def test_topic_types() -> None:
     lay = Layouts.bundled()
-    assert lay.topic_type("frame").contract_name == "glint.v7.FrameHeader"
-    assert lay.topic_type("detections").contract_name == "glint.v7.Detections"
+    assert lay.topic_type("frame").contract_name == "glint.v8.FrameHeader"
+    assert lay.topic_type("detections").contract_name == "glint.v8.Detections"
     with pytest.raises(LayoutError):
         lay.topic_type("nope")
 
 
 def test_frame_header_and_detections_shape() -> None:
     lay = Layouts.bundled()
-    assert lay.get("glint.v7.FrameHeader").size == 80
+    assert lay.get("glint.v8.FrameHeader").size == 80
     dt = lay.dtype("Detections")
     assert dt["items"].shape == (32,)
     assert dt["items"].base.names[:4] == ("track_id", "flags", "x_px", "y_px")

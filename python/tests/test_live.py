@@ -124,7 +124,7 @@ def test_every_frame_received_zero_copy_and_checked(live_run: dict[str, Any]) ->
     assert all(live_run["in_shm"]), live_run.get("mapping")
     assert live_run["mapping"].path.startswith(f"/dev/shm/{live_run['prefix']}")
     h = live_run["frames"][0]
-    assert (h["width_px"], h["height_px"], h["meta"]["contract_version"]) == (W, H, 7)
+    assert (h["width_px"], h["height_px"], h["meta"]["contract_version"]) == (W, H, 8)
 
 
 def test_frame_digest_equals_the_report(live_run: dict[str, Any]) -> None:

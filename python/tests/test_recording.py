@@ -43,7 +43,7 @@ def test_channels_and_counts_match_the_report(recorded: tuple[Path, dict[str, An
         # any other channel (e.g. `faults` of a newer glint, none injected here) is empty
         assert all(n == 0 for t, n in counts.items() if t not in written), counts
         assert rec.channels["frame"].is_frame
-        assert rec.channels["detections"].type_name == "glint.v7.Detections"
+        assert rec.channels["detections"].type_name == "glint.v8.Detections"
         # the messages themselves, not only the summary
         seen: dict[str, int] = {}
         for m in rec.messages():
@@ -93,7 +93,7 @@ def test_frames_decode_and_checksums(recorded: tuple[Path, dict[str, Any]]) -> N
 def test_detections_decode(recorded: tuple[Path, dict[str, Any]]) -> None:
     path, report = recorded
     with Recording(path) as rec:
-        digest = MessageDigest(rec.layouts, "glint.v7.Detections")
+        digest = MessageDigest(rec.layouts, "glint.v8.Detections")
         found = 0
         for i, d in enumerate(rec.messages(["detections"])):
             assert d.meta.seq == i == d.sequence and d.frame_index == i
@@ -116,7 +116,7 @@ def _write(path: Path, schema: dict[str, Any], frames: list[tuple[int, np.ndarra
     with open(path, "wb") as f:
         w = Writer(f)
         w.start()
-        sid = w.register_schema("glint.v7.FrameHeader", "glint.repr-c", json.dumps(schema).encode())
+        sid = w.register_schema("glint.v8.FrameHeader", "glint.repr-c", json.dumps(schema).encode())
         cid = w.register_channel("frame", "glint.repr-c", sid, {"producer": "sensor"})
         for seq, px in frames:
             h = lay.ctype("FrameHeader")()
@@ -136,7 +136,7 @@ def _frames() -> list[tuple[int, np.ndarray]]:
 
 def test_synthetic_with_layouts(tmp_path: Path) -> None:
     lay = Layouts.bundled()
-    schema = {"type": "glint.v7.FrameHeader", "contract_version": 7, "repr": "C",
+    schema = {"type": "glint.v8.FrameHeader", "contract_version": 8, "repr": "C",
               "frame": "the header, then the pixels",
               "types": [lay.get("FrameHeader").to_json(), lay.get("Meta").to_json()]}
     frames = _frames()
@@ -151,7 +151,7 @@ def test_synthetic_with_layouts(tmp_path: Path) -> None:
 
 def test_synthetic_without_layouts_uses_bundled(tmp_path: Path) -> None:
     """A recording by a glint from before layouts were recorded: size_bytes only."""
-    schema = {"type": "glint.v7.FrameHeader", "contract_version": 7, "size_bytes": 80,
+    schema = {"type": "glint.v8.FrameHeader", "contract_version": 8, "size_bytes": 80,
               "align_bytes": 8, "frame": "the header, then the pixels"}
     _write(tmp_path / "b.mcap", schema, _frames())
     with Recording(tmp_path / "b.mcap") as rec:

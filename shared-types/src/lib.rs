@@ -19,7 +19,7 @@ pub use table::{ServiceId, TopicId};
 
 /// Version of the wire contract. Bump it on any change to a message layout or a topic's QoS:
 /// it is part of every `#[type_name]` and of the `glint.contract` service attribute.
-pub const CONTRACT_VERSION: u32 = 7;
+pub const CONTRACT_VERSION: u32 = 8;
 
 /// xxh3-64 of a frame's pixels as little-endian bytes (the value in `FrameHeader::pixels_xxh3`).
 pub fn pixels_xxh3(pixels: &[u16]) -> u64 {

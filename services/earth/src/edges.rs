@@ -1,5 +1,6 @@
 //! Limb edge extraction (docs/math.md §4.2, eqs 2–5): Sobel magnitude, a strong-edge
-//! threshold (Otsu's, unless given), the blind-zone and image-circle masks, one 3×3 erosion
+//! threshold (Otsu's, unless given), the blind-zone and image-circle masks (the circle's own
+//! edge excluded), one 3×3 erosion
 //! (skipped if it would leave nothing), and the surviving pixels as edge points.
 
 use crate::ring::Fisheye;
@@ -16,6 +17,18 @@ pub struct EdgeConfig {
     /// Pixels farther than this from the principal point are outside the lens image circle
     /// [px]; None: no circle (the whole frame is imaged).
     pub image_circle_px: Option<f64>,
+    /// Pixels within this of the image circle are never limb points [px]: the bright-to-black
+    /// step where the Earth reaches the lens's field boundary is an edge too (a few PSF widths
+    /// and the Sobel kernel's reach).
+    pub field_margin_px: f64,
+}
+
+impl EdgeConfig {
+    /// The largest radius from the principal point an edge point may have [px].
+    pub fn r_max_px(&self) -> f64 {
+        self.image_circle_px
+            .map_or(f64::INFINITY, |r| r - self.field_margin_px)
+    }
 }
 
 impl Default for EdgeConfig {
@@ -24,6 +37,7 @@ impl Default for EdgeConfig {
             threshold_dn: None,
             blind_zone_half_deg: 30.0,
             image_circle_px: None,
+            field_margin_px: 3.0,
         }
     }
 }
@@ -185,14 +199,14 @@ impl EdgeExtractor {
             [
                 cfg.blind_zone_half_deg.to_bits(),
                 cfg.image_circle_px.unwrap_or(f64::INFINITY).to_bits(),
-                0,
+                cfg.field_margin_px.to_bits(),
             ],
         );
         if self.key == Some(key) {
             return;
         }
         let r_blind = cam.f_px * cfg.blind_zone_half_deg.to_radians();
-        let r_circle = cfg.image_circle_px.unwrap_or(f64::INFINITY);
+        let r_circle = cfg.r_max_px();
         self.spans.clear();
         for y in 1..h - 1 {
             let dy = y as f64 - cam.y0_px;

@@ -12,6 +12,7 @@ fn no_masks() -> EdgeConfig {
         threshold_dn: None,
         blind_zone_half_deg: 0.0,
         image_circle_px: None,
+        field_margin_px: 0.0,
     }
 }
 
@@ -117,6 +118,7 @@ fn masks_remove_the_blind_zone_and_outside_the_image_circle() {
         threshold_dn: Some(0.0),
         blind_zone_half_deg: 30.0,
         image_circle_px: Some(110.0),
+        field_margin_px: 4.0,
     };
     let e = EdgeExtractor::default()
         .extract(&noise, w, h, &CAM, &cfg)
@@ -126,10 +128,50 @@ fn masks_remove_the_blind_zone_and_outside_the_image_circle() {
     for &(x, y) in &e.points_px {
         let r = CAM.theta_rad(x, y) * CAM.f_px;
         assert!(
-            r >= r_blind - 1e-9 && r <= 110.0 + 1e-9,
+            r >= r_blind - 1e-9 && r <= 106.0 + 1e-9,
             "({x}, {y}) at r = {r}"
         );
     }
+    // the margin keeps points off the circle, and the mask lets them come up to it
+    assert!(e
+        .points_px
+        .iter()
+        .any(|&(x, y)| CAM.theta_rad(x, y) * CAM.f_px > 104.0));
+}
+
+#[test]
+fn the_edge_of_the_image_circle_is_not_a_limb() {
+    // A uniformly bright field cut by the lens's circle: its only edge is the circle's.
+    let (w, h) = (256usize, 256usize);
+    let (cx, cy) = (CAM.x0_px, CAM.y0_px);
+    let disk: Vec<u16> = (0..w * h)
+        .map(|i| {
+            let r = ((i % w) as f64 - cx).hypot((i / w) as f64 - cy);
+            if r <= 100.0 {
+                3000
+            } else {
+                0
+            }
+        })
+        .collect();
+    let mut cfg = EdgeConfig {
+        image_circle_px: Some(100.0),
+        field_margin_px: 0.0,
+        ..EdgeConfig::default()
+    };
+    let mut ex = EdgeExtractor::default();
+    let e = ex.extract(&disk, w, h, &CAM, &cfg).unwrap();
+    assert!(
+        !e.points_px.is_empty(),
+        "without a margin the circle's edge is taken"
+    );
+    cfg.field_margin_px = 3.0;
+    let e = ex.extract(&disk, w, h, &CAM, &cfg).unwrap();
+    assert!(
+        e.points_px.is_empty(),
+        "{:?}",
+        &e.points_px[..e.points_px.len().min(5)]
+    );
 }
 
 #[test]

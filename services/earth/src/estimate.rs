@@ -39,16 +39,49 @@ pub enum EstimateError {
     EmptyTable,
 }
 
-/// β_k signed by the side of Z_S the normal leans to (see the module's notes).
+/// The azimuth about Z_S the normals lean to [rad]: that of the component-wise medians of
+/// their tilt vectors sin β_k (cos φ_k, sin φ_k). Medians, because edges that are not the limb
+/// (the Sun, a field boundary) give normals that lean elsewhere, and a mean would follow them:
+/// near nadir a few degrees of azimuth are all the true tilt leaves to go on. With no tilt at
+/// all, the mean normal's.
+pub fn tilt_azimuth_rad(s: &RingSamples) -> f64 {
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        match v.len() {
+            0 => 0.0,
+            n if n % 2 == 1 => v[n / 2],
+            n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+        }
+    };
+    let lean = |f: fn(f64) -> f64| {
+        median(
+            (s.beta_deg.iter().zip(&s.azimuth_deg))
+                .map(|(b, az)| b.to_radians().sin() * f(az.to_radians()))
+                .collect(),
+        )
+    };
+    let (x, y) = (lean(f64::cos), lean(f64::sin));
+    if x == 0.0 && y == 0.0 {
+        s.mean_normal[1].atan2(s.mean_normal[0])
+    } else {
+        y.atan2(x)
+    }
+}
+
+/// β_k signed by the side of Z_S the normal leans to, as its tilt in the plane of Z_S and the
+/// normals' azimuth ([`tilt_azimuth_rad`]): atan2(sin β_k cos Δφ_k, cos β_k), Δφ_k the
+/// normal's azimuth from that one (see the module's notes). Away from nadir Δφ_k is tiny and
+/// this is β_k; near it the normals scatter all round the axis, and a sample across the axis
+/// counts by how far it leans along the common direction, not by its whole angle (whole
+/// angles, signed, would leave a hole at 0 and two peaks at ± the scatter).
 pub fn signed_beta(s: &RingSamples) -> Vec<f64> {
-    let az_mean = s.mean_normal[1].atan2(s.mean_normal[0]);
+    let az_tilt = tilt_azimuth_rad(s);
     (s.beta_deg.iter().zip(&s.azimuth_deg))
         .map(|(b, az)| {
-            if (az.to_radians() - az_mean).cos() < 0.0 {
-                -b
-            } else {
-                *b
-            }
+            let (sb, cb) = b.to_radians().sin_cos();
+            (sb * (az.to_radians() - az_tilt).cos())
+                .atan2(cb)
+                .to_degrees()
         })
         .collect()
 }

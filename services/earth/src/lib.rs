@@ -9,6 +9,7 @@
 //! - [`ring`]: the fisheye camera, undistortion to the unit sphere and the interval cross
 //!   product (§4.3–4.4).
 //! - [`tfit`]: the t location-scale maximum-likelihood fit of the β_k samples (§4.5).
+//! - [`validity`]: whether a method's answer holds for the frame, and why not.
 //! - [`special`]: digamma and trigamma, which the fit needs.
 //! - [`synthetic`]: reference frames in closed form, for tests and benchmarks.
 //! - [`samples`]: the sample files `glint tool tfit` reads.
@@ -27,3 +28,4 @@ pub mod service_core;
 pub mod special;
 pub mod synthetic;
 pub mod tfit;
+pub mod validity;

@@ -8,6 +8,10 @@ use crate::estimate::{self, SigmaTable};
 use crate::hough::Hough;
 use crate::ring::{cross_product_samples, earth_angular_radius_rad, Fisheye};
 use crate::tfit::TFit;
+use crate::validity::{
+    circle_model_bias, correlation_time, location_standard_error, nadir, on_limb_fraction,
+    Undetermined, ValidityConfig, Visible,
+};
 
 /// Settings of the Earth sensor's processing.
 #[derive(Clone, Debug, PartialEq)]
@@ -23,6 +27,8 @@ pub struct EarthConfig {
     /// The Hough radius range: f ρ_E ± this fraction of f (0.15: ±8.6° of limb radius, wider
     /// than the limb circle's change up to β = 50°).
     pub hough_radius_band: f64,
+    /// When a method's answer holds for the frame.
+    pub validity: ValidityConfig,
 }
 
 impl EarthConfig {
@@ -34,6 +40,7 @@ impl EarthConfig {
             lookup_bins: 180,
             sigma_table: None,
             hough_radius_band: 0.15,
+            validity: ValidityConfig::default(),
         }
     }
 }
@@ -57,11 +64,14 @@ pub struct FrameResult {
     pub samples: usize,
     /// The shared edge extraction [µs].
     pub edges_us: f64,
-    pub cross_product: Option<MethodResult>,
-    pub lookup: Option<MethodResult>,
-    pub hough: Option<MethodResult>,
+    /// Each method's answer, or why the frame does not determine it.
+    pub cross_product: Result<MethodResult, Undetermined>,
+    pub lookup: Result<MethodResult, Undetermined>,
+    pub hough: Result<MethodResult, Undetermined>,
     /// The t fit of the signed β_k (the cross-product method's).
     pub fit: Option<TFit>,
+    /// The standard error of its location, the samples' correlation counted [deg].
+    pub standard_error_deg: Option<f64>,
     /// The signed β_k themselves [deg].
     pub signed_beta_deg: Vec<f64>,
 }
@@ -128,7 +138,8 @@ impl EarthCore {
         let lookup_us = us(t3);
 
         let t4 = Instant::now();
-        let r_px = cam.f_px * earth_angular_radius_rad(self.config.altitude_km);
+        let rho_rad = earth_angular_radius_rad(self.config.altitude_km);
+        let r_px = cam.f_px * rho_rad;
         let band = self.config.hough_radius_band * cam.f_px;
         let hough = self.hough.estimate(
             px,
@@ -141,26 +152,102 @@ impl EarthCore {
         );
         let hough_us = us(t4);
 
+        // Whether each answer holds for this frame (module `validity`).
+        let v = &self.config.validity;
+        let no_limb = Undetermined::NoLimb {
+            edge_points: edges.points_px.len(),
+            samples: samples.beta_deg.len(),
+        };
+        let azimuth_deg = estimate::tilt_azimuth_rad(&samples).to_degrees();
+        let on_limb = |signed_beta_deg: f64| {
+            let e = nadir(signed_beta_deg, azimuth_deg);
+            let fraction = on_limb_fraction(&points, e, v.limb_tolerance_px / cam.f_px);
+            (fraction >= v.min_on_limb_fraction)
+                .then_some(())
+                .ok_or(Undetermined::OffTheLimb {
+                    on_limb_fraction: fraction,
+                })
+        };
         let signed_beta_deg = estimate::signed_beta(&samples);
+        let se = cross.as_ref().map(|(_, fit)| {
+            location_standard_error(fit, correlation_time(&signed_beta_deg, fit.mu))
+        });
+        let precise = se.map(|se| {
+            (se <= v.max_standard_error_deg)
+                .then_some(())
+                .ok_or(Undetermined::Imprecise {
+                    standard_error_deg: se,
+                    samples: samples.beta_deg.len(),
+                })
+        });
+        let holds = |mu_deg: f64| -> Result<(), Undetermined> {
+            precise.unwrap_or(Err(no_limb))?;
+            on_limb(mu_deg)
+        };
+        // The lookup's mode against the fit's location, both signed.
+        let mode_holds = |mode_deg: f64| -> Result<(), Undetermined> {
+            let (Some((_, fit)), Some(se)) = (&cross, se) else {
+                return Ok(());
+            };
+            let allowed = (v.lookup_error_budget_deg - 2.0 * se).max(0.0);
+            ((mode_deg - fit.mu).abs() <= allowed).then_some(()).ok_or(
+                Undetermined::ModeOffLocation {
+                    mode_deg,
+                    location_deg: fit.mu,
+                    allowed_deg: allowed,
+                },
+            )
+        };
+        let visible = Visible {
+            width_px: width,
+            height_px: height,
+            r_min_px: cam.f_px * self.config.edges.blind_zone_half_deg.to_radians(),
+            r_max_px: self.config.edges.r_max_px(),
+        };
+        let circle_holds = |h: &crate::hough::HoughEstimate| -> Result<(), Undetermined> {
+            let az = (h.circle.y_px - cam.y0_px)
+                .atan2(h.circle.x_px - cam.x0_px)
+                .to_degrees();
+            let bias = circle_model_bias(&cam, h.beta_deg, az, rho_rad, &visible).ok_or(no_limb)?;
+            (bias.abs() <= v.max_circle_bias_deg).then_some(()).ok_or(
+                Undetermined::CircleModelBias {
+                    beta_deg: h.beta_deg,
+                    bias_deg: bias,
+                },
+            )
+        };
+
         Ok(FrameResult {
             edge_points: edges.points_px.len(),
             samples: samples.beta_deg.len(),
             edges_us,
-            cross_product: cross.as_ref().map(|(e, _)| MethodResult {
-                beta_deg: e.beta_deg,
-                tilt_deg: e.tilt_deg,
-                time_us: edges_us + ring_us + cross_us,
-            }),
-            lookup: lookup.map(|e| MethodResult {
-                beta_deg: e.beta_deg,
-                tilt_deg: e.tilt_deg,
-                time_us: edges_us + ring_us + lookup_us,
-            }),
-            hough: hough.map(|e| MethodResult {
-                beta_deg: e.beta_deg,
-                tilt_deg: e.tilt_deg,
-                time_us: edges_us + hough_us,
-            }),
+            cross_product: match &cross {
+                Some((e, _)) => holds(e.mu_deg).map(|()| MethodResult {
+                    beta_deg: e.beta_deg,
+                    tilt_deg: e.tilt_deg,
+                    time_us: edges_us + ring_us + cross_us,
+                }),
+                None => Err(no_limb),
+            },
+            lookup: match lookup {
+                Some(e) => holds(e.mu_deg)
+                    .and(mode_holds(e.mu_deg))
+                    .map(|()| MethodResult {
+                        beta_deg: e.beta_deg,
+                        tilt_deg: e.tilt_deg,
+                        time_us: edges_us + ring_us + lookup_us,
+                    }),
+                None => Err(no_limb),
+            },
+            hough: match hough {
+                Some(e) => circle_holds(&e).map(|()| MethodResult {
+                    beta_deg: e.beta_deg,
+                    tilt_deg: e.tilt_deg,
+                    time_us: edges_us + hough_us,
+                }),
+                None => Err(no_limb),
+            },
+            standard_error_deg: se,
             fit: cross.map(|(_, f)| f),
             signed_beta_deg,
         })

@@ -8,6 +8,7 @@ use shared_types::{DropReason, EarthAttitude, EarthMethod, FrameHeader};
 use crate::estimate::{SigmaTable, TableError};
 use crate::pipeline::{EarthConfig, EarthCore, MethodResult};
 use crate::ring::Fisheye;
+use crate::validity::Undetermined;
 
 /// Why the σ table `earth.sigma_table` names cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -45,6 +46,8 @@ pub fn config(e: &EarthScenario) -> Result<EarthConfig, SetupError> {
     let mut c = EarthConfig::new(camera(e), e.altitude_km);
     c.edges.threshold_dn = e.edge_threshold_dn.map(|t| t as f32);
     c.edges.image_circle_px = Some(e.image_circle_px);
+    // The circle's own edge, blurred by the PSF, reaches ~3σ inward; the Sobel kernel 1 px more.
+    c.edges.field_margin_px = 1.0 + 3.0 * e.psf_sigma_px;
     c.sigma_table = sigma_table(e)?;
     Ok(c)
 }
@@ -55,16 +58,19 @@ pub struct EarthServiceCore {
     height_px: u32,
 }
 
-fn method(m: Option<MethodResult>) -> EarthMethod {
+fn method(m: Result<MethodResult, Undetermined>) -> EarthMethod {
     match m {
-        Some(m) => EarthMethod {
+        Ok(m) => EarthMethod {
             beta_deg: m.beta_deg,
             tilt_deg: m.tilt_deg,
             time_us: m.time_us,
             valid: 1,
-            _pad: 0,
+            undetermined: 0,
         },
-        None => EarthMethod::default(),
+        Err(why) => EarthMethod {
+            undetermined: why.code(),
+            ..EarthMethod::default()
+        },
     }
 }
 
@@ -133,7 +139,7 @@ mod tests {
         assert_eq!(m.frame_index, 7);
         assert!(m.edge_points > 500 && m.samples > 100, "{m:?}");
         for (name, r) in EarthAttitude::METHOD_NAMES.iter().zip(m.methods) {
-            assert_eq!(r.valid, 1, "{name}");
+            assert_eq!(r.valid, 1, "{name}: {m:?}");
             assert!((r.beta_deg - 12.0).abs() < 0.1, "{name}: {r:?}");
             assert!((r.tilt_deg - 12.0).abs() < 0.1, "{name}: {r:?}");
             assert!(r.time_us > 0.0, "{name}");

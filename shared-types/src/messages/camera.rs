@@ -9,7 +9,7 @@ use super::*;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.FrameHeader")]
+#[type_name("glint.v8.FrameHeader")]
 #[repr(C)]
 pub struct FrameHeader {
     pub meta: Meta,
@@ -77,7 +77,7 @@ pub const MAX_TRACKS: usize = 16;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.Detection")]
+#[type_name("glint.v8.Detection")]
 #[repr(C)]
 pub struct Detection {
     /// Persistent id assigned by the inter-frame matcher.
@@ -113,7 +113,7 @@ impl Detection {
 
 /// The detector's output for one frame: matched objects only (false targets are rejected).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v7.Detections")]
+#[type_name("glint.v8.Detections")]
 #[repr(C)]
 pub struct Detections {
     pub meta: Meta,
@@ -176,7 +176,7 @@ impl Detections {
 
 /// One track's estimate after a frame ([002] §3.6–3.8).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v7.TrackEstimate")]
+#[type_name("glint.v8.TrackEstimate")]
 #[repr(C)]
 pub struct TrackEstimate {
     pub track_id: u32,
@@ -236,7 +236,7 @@ impl Default for TrackEstimate {
 
 /// The tracker's output for one frame.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v7.Tracks")]
+#[type_name("glint.v8.Tracks")]
 #[repr(C)]
 pub struct Tracks {
     pub meta: Meta,

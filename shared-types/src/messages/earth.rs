@@ -9,7 +9,7 @@ use super::*;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.EarthMethod")]
+#[type_name("glint.v8.EarthMethod")]
 #[repr(C)]
 pub struct EarthMethod {
     /// β, the angle between the optical axis and nadir [deg], ≥ 0.
@@ -19,17 +19,38 @@ pub struct EarthMethod {
     /// Compute time, the shared edge extraction included [µs]. A timing: never part of a
     /// result's digest.
     pub time_us: f64,
-    /// 1 when the method found an answer on this frame, 0 when it found none (the numbers are
-    /// then 0).
+    /// 1 when the method answers on this frame, 0 when the frame does not determine it (the
+    /// numbers are then 0).
     pub valid: u32,
-    pub _pad: u32,
+    /// Why not, when `valid` is 0 ([`EarthMethod::UNDETERMINED_NAMES`]); 0 when valid.
+    pub undetermined: u32,
+}
+
+impl EarthMethod {
+    /// Names of the `undetermined` codes: no limb (too few edge points or samples), imprecise
+    /// (the samples fix β only loosely), off the limb (the edges are not the answer's limb),
+    /// circle model bias (the baseline's circle is not the fisheye's limb at this β), mode off
+    /// the location (the lookup's histogram mode is not the samples' centre).
+    pub const UNDETERMINED_NAMES: [&'static str; 6] = [
+        "determined",
+        "no_limb",
+        "imprecise",
+        "off_the_limb",
+        "circle_model_bias",
+        "mode_off_location",
+    ];
+
+    /// The name of this answer's `undetermined` code.
+    pub fn undetermined_name(&self) -> &'static str {
+        (Self::UNDETERMINED_NAMES.get(self.undetermined as usize)).unwrap_or(&"unknown")
+    }
 }
 
 /// β and tilt of one Earth frame by every method (math.md §4.4–4.7).
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.EarthAttitude")]
+#[type_name("glint.v8.EarthAttitude")]
 #[repr(C)]
 pub struct EarthAttitude {
     pub meta: Meta,
@@ -93,6 +114,13 @@ impl EarthAttitude {
         for m in &self.methods {
             if m.valid > 1 {
                 return Err(Reject::new("earth_attitude.methods.valid", "not 0 or 1"));
+            }
+            let reasons = EarthMethod::UNDETERMINED_NAMES.len() as u32;
+            if (m.valid == 1) != (m.undetermined == 0) || m.undetermined >= reasons {
+                return Err(Reject::new(
+                    "earth_attitude.methods.undetermined",
+                    "0 when valid, else a reason 1..=5",
+                ));
             }
             for v in [m.beta_deg, m.tilt_deg, m.time_us] {
                 finite(v, "earth_attitude.methods")?;

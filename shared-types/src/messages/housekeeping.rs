@@ -45,7 +45,7 @@ impl DropReason {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.TopicCounters")]
+#[type_name("glint.v8.TopicCounters")]
 #[repr(C)]
 pub struct TopicCounters {
     /// [`crate::TopicId`] as u32, or `u32::MAX` for an unused slot.
@@ -68,7 +68,7 @@ pub struct TopicCounters {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.ServiceTime")]
+#[type_name("glint.v8.ServiceTime")]
 #[repr(C)]
 pub struct ServiceTime {
     /// Handling wake-ups: its own work, checksums, publishing, waiting for RPC answers.
@@ -89,7 +89,7 @@ pub struct ServiceTime {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.Heartbeat")]
+#[type_name("glint.v8.Heartbeat")]
 #[repr(C)]
 pub struct Heartbeat {
     pub meta: Meta,
@@ -134,7 +134,7 @@ impl Heartbeat {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.Ack")]
+#[type_name("glint.v8.Ack")]
 #[repr(C)]
 pub struct Ack {
     pub meta: Meta,
@@ -193,7 +193,7 @@ impl Command {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.Control")]
+#[type_name("glint.v8.Control")]
 #[repr(C)]
 pub struct Control {
     pub meta: Meta,

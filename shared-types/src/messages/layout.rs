@@ -138,7 +138,7 @@ pub fn layouts() -> Vec<TypeLayout> {
             tilt_deg,
             time_us,
             valid,
-            _pad
+            undetermined
         }),
         layout!(EarthAttitude {
             meta,
@@ -395,7 +395,7 @@ mod tests {
                 t.contract_name
             );
         }
-        let spectrum = layout_with_nested("glint.v7.Detections");
+        let spectrum = layout_with_nested("glint.v8.Detections");
         let names: Vec<&str> = spectrum.iter().map(|t| t.name.as_str()).collect();
         assert_eq!(names[0], "Detections");
         assert!(

@@ -51,7 +51,7 @@ pub const MAX_TOPICS: usize = 8;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.Meta")]
+#[type_name("glint.v8.Meta")]
 #[repr(C)]
 pub struct Meta {
     /// Per-producer, per-topic sequence number, starting at 0, without gaps.

@@ -6,7 +6,7 @@ use super::*;
 
 /// One sample of the light curve.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v7.PhotometrySample")]
+#[type_name("glint.v8.PhotometrySample")]
 #[repr(C)]
 pub struct PhotometrySample {
     pub meta: Meta,
@@ -71,7 +71,7 @@ pub const PHOTOMETRY_COV_ENTRIES: usize = 6 * 7 / 2;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.PhotometryMatch")]
+#[type_name("glint.v8.PhotometryMatch")]
 #[repr(C)]
 pub struct PhotometryMatch {
     /// Index of the geometry in the scenario's shape library.
@@ -91,7 +91,7 @@ pub struct PhotometryMatch {
 
 /// The service's answer to one sample.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v7.PhotometryEstimate")]
+#[type_name("glint.v8.PhotometryEstimate")]
 #[repr(C)]
 pub struct PhotometryEstimate {
     pub meta: Meta,

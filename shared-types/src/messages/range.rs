@@ -8,7 +8,7 @@ use super::*;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.RangeRequest")]
+#[type_name("glint.v8.RangeRequest")]
 #[repr(C)]
 pub struct RangeRequest {
     pub meta: Meta,
@@ -52,7 +52,7 @@ pub enum RangeStatus {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.RangeResponse")]
+#[type_name("glint.v8.RangeResponse")]
 #[repr(C)]
 pub struct RangeResponse {
     pub meta: Meta,

@@ -26,7 +26,7 @@ impl Window {
 
 /// One time sample of the target's spectrum plus the geometry the inversion needs.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v7.Spectrum")]
+#[type_name("glint.v8.Spectrum")]
 #[repr(C)]
 pub struct Spectrum {
     pub meta: Meta,
@@ -134,7 +134,7 @@ impl Spectrum {
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.SolveRequest")]
+#[type_name("glint.v8.SolveRequest")]
 #[repr(C)]
 pub struct SolveRequest {
     pub meta: Meta,
@@ -201,7 +201,7 @@ impl SolveStatus {
 /// stage 3). Per-band figures are `f32`: relative errors and degrees of separation, printed to
 /// four digits.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v7.SolveResponse")]
+#[type_name("glint.v8.SolveResponse")]
 #[repr(C)]
 pub struct SolveResponse {
     pub meta: Meta,

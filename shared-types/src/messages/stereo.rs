@@ -9,7 +9,7 @@ use crate::scenario::MAX_STEREO_FEATURES;
 #[derive(
     Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
 )]
-#[type_name("glint.v7.StereoFeature")]
+#[type_name("glint.v8.StereoFeature")]
 #[repr(C)]
 pub struct StereoFeature {
     /// Index of the feature in the target's feature list.
@@ -21,7 +21,7 @@ pub struct StereoFeature {
 
 /// Every feature the rig saw at one epoch.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v7.Stereo")]
+#[type_name("glint.v8.Stereo")]
 #[repr(C)]
 pub struct Stereo {
     pub meta: Meta,
@@ -70,7 +70,7 @@ pub const RELNAV_COV_ENTRIES: usize = 14 * 15 / 2;
 
 /// The filter's answer at one epoch.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v7.RelNav")]
+#[type_name("glint.v8.RelNav")]
 #[repr(C)]
 pub struct RelNavEstimate {
     pub meta: Meta,

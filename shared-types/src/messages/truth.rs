@@ -6,7 +6,7 @@ use super::*;
 
 /// Ground truth for scoring; read only by the orchestrator.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
-#[type_name("glint.v7.Truth")]
+#[type_name("glint.v8.Truth")]
 #[repr(C)]
 pub struct Truth {
     pub meta: Meta,

@@ -132,10 +132,10 @@ mod tests {
         );
         assert_eq!(TopicId::from_name("relnav"), Some(TopicId::RelNav));
         assert_eq!(TopicId::from_u32(11), Some(TopicId::EarthAttitude));
-        assert_eq!(payload_type_name(TopicId::Tracks), "glint.v7.Tracks");
+        assert_eq!(payload_type_name(TopicId::Tracks), "glint.v8.Tracks");
         assert_eq!(
             payload_type_name(TopicId::EarthFrame),
-            "glint.v7.FrameHeader"
+            "glint.v8.FrameHeader"
         );
         assert_eq!(
             ServiceId::names(),
