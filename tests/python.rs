@@ -7,22 +7,12 @@
 //! The environment is `python/.venv` (the README's test command, `./test`, makes it) or the
 //! interpreter `GLINT_PYTHON` names.
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::Command;
 
-fn python() -> PathBuf {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let python = std::env::var_os("GLINT_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root.join("python/.venv/bin/python"));
-    assert!(
-        python.is_file(),
-        "no Python environment at {}: run `./test` (the README's test command), or \
-         `python3 -m venv python/.venv && python/.venv/bin/pip install -e 'python[test]'`",
-        python.display()
-    );
-    python
-}
+use common::python;
 
 #[test]
 fn the_python_client_reads_live_frames_without_copying_and_reads_recordings() {

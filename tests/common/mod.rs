@@ -23,6 +23,22 @@ pub fn scenario(name: &str) -> PathBuf {
 }
 
 /// A fresh directory for one test's outputs.
+/// The Python of the test environment: `python/.venv` (the README's test command, `./test`,
+/// makes it, with numpy) or the interpreter `GLINT_PYTHON` names.
+pub fn python() -> PathBuf {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let python = std::env::var_os("GLINT_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root.join("python/.venv/bin/python"));
+    assert!(
+        python.is_file(),
+        "no Python environment at {}: run `./test` (the README's test command), or \
+         `python3 -m venv python/.venv && python/.venv/bin/pip install -e 'python[test]'`",
+        python.display()
+    );
+    python
+}
+
 pub fn temp_dir(tag: &str) -> PathBuf {
     let d = std::env::temp_dir()
         .join("glint-tests")
