@@ -300,12 +300,17 @@ pub(crate) enum ToolCmd {
     /// cross-product method, its lookup version and the Hough baseline; prints JSON.
     Earth {
         frame: PathBuf,
-        /// Fisheye focal length [px/rad] (r = f θ), 1 to 100000.
-        #[arg(long = "f-px", value_parser = parse_positive)]
-        f_px: f64,
+        /// Fisheye focal length [px/rad] (r = f θ, the ideal lens), 1 to 100000.
+        #[arg(long = "f-px", value_parser = parse_positive, required_unless_present = "lens")]
+        f_px: Option<f64>,
         /// Principal point X,Y [px], 0-based, the first pixel's centre at (0, 0).
-        #[arg(long, value_parser = parse_point)]
-        center: (f64, f64),
+        #[arg(long, value_parser = parse_point, required_unless_present = "lens")]
+        center: Option<(f64, f64)>,
+        /// The lens's calibration instead of --f-px and --center: LENS.toml with OpenCV's
+        /// fisheye fx, fy, cx, cy and D = [k1, k2, k3, k4] (Kannala–Brandt), optionally
+        /// field_deg and image_circle_px (docs/earth-sensor.md).
+        #[arg(long, conflicts_with_all = ["f_px", "center"])]
+        lens: Option<PathBuf>,
         /// Orbit altitude [km], 100 to 100000 (the limb's angular radius).
         #[arg(long = "altitude-km", default_value_t = 950.0, value_parser = parse_altitude)]
         altitude_km: f64,
@@ -334,10 +339,13 @@ pub(crate) enum ToolCmd {
         /// Frames per angle with `--scenario`.
         #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=100))]
         images: u32,
-        #[arg(long = "f-px", value_parser = parse_positive, required_unless_present = "scenario")]
+        #[arg(long = "f-px", value_parser = parse_positive, required_unless_present_any = ["scenario", "lens"])]
         f_px: Option<f64>,
-        #[arg(long, value_parser = parse_point, required_unless_present = "scenario")]
+        #[arg(long, value_parser = parse_point, required_unless_present_any = ["scenario", "lens"])]
         center: Option<(f64, f64)>,
+        /// The lens's calibration (LENS.toml, as for `glint tool earth`).
+        #[arg(long, conflicts_with_all = ["f_px", "center", "scenario"])]
+        lens: Option<PathBuf>,
         #[arg(long = "altitude-km", default_value_t = 950.0, value_parser = parse_altitude)]
         altitude_km: f64,
         #[arg(long = "field-deg", default_value_t = 90.0, value_parser = parse_field)]

@@ -12,6 +12,7 @@
 //!   stereo measurements.
 
 pub mod invert;
+pub mod lens;
 pub mod observations;
 pub mod photometry;
 pub mod relnav;
@@ -145,6 +146,8 @@ pub fn tfit(path: &Path) -> Result<String> {
 pub struct EarthTool {
     pub f_px: f64,
     pub center_px: (f64, f64),
+    /// Kannala–Brandt k₁…k₄ (0: the ideal `r = f θ`).
+    pub k: [f64; 4],
     pub altitude_km: f64,
     /// The lens's field half-angle [deg]: nothing beyond it is imaged.
     pub field_deg: f64,
@@ -153,18 +156,51 @@ pub struct EarthTool {
 }
 
 impl EarthTool {
+    /// The tool's camera from --f-px and --center, or from a LENS.toml (whose field and image
+    /// circle, when it gives them, stand for the flags').
+    pub fn new(
+        f_px: Option<f64>,
+        center_px: Option<(f64, f64)>,
+        lens: Option<&Path>,
+        altitude_km: f64,
+        field_deg: f64,
+        image_circle_px: Option<f64>,
+    ) -> Result<Self> {
+        if let Some(path) = lens {
+            let l = lens::read_lens(path)?;
+            return Ok(EarthTool {
+                f_px: l.camera.f_px,
+                center_px: (l.camera.x0_px, l.camera.y0_px),
+                k: l.camera.k,
+                altitude_km,
+                field_deg: l.field_deg.unwrap_or(field_deg),
+                image_circle_px: l.image_circle_px.or(image_circle_px),
+            });
+        }
+        match (f_px, center_px) {
+            (Some(f_px), Some(center_px)) => Ok(EarthTool {
+                f_px,
+                center_px,
+                k: [0.0; 4],
+                altitude_km,
+                field_deg,
+                image_circle_px,
+            }),
+            _ => Err(anyhow!("give --f-px and --center, or --lens LENS.toml")),
+        }
+    }
+
     fn core(
         &self,
         table: Option<glint_earth::estimate::SigmaTable>,
     ) -> glint_earth::pipeline::EarthCore {
         let camera = glint_earth::ring::Fisheye {
-            f_px: self.f_px,
-            x0_px: self.center_px.0,
-            y0_px: self.center_px.1,
+            k: self.k,
+            ..glint_earth::ring::Fisheye::ideal(self.f_px, self.center_px.0, self.center_px.1)
         };
         let mut config = glint_earth::pipeline::EarthConfig::new(camera, self.altitude_km);
         config.sigma_table = table;
-        let field_px = self.f_px * self.field_deg.to_radians();
+        let field_px = camera.radius_px(self.field_deg.to_radians());
         config.edges.image_circle_px =
             Some(self.image_circle_px.map_or(field_px, |r| r.min(field_px)));
         glint_earth::pipeline::EarthCore::new(config)
@@ -320,48 +356,47 @@ pub(crate) fn command(tool: crate::cli::ToolCmd) -> std::process::ExitCode {
             frame,
             f_px,
             center,
+            lens,
             altitude_km,
             field_deg,
             image_circle_px,
             sigma_table,
-        } => {
-            let tool = EarthTool {
-                f_px,
-                center_px: center,
-                altitude_km,
-                field_deg,
-                image_circle_px,
-            };
-            earth(&frame, &tool, sigma_table.as_deref()).map(|j| println!("{j}"))
-        }
+        } => EarthTool::new(
+            f_px,
+            center,
+            lens.as_deref(),
+            altitude_km,
+            field_deg,
+            image_circle_px,
+        )
+        .and_then(|tool| earth(&frame, &tool, sigma_table.as_deref()))
+        .map(|j| println!("{j}")),
         ToolCmd::EarthCalibrate {
             frames,
             scenario,
             images,
             f_px,
             center,
+            lens,
             altitude_km,
             field_deg,
             image_circle_px,
             out,
-        } => match (scenario, f_px, center) {
-            (Some(file), _, _) => match Scenario::from_file(&file) {
+        } => match scenario {
+            Some(file) => match Scenario::from_file(&file) {
                 Ok(sc) => earth_calibrate_scenario(&sc, images, &out).map(|j| println!("{j}")),
                 Err(e) => Err(anyhow::anyhow!("{e}")),
             },
-            (None, Some(f_px), Some(center)) => {
-                let tool = EarthTool {
-                    f_px,
-                    center_px: center,
-                    altitude_km,
-                    field_deg,
-                    image_circle_px,
-                };
-                earth_calibrate(&frames, &tool, &out).map(|j| println!("{j}"))
-            }
-            _ => Err(anyhow::anyhow!(
-                "give calibration frames with --f-px and --center, or --scenario"
-            )),
+            None => EarthTool::new(
+                f_px,
+                center,
+                lens.as_deref(),
+                altitude_km,
+                field_deg,
+                image_circle_px,
+            )
+            .and_then(|tool| earth_calibrate(&frames, &tool, &out))
+            .map(|j| println!("{j}")),
         },
         ToolCmd::Tfit { samples } => tfit(&samples).map(|json| println!("{json}")),
         ToolCmd::Photometry { lc, shapes, out } => {

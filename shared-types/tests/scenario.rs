@@ -189,6 +189,21 @@ fn bad_earth_fields_are_named_with_their_range() {
     );
     let e = error_of(&earth_base().replace("images_per_angle = 2", "images_per_angle = 0"));
     assert!(e.contains("earth.images_per_angle"), "{e}");
+    let e = error_of(&earth_base().replace("[earth]", "[earth]\nlens_k = [0.05, 1.5, 0.0, 0.0]"));
+    assert!(e.contains("earth.lens_k[1]") && e.contains("-1..=1"), "{e}");
+    // θ_d = θ (1 − 0.6 θ²) peaks at θ = 42.7° (f θ_d = 65 px), inside the 255 px circle.
+    let e = error_of(
+        &earth_base().replace("[earth]", "[earth]\ncalibration_k = [-0.6, 0.0, 0.0, 0.0]"),
+    );
+    assert!(
+        e.contains("earth.calibration_k") && e.contains("stops growing at θ = 42.8°"),
+        "{e}"
+    );
+    let e = error_of(&earth_base().replace("[earth]", "[earth]\nlimb_height_seasonal_km = 80"));
+    assert!(
+        e.contains("earth.limb_height_seasonal_km") && e.contains("-50..=50"),
+        "{e}"
+    );
     let e = error_of(&earth_base().replace("noise_dn = 10.0", "noise_dn = 10.0\nnoise = 3"));
     assert!(
         e.contains("earth.noise") && e.contains("unknown field"),

@@ -13,11 +13,7 @@ use glint_earth::pipeline::{EarthConfig, EarthCore};
 use glint_earth::ring::{cross_product_samples, earth_angular_radius_rad, Fisheye};
 use std::hint::black_box;
 
-const CAM: Fisheye = Fisheye {
-    f_px: 130.0,
-    x0_px: 255.5,
-    y0_px: 255.5,
-};
+const CAM: Fisheye = Fisheye::ideal(130.0, 255.5, 255.5);
 
 /// The closed-form frame with read noise of σ ≈ 10 DN (a sum of four uniforms, xorshift).
 fn noisy_frame(w: usize, h: usize) -> Vec<u16> {

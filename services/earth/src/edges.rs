@@ -73,7 +73,7 @@ pub enum EdgeError {
 #[derive(Default)]
 pub struct EdgeExtractor {
     /// (width, height, camera, config) the `spans` were built for.
-    key: Option<(usize, usize, [u64; 3], [u64; 3])>,
+    key: Option<(usize, usize, [u64; 10])>,
     /// The unmasked interior pixels as runs of one row: (first index, length), row-major.
     spans: Vec<(u32, u32)>,
     magnitude: Vec<f32>,
@@ -192,20 +192,28 @@ fn otsu_below(values: &[f32], max: f32) -> f32 {
 
 impl EdgeExtractor {
     fn build_masks(&mut self, w: usize, h: usize, cam: &Fisheye, cfg: &EdgeConfig) {
+        let [k1, k2, k3, k4] = cam.k;
         let key = (
             w,
             h,
-            [cam.f_px.to_bits(), cam.x0_px.to_bits(), cam.y0_px.to_bits()],
             [
-                cfg.blind_zone_half_deg.to_bits(),
-                cfg.image_circle_px.unwrap_or(f64::INFINITY).to_bits(),
-                cfg.field_margin_px.to_bits(),
-            ],
+                cam.f_px,
+                cam.x0_px,
+                cam.y0_px,
+                k1,
+                k2,
+                k3,
+                k4,
+                cfg.blind_zone_half_deg,
+                cfg.image_circle_px.unwrap_or(f64::INFINITY),
+                cfg.field_margin_px,
+            ]
+            .map(f64::to_bits),
         );
         if self.key == Some(key) {
             return;
         }
-        let r_blind = cam.f_px * cfg.blind_zone_half_deg.to_radians();
+        let r_blind = cam.radius_px(cfg.blind_zone_half_deg.to_radians());
         let r_circle = cfg.r_max_px();
         self.spans.clear();
         for y in 1..h - 1 {

@@ -1,11 +1,7 @@
 use super::*;
 use crate::ring::cross_product_samples;
 
-const CAM: Fisheye = Fisheye {
-    f_px: 100.0,
-    x0_px: 127.5,
-    y0_px: 127.5,
-};
+const CAM: Fisheye = Fisheye::ideal(100.0, 127.5, 127.5);
 
 fn no_masks() -> EdgeConfig {
     EdgeConfig {
@@ -78,11 +74,7 @@ fn otsu_splits_two_levels_between_them() {
 fn erosion_shrinks_a_square_and_spares_a_thin_line() {
     let (w, h) = (16usize, 16usize);
     let mut ex = EdgeExtractor::default();
-    let cam = Fisheye {
-        f_px: 10.0,
-        x0_px: 8.0,
-        y0_px: 8.0,
-    };
+    let cam = Fisheye::ideal(10.0, 8.0, 8.0);
     // A bright block with 4-px ramps: its Sobel band is 5 px wide, and erosion keeps its middle.
     let ramp = |v: usize| ((v as f64 - 2.0).min(14.0 - v as f64) / 4.0).clamp(0.0, 1.0);
     let block: Vec<u16> = (0..w * h)

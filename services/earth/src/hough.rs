@@ -134,7 +134,12 @@ impl Hough {
         }
         self.touched.clear();
         let (r0, r1) = (r_min_px.max(1.0).round() as i64, r_max_px.round() as i64);
-        for &(x, y) in edges_px {
+        // Through a distorted lens the votes, the radius and the fit are cast in the ideal
+        // lens's image (`r = f θ`), where the limb is the circle math.md §4.7 fits.
+        let undistorted: Vec<(f64, f64)> = (edges_px.iter())
+            .map(|&(x, y)| cam.to_equidistant(x, y))
+            .collect();
+        for (&(x, y), &(xe, ye)) in edges_px.iter().zip(&undistorted) {
             let (xi, yi) = (x as usize, y as usize);
             if xi == 0 || yi == 0 || xi >= w - 1 || yi >= h - 1 {
                 continue;
@@ -147,10 +152,10 @@ impl Hough {
                 continue;
             }
             // The Earth is the warm side: its centre lies up the gradient.
-            let (ux, uy) = (gx / g, gy / g);
+            let (ux, uy) = cam.normal_to_equidistant(x, y, (gx / g, gy / g));
             for r in r0..=r1 {
-                let cx = (x + r as f64 * ux).round();
-                let cy = (y + r as f64 * uy).round();
+                let cx = (xe + r as f64 * ux).round();
+                let cy = (ye + r as f64 * uy).round();
                 if cx >= 0.0 && cy >= 0.0 && (cx as usize) < w && (cy as usize) < h {
                     let i = cy as usize * w + cx as usize;
                     if self.votes[i] == 0 {
@@ -193,7 +198,7 @@ impl Hough {
         // The radius: the most common distance, 1-px bins.
         self.radii.clear();
         self.radii.resize((r1 - r0 + 1) as usize, 0);
-        for &(x, y) in edges_px {
+        for &(x, y) in &undistorted {
             let d = (x - cx).hypot(y - cy).round() as i64;
             if (r0..=r1).contains(&d) {
                 self.radii[(d - r0) as usize] += 1;
@@ -202,7 +207,7 @@ impl Hough {
         let (k, _) =
             (self.radii.iter().enumerate()).max_by_key(|(k, c)| (**c, std::cmp::Reverse(*k)))?;
         let r = (r0 + k as i64) as f64;
-        let inliers: Vec<(f64, f64)> = (edges_px.iter())
+        let inliers: Vec<(f64, f64)> = (undistorted.iter())
             .filter(|&&(x, y)| ((x - cx).hypot(y - cy) - r).abs() <= INLIER_PX)
             .copied()
             .collect();
@@ -211,7 +216,8 @@ impl Hough {
     }
 }
 
-/// β and tilt of a fitted limb circle (math.md §4.7 step 5).
+/// β and tilt of a limb circle fitted in the ideal lens's image (math.md §4.7 step 5:
+/// β = ‖centre − principal point‖ / f).
 pub fn estimate_of(circle: Circle, cam: &Fisheye, inliers: usize) -> HoughEstimate {
     let (dx, dy) = (circle.x_px - cam.x0_px, circle.y_px - cam.y0_px);
     HoughEstimate {

@@ -3,11 +3,7 @@ use crate::edges::{EdgeConfig, EdgeExtractor};
 use crate::ring::earth_angular_radius_rad;
 use std::f64::consts::PI;
 
-const CAM: Fisheye = Fisheye {
-    f_px: 130.0,
-    x0_px: 255.5,
-    y0_px: 255.5,
-};
+const CAM: Fisheye = Fisheye::ideal(130.0, 255.5, 255.5);
 
 /// Limb directions of an Earth tilted by β about Y_S, `n` uniform in the ring's angle.
 fn limb(beta_deg: f64, n: usize) -> Vec<[f64; 3]> {

@@ -139,6 +139,7 @@ impl EarthCore {
 
         let t4 = Instant::now();
         let rho_rad = earth_angular_radius_rad(self.config.altitude_km);
+        // The limb's radius in the ideal lens's image, where the baseline fits it.
         let r_px = cam.f_px * rho_rad;
         let band = self.config.hough_radius_band * cam.f_px;
         let hough = self.hough.estimate(
@@ -201,7 +202,7 @@ impl EarthCore {
         let visible = Visible {
             width_px: width,
             height_px: height,
-            r_min_px: cam.f_px * self.config.edges.blind_zone_half_deg.to_radians(),
+            r_min_px: cam.radius_px(self.config.edges.blind_zone_half_deg.to_radians()),
             r_max_px: self.config.edges.r_max_px(),
         };
         let circle_holds = |h: &crate::hough::HoughEstimate| -> Result<(), Undetermined> {

@@ -1,11 +1,7 @@
 use super::*;
 
 const F_PX: f64 = 150.0;
-const CAM: Fisheye = Fisheye {
-    f_px: F_PX,
-    x0_px: 255.5,
-    y0_px: 255.5,
-};
+const CAM: Fisheye = Fisheye::ideal(F_PX, 255.5, 255.5);
 
 /// N limb directions of an Earth whose nadir is β from Z_S, tilted about Y_S by `tilt_deg`
 /// (β = |tilt|), angular radius ρ.

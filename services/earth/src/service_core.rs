@@ -19,12 +19,12 @@ pub enum SetupError {
     Table(#[from] TableError),
 }
 
-/// The fisheye of an `[earth]` section.
+/// The fisheye of an `[earth]` section as the earth service knows it: its calibration's
+/// distortion, or the lens's own when it has none.
 pub fn camera(e: &EarthScenario) -> Fisheye {
     Fisheye {
-        f_px: e.f_px,
-        x0_px: e.center_px[0],
-        y0_px: e.center_px[1],
+        k: e.calibration_k.unwrap_or(e.lens_k),
+        ..Fisheye::ideal(e.f_px, e.center_px[0], e.center_px[1])
     }
 }
 

@@ -236,8 +236,9 @@ pub fn circle_model_bias(
             std::array::from_fn(|i| cr * e[i] + sr * (c * u[i] + s * v[i]))
         })
         .filter(|d: &[f64; 3]| d[0].hypot(d[1]).atan2(d[2]) < PI)
-        .map(|d| cam.pixel(d))
-        .filter(|&p| visible.contains(cam, p))
+        .filter(|&d| visible.contains(cam, cam.pixel(d)))
+        // fitted where the baseline fits: in the ideal lens's image
+        .map(|d| Fisheye::ideal(cam.f_px, cam.x0_px, cam.y0_px).pixel(d))
         .collect();
     if points.len() < STEPS / 36 {
         return None;
@@ -265,11 +266,7 @@ mod tests {
     use super::*;
     use crate::ring::earth_angular_radius_rad;
 
-    const CAM: Fisheye = Fisheye {
-        f_px: 130.0,
-        x0_px: 255.5,
-        y0_px: 255.5,
-    };
+    const CAM: Fisheye = Fisheye::ideal(130.0, 255.5, 255.5);
 
     fn visible() -> Visible {
         Visible {

@@ -7,7 +7,10 @@
 //! equatorial orbit with the turntable axis along the orbit normal). At a limb point whose
 //! direction from nadir makes the angle χ with that axis, the figure's radius is that of the
 //! meridian ellipse, `R(χ) = a b / √(a² cos²χ + b² sin²χ)` (b = a (1 − flattening)), and the
-//! limb's angular radius is `asin(R(χ) / (R_E + h))`. The limb radiance is
+//! limb's angular radius is `asin((R(χ) + H(χ)) / (R_E + h))`, H the limb's height: the CO₂
+//! layer's mean height, plus ½ S sin(lat) (S the summer pole's limb over the winter pole's)
+//! plus ½ D cos(2 lat) (D the equator's over the poles'), the limb point's latitude
+//! lat = 90° − χ. The limb radiance is
 //! `(earth − space) (1 + A cos χ)`. The Sun is a disk of 0.267° radius blurred by the same PSF,
 //! hidden where the Earth is in front of it: a disk smaller than the PSF images as the PSF
 //! holding its flux, `L (R² / 2σ²) exp(−d² / 2σ²)` at d px from its centre; a larger one as a
@@ -37,12 +40,32 @@ pub struct Hazards {
     pub flattening: f64,
     /// Relative amplitude A of the limb radiance's change from pole to pole, 0–0.9.
     pub limb_radiance_amplitude: f64,
+    /// The limb's height [km]: mean, seasonal S and latitudinal D (the module's notes).
+    pub limb_height_km: f64,
+    pub limb_height_seasonal_km: f64,
+    pub limb_height_latitude_km: f64,
     pub sun: Option<SunInField>,
 }
 
 impl Hazards {
     pub fn any(&self) -> bool {
-        self.flattening > 0.0 || self.limb_radiance_amplitude > 0.0 || self.sun.is_some()
+        self.flattening > 0.0
+            || self.limb_radiance_amplitude > 0.0
+            || self.limb_height_km != 0.0
+            || self.limb_varies()
+            || self.sun.is_some()
+    }
+
+    fn limb_varies(&self) -> bool {
+        self.limb_height_seasonal_km != 0.0 || self.limb_height_latitude_km != 0.0
+    }
+
+    /// H at cos χ [km].
+    fn limb_height_at(&self, cos_chi: f64) -> f64 {
+        // sin(lat) = cos χ; cos(2 lat) = 1 − 2 sin²(lat).
+        self.limb_height_km
+            + 0.5 * self.limb_height_seasonal_km * cos_chi
+            + 0.5 * self.limb_height_latitude_km * (1.0 - 2.0 * cos_chi * cos_chi)
     }
 }
 
@@ -87,8 +110,19 @@ impl HazardFrame {
             (MEAN_RADIUS_KM, MEAN_RADIUS_KM)
         };
         let band = 8.0 * psf_sigma_px / f_px;
-        let rho_min = (b_km / orbit_km).min(1.0).asin();
-        let rho_max = (a_km / orbit_km).min(1.0).asin();
+        // H's extremes: at the poles, the equator, or where its derivative in cos χ vanishes.
+        let mut cos_chis = vec![-1.0, 0.0, 1.0];
+        if h.limb_height_latitude_km != 0.0 {
+            let c = h.limb_height_seasonal_km / (4.0 * h.limb_height_latitude_km);
+            if c.abs() <= 1.0 {
+                cos_chis.push(c);
+            }
+        }
+        let heights = cos_chis.iter().map(|&c| h.limb_height_at(c));
+        let h_min = heights.clone().fold(f64::INFINITY, f64::min);
+        let h_max = heights.fold(f64::NEG_INFINITY, f64::max);
+        let rho_min = ((b_km + h_min) / orbit_km).min(1.0).asin();
+        let rho_max = ((a_km + h_max) / orbit_km).min(1.0).asin();
         HazardFrame {
             e,
             pole,
@@ -133,7 +167,7 @@ impl HazardFrame {
                 0.0
             }
         };
-        let needs_chi = h.limb_radiance_amplitude > 0.0 || h.flattening > 0.0;
+        let needs_chi = h.limb_radiance_amplitude > 0.0 || h.flattening > 0.0 || h.limb_varies();
         let chi = if needs_chi && c > self.cos_out {
             cos_chi()
         } else {
@@ -146,7 +180,8 @@ impl HazardFrame {
         } else {
             let (ca, sa2) = (chi, 1.0 - chi * chi);
             let r_km = self.a_km * self.b_km
-                / (self.a_km * self.a_km * ca * ca + self.b_km * self.b_km * sa2).sqrt();
+                / (self.a_km * self.a_km * ca * ca + self.b_km * self.b_km * sa2).sqrt()
+                + h.limb_height_at(chi);
             let rho = (r_km / self.orbit_km).min(1.0).asin();
             self.blurred((c.clamp(-1.0, 1.0).acos() - rho) * self.f_px)
         };
@@ -217,6 +252,36 @@ mod tests {
         let v = f.value(at(equator, 0.0), 3020.0, 20.0);
         assert!((v - 1520.0).abs() < 1e-6, "{v}");
         assert!(equator - pole > 0.1f64.to_radians());
+    }
+
+    #[test]
+    fn the_limb_is_at_its_height_by_latitude_and_season() {
+        // mean 40 km, the summer (+Y) pole's limb 6 km above the winter pole's, the equator's
+        // 8 km above the poles': at the summer pole 40 + 3 − 4, the winter pole 40 − 3 − 4,
+        // the equator 40 + 4 km.
+        let f = frame(Hazards {
+            limb_height_km: 40.0,
+            limb_height_seasonal_km: 6.0,
+            limb_height_latitude_km: 8.0,
+            ..Default::default()
+        });
+        let orbit = MEAN_RADIUS_KM + 950.0;
+        let half = std::f64::consts::FRAC_PI_2;
+        for (phi, height) in [
+            (half, 39.0),
+            (-half, 33.0),
+            (0.0, 44.0),
+            (std::f64::consts::PI, 44.0),
+        ] {
+            let rho = ((MEAN_RADIUS_KM + height) / orbit).asin();
+            let v = f.value(at(rho, phi), 3020.0, 20.0);
+            assert!((v - 1520.0).abs() < 1e-6, "φ {phi}: {v}");
+        }
+        assert!(Hazards {
+            limb_height_km: 1.0,
+            ..Default::default()
+        }
+        .any());
     }
 
     #[test]

@@ -4,11 +4,7 @@ fn config(noise_dn: f64) -> EarthRenderConfig {
     EarthRenderConfig {
         width_px: 256,
         height_px: 256,
-        camera: Fisheye {
-            f_px: 65.0,
-            x0_px: 127.5,
-            y0_px: 127.5,
-        },
+        camera: Fisheye::ideal(65.0, 127.5, 127.5),
         altitude_km: 950.0,
         image_circle_px: 127.0,
         earth_dn: 3000.0,
@@ -84,11 +80,7 @@ fn the_earth_core_reads_the_tilt_back() {
     let mut cfg = config(30.0);
     cfg.width_px = 512;
     cfg.height_px = 512;
-    cfg.camera = Fisheye {
-        f_px: 130.0,
-        x0_px: 255.5,
-        y0_px: 255.5,
-    };
+    cfg.camera = Fisheye::ideal(130.0, 255.5, 255.5);
     cfg.image_circle_px = 255.0;
     let r = EarthRenderer::new(cfg.clone());
     let mut core = glint_earth::pipeline::EarthCore::new(glint_earth::pipeline::EarthConfig::new(
@@ -105,4 +97,29 @@ fn the_earth_core_reads_the_tilt_back() {
             "{tilt}: {cp:?}"
         );
     }
+}
+
+/// Through a Kannala–Brandt lens the limb at nadir images where the polynomial puts it: along
+/// any radius the half-contrast crossing is at r = f θ_d(ρ_E), θ_d = θ (1 + k₁θ² + k₂θ⁴),
+/// written out here — 5 % beyond the ideal lens's f ρ_E.
+#[test]
+fn a_distorted_lens_images_the_limb_where_its_polynomial_says() {
+    let mut cfg = config(0.0);
+    cfg.camera.k = [0.05, -0.01, 0.0, 0.0];
+    let r = EarthRenderer::new(cfg);
+    let mut px = vec![0u16; 256 * 256];
+    assert!(r.render(nadir(0.0, 0.0), 1, 0, &mut px));
+    let rho = earth_angular_radius_rad(950.0);
+    let expect_px = 65.0 * rho * (1.0 + 0.05 * rho.powi(2) - 0.01 * rho.powi(4));
+    assert!(expect_px > 1.04 * 65.0 * rho);
+    // Along +x from the centre row (y = 127, 0.5 px off the axis), where the value crosses the
+    // half level, linearly interpolated.
+    let half = 200.0 + 1400.0;
+    let row: Vec<f64> = (0..256).map(|x| f64::from(px[127 * 256 + x])).collect();
+    let x = (128..255)
+        .find(|&x| row[x] >= half && row[x + 1] < half)
+        .expect("a limb along the row");
+    let crossing = x as f64 + (row[x] - half) / (row[x] - row[x + 1]);
+    let r_px = (crossing - 127.5).hypot(0.5);
+    assert!((r_px - expect_px).abs() < 0.1, "{r_px} against {expect_px}");
 }

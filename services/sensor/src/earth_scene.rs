@@ -91,6 +91,9 @@ fn hazards(e: &EarthScenario) -> Hazards {
     Hazards {
         flattening: e.flattening,
         limb_radiance_amplitude: e.limb_radiance_amplitude,
+        limb_height_km: e.limb_height_km,
+        limb_height_seasonal_km: e.limb_height_seasonal_km,
+        limb_height_latitude_km: e.limb_height_latitude_km,
         sun: (e.sun_dn > 0.0).then(|| SunInField {
             direction: [
                 theta.sin() * phi.cos(),
@@ -102,12 +105,11 @@ fn hazards(e: &EarthScenario) -> Hazards {
     }
 }
 
-/// The fisheye of an `[earth]` section.
+/// The fisheye of an `[earth]` section: the lens as it is, its distortion included.
 pub fn camera(e: &EarthScenario) -> Fisheye {
     Fisheye {
-        f_px: e.f_px,
-        x0_px: e.center_px[0],
-        y0_px: e.center_px[1],
+        k: e.lens_k,
+        ..Fisheye::ideal(e.f_px, e.center_px[0], e.center_px[1])
     }
 }
 

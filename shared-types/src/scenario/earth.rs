@@ -14,6 +14,14 @@ pub struct EarthScenario {
     pub height_px: u32,
     /// Fisheye focal length [px/rad] (`r = f θ`, eq 1), 10–10000.
     pub f_px: f64,
+    /// The lens's Kannala–Brandt distortion k₁…k₄ (OpenCV's fisheye `D`): `r = f θ_d`,
+    /// `θ_d = θ (1 + k₁θ² + k₂θ⁴ + k₃θ⁶ + k₄θ⁸)`, each −1–1, θ_d growing with θ across the
+    /// image circle; 0 (default) is the ideal `r = f θ`.
+    pub lens_k: [f64; 4],
+    /// The distortion the earth service is told (its calibration), each −1–1; absent: the
+    /// lens's own (a perfect calibration).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration_k: Option<[f64; 4]>,
     /// Principal point (X0, Y0) [px], 0-based with the first pixel's centre at (0, 0); inside
     /// the image.
     pub center_px: [f64; 2],
@@ -54,6 +62,15 @@ pub struct EarthScenario {
     pub flattening: f64,
     /// The limb radiance's relative change from pole to pole (a seasonal limb), 0–0.9.
     pub limb_radiance_amplitude: f64,
+    /// The limb's height above the mean Earth radius [km] (the CO₂ layer the sensor sees),
+    /// −50–200: its mean, the seasonal difference between the summer and winter poles' limb
+    /// (`limb_height_seasonal_km`, −50–50: H varies as ½ this × sin(latitude)), and the
+    /// equator's over the poles' (`limb_height_latitude_km`, −50–50: as ½ this × cos(2·lat)
+    /// about the mean). The earth service assumes 0 everywhere: the mean only rescales the
+    /// ring, the variations tilt and stretch it.
+    pub limb_height_km: f64,
+    pub limb_height_seasonal_km: f64,
+    pub limb_height_latitude_km: f64,
     /// The Sun in the field: its recorded radiance [DN], 0 (no Sun) to 1e6 (it saturates).
     pub sun_dn: f64,
     /// Its direction: angle from the optical axis, 0–180, and azimuth from X_S, −180–180 [deg].
@@ -66,6 +83,8 @@ impl Default for EarthScenario {
             width_px: 512,
             height_px: 512,
             f_px: 130.0,
+            lens_k: [0.0; 4],
+            calibration_k: None,
             center_px: [255.5, 255.5],
             image_circle_px: 255.0,
             altitude_km: 950.0,
@@ -82,6 +101,9 @@ impl Default for EarthScenario {
             edge_threshold_dn: None,
             flattening: 0.0,
             limb_radiance_amplitude: 0.0,
+            limb_height_km: 0.0,
+            limb_height_seasonal_km: 0.0,
+            limb_height_latitude_km: 0.0,
             sun_dn: 0.0,
             sun_direction_deg: [100.0, 90.0],
         }
@@ -148,6 +170,23 @@ pub(super) fn check_earth(c: &mut Checker, e: &EarthScenario) {
         e.height_px as f64 - 1.0,
     );
     c.range("earth.image_circle_px", e.image_circle_px, 10.0, 4096.0);
+    for (name, k) in std::iter::once(("earth.lens_k", &e.lens_k))
+        .chain((e.calibration_k.as_ref()).map(|k| ("earth.calibration_k", k)))
+    {
+        for (i, v) in k.iter().enumerate() {
+            c.range(&format!("{name}[{i}]"), *v, -1.0, 1.0);
+        }
+        if let Some(theta_deg) = kb_fold_deg(k, e.f_px, e.image_circle_px) {
+            c.fail(
+                name,
+                format!(
+                    "θ_d stops growing at θ = {theta_deg:.1}°, inside the image circle \
+                     ({} px): the lens would image two angles to one radius",
+                    e.image_circle_px
+                ),
+            );
+        }
+    }
     c.range("earth.altitude_km", e.altitude_km, 100.0, 100_000.0);
     c.range("earth.earth_dn", e.earth_dn, 0.0, 65535.0);
     c.range("earth.space_dn", e.space_dn, 0.0, 65535.0);
@@ -196,6 +235,19 @@ pub(super) fn check_earth(c: &mut Checker, e: &EarthScenario) {
         0.0,
         0.9,
     );
+    c.range("earth.limb_height_km", e.limb_height_km, -50.0, 200.0);
+    c.range(
+        "earth.limb_height_seasonal_km",
+        e.limb_height_seasonal_km,
+        -50.0,
+        50.0,
+    );
+    c.range(
+        "earth.limb_height_latitude_km",
+        e.limb_height_latitude_km,
+        -50.0,
+        50.0,
+    );
     c.range("earth.sun_dn", e.sun_dn, 0.0, 1e6);
     c.range(
         "earth.sun_direction_deg[0]",
@@ -209,4 +261,26 @@ pub(super) fn check_earth(c: &mut Checker, e: &EarthScenario) {
         -180.0,
         180.0,
     );
+}
+
+/// The first angle [deg] at which a Kannala–Brandt lens's θ_d stops growing while its image
+/// radius f θ_d is still inside the image circle, if any (0.1° steps up to 180°).
+fn kb_fold_deg(k: &[f64; 4], f_px: f64, image_circle_px: f64) -> Option<f64> {
+    let theta_d = |t: f64| {
+        let t2 = t * t;
+        t * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))))
+    };
+    let mut last = 0.0;
+    for step in 1..=1800 {
+        let deg = step as f64 / 10.0;
+        let d = theta_d(deg.to_radians());
+        if d <= last {
+            return Some(deg);
+        }
+        if f_px * d > image_circle_px {
+            return None;
+        }
+        last = d;
+    }
+    None
 }
