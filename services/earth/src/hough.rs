@@ -28,6 +28,8 @@ pub struct HoughEstimate {
     /// The centre's offset along x over f [deg]: the tilt about Y_S.
     pub tilt_deg: f64,
     pub inliers: usize,
+    /// The accumulator's peak cell, the centre before the Kåsa refinement [px].
+    pub peak_px: (f64, f64),
 }
 
 /// The Kåsa fit: min Σ (X² + Y² + D X + E Y + F)², centre (−D/2, −E/2), r = √(a² + b² − F);
@@ -212,7 +214,10 @@ impl Hough {
             .copied()
             .collect();
         let circle = kasa_fit(&inliers)?;
-        Some(estimate_of(circle, cam, inliers.len()))
+        Some(HoughEstimate {
+            peak_px: (cx, cy),
+            ..estimate_of(circle, cam, inliers.len())
+        })
     }
 }
 
@@ -225,6 +230,7 @@ pub fn estimate_of(circle: Circle, cam: &Fisheye, inliers: usize) -> HoughEstima
         beta_deg: (dx.hypot(dy) / cam.f_px).to_degrees(),
         tilt_deg: (dx / cam.f_px).to_degrees(),
         inliers,
+        peak_px: (circle.x_px, circle.y_px),
     }
 }
 
