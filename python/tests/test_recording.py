@@ -159,7 +159,7 @@ def test_synthetic_without_layouts_uses_bundled(tmp_path: Path) -> None:
 
 
 def test_synthetic_other_contract_is_refused(tmp_path: Path) -> None:
-    schema = {"type": "glint.v8.FrameHeader", "contract_version": 8, "frame": "x", "types": []}
+    schema = {"type": "glint.v9.FrameHeader", "contract_version": 9, "frame": "x", "types": []}
     _write(tmp_path / "c.mcap", schema, _frames())
     with pytest.raises(RecordingError):
         Recording(tmp_path / "c.mcap")
