@@ -8,8 +8,8 @@
 use shared_types::scenario::Corruption;
 use shared_types::table::{visit, PayloadVisitor, TopicSpec, TOPICS};
 use shared_types::{
-    Command, Control, FrameHeader, Message, PhotometrySample, SolveRequest, SolveResponse,
-    Spectrum, CONTRACT_VERSION,
+    Command, Control, EarthAttitude, EarthMethod, FrameHeader, Message, PhotometrySample,
+    SolveRequest, SolveResponse, Spectrum, CONTRACT_VERSION,
 };
 
 /// A zeroed message of the current contract with what its type needs set, sealed.
@@ -27,6 +27,9 @@ fn valid<T: Message>() -> T {
         p.sun = [1.0, 0.0, 0.0];
         p.obs = [0.0, 1.0, 0.0];
         p.range_m = 3.6e7;
+    } else if let Some(e) = any.downcast_mut::<EarthAttitude>() {
+        // each method without an answer says why (a zeroed method has no reason)
+        e.methods = [EarthMethod::default(); 3];
     } else if let Some(c) = any.downcast_mut::<Control>() {
         c.command = Command::Shutdown as u32;
     } else if let Some(r) = any.downcast_mut::<SolveRequest>() {

@@ -6,9 +6,7 @@ use iceoryx2::prelude::ZeroCopySend;
 use super::*;
 
 /// One method's answer on one frame.
-#[derive(
-    Debug, Default, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend, bytemuck::Pod, bytemuck::Zeroable)]
 #[type_name("glint.v8.EarthMethod")]
 #[repr(C)]
 pub struct EarthMethod {
@@ -24,6 +22,19 @@ pub struct EarthMethod {
     pub valid: u32,
     /// Why not, when `valid` is 0 ([`EarthMethod::UNDETERMINED_NAMES`]); 0 when valid.
     pub undetermined: u32,
+}
+
+impl Default for EarthMethod {
+    /// No answer: the frame gave no limb (a valid message, unlike the zeroed one).
+    fn default() -> Self {
+        EarthMethod {
+            beta_deg: 0.0,
+            tilt_deg: 0.0,
+            time_us: 0.0,
+            valid: 0,
+            undetermined: 1,
+        }
+    }
 }
 
 impl EarthMethod {
