@@ -96,22 +96,26 @@ pub fn read_lens(path: &Path) -> Result<Lens> {
         k: l.d,
         ..Fisheye::ideal(0.5 * (l.fx + l.fy), l.cx, l.cy)
     };
-    // θ_d must grow across the field the lens images, or two angles share one radius.
-    let field = l.field_deg.unwrap_or(90.0);
-    if let Some(deg) = (1..=(field * 10.0) as u32)
-        .map(|s| f64::from(s) / 10.0)
-        .find(|d| camera.distort(d.to_radians()) <= camera.distort((d - 0.1).to_radians()))
-    {
-        bail!(
-            "{file}: field `D`: θ_d stops growing at θ = {deg:.1}°, inside the field \
-             ({field}°): the lens would image two angles to one radius"
-        );
+    if let Some(field) = l.field_deg {
+        check_fold(path, &camera, field)?;
     }
     Ok(Lens {
         camera,
         field_deg: l.field_deg,
         image_circle_px: l.image_circle_px,
     })
+}
+
+/// θ_d must grow across the field the lens images, or two angles share one radius.
+pub fn check_fold(path: &Path, camera: &Fisheye, field_deg: f64) -> Result<()> {
+    match camera.fold_deg(field_deg) {
+        Some(deg) => bail!(
+            "{}: field `D`: θ_d stops growing at θ = {deg:.1}°, inside the field \
+             ({field_deg}°): the lens would image two angles to one radius",
+            path.display()
+        ),
+        None => Ok(()),
+    }
 }
 
 #[cfg(test)]
@@ -154,7 +158,7 @@ mod tests {
             e.contains("field `D[0]`: 2 is out of range; allowed -1 to 1"),
             "{e}"
         );
-        let e = lens("fx = 160\nfy = 160\ncx = 1\ncy = 1\nD = [-0.6, 0, 0, 0]\n")
+        let e = lens("fx = 160\nfy = 160\ncx = 1\ncy = 1\nD = [-0.6, 0, 0, 0]\nfield_deg = 90\n")
             .unwrap_err()
             .to_string();
         assert!(e.contains("θ_d stops growing"), "{e}");

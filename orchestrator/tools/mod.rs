@@ -168,12 +168,15 @@ impl EarthTool {
     ) -> Result<Self> {
         if let Some(path) = lens {
             let l = lens::read_lens(path)?;
+            let field_deg = l.field_deg.unwrap_or(field_deg);
+            // the field the tool will use, --field-deg's when the file gives none
+            lens::check_fold(path, &l.camera, field_deg)?;
             return Ok(EarthTool {
                 f_px: l.camera.f_px,
                 center_px: (l.camera.x0_px, l.camera.y0_px),
                 k: l.camera.k,
                 altitude_km,
-                field_deg: l.field_deg.unwrap_or(field_deg),
+                field_deg,
                 image_circle_px: l.image_circle_px.or(image_circle_px),
             });
         }

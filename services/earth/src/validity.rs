@@ -228,6 +228,10 @@ pub fn circle_model_bias(
     let u = normalise(cross(e, a));
     let v = cross(e, u);
     let (sr, cr) = rho_rad.sin_cos();
+    let theta_max = match cam.undistort(visible.r_max_px / cam.f_px) {
+        t if t.is_finite() => t,
+        _ => PI,
+    };
     const STEPS: usize = 720;
     let points: Vec<(f64, f64)> = (0..STEPS)
         .map(|k| 2.0 * PI * k as f64 / STEPS as f64)
@@ -235,7 +239,8 @@ pub fn circle_model_bias(
             let (s, c) = phi.sin_cos();
             std::array::from_fn(|i| cr * e[i] + sr * (c * u[i] + s * v[i]))
         })
-        .filter(|d: &[f64; 3]| d[0].hypot(d[1]).atan2(d[2]) < PI)
+        // directions the lens images: within the field the visible radius bounds
+        .filter(|d: &[f64; 3]| d[0].hypot(d[1]).atan2(d[2]) < theta_max)
         .filter(|&d| visible.contains(cam, cam.pixel(d)))
         // fitted where the baseline fits: in the ideal lens's image
         .map(|d| Fisheye::ideal(cam.f_px, cam.x0_px, cam.y0_px).pixel(d))

@@ -45,25 +45,62 @@ impl Fisheye {
         1.0 + t2 * (3.0 * k1 + t2 * (5.0 * k2 + t2 * (7.0 * k3 + t2 * 9.0 * k4)))
     }
 
-    /// θ of θ_d [rad]: Newton's method from θ_d (OpenCV's `undistortPoints` iterates the same
-    /// polynomial), to 1e-12 rad; θ_d itself for the ideal lens.
+    /// θ of θ_d [rad], the first root: bracketed by marching from 0 in 0.05 rad steps while
+    /// θ_d(θ) grows, then Newton's method kept inside the bracket (bisection where a step
+    /// would leave it), to 1e-12 rad. NaN where no angle before the lens's fold (θ_d stops
+    /// growing) or π images to θ_d. θ_d itself for the ideal lens.
     pub fn undistort(&self, theta_d: f64) -> f64 {
         if self.is_ideal() {
             return theta_d;
         }
-        let mut theta = theta_d;
-        for _ in 0..20 {
-            let slope = self.distort_slope(theta);
-            if slope <= 0.0 {
+        if theta_d.is_nan() || theta_d < 0.0 {
+            return f64::NAN;
+        }
+        const STEP: f64 = 0.05;
+        let (mut lo, mut hi) = (0.0, f64::NAN);
+        let mut t = 0.0;
+        while t < std::f64::consts::PI {
+            let next = (t + STEP).min(std::f64::consts::PI);
+            if self.distort_slope(next) <= 0.0 {
                 break;
             }
-            let step = (self.distort(theta) - theta_d) / slope;
-            theta -= step;
-            if step.abs() < 1e-12 {
+            if self.distort(next) >= theta_d {
+                (lo, hi) = (t, next);
                 break;
             }
+            t = next;
+        }
+        if hi.is_nan() {
+            return f64::NAN;
+        }
+        let mut theta = 0.5 * (lo + hi);
+        for _ in 0..60 {
+            let f = self.distort(theta) - theta_d;
+            if f > 0.0 {
+                hi = theta;
+            } else {
+                lo = theta;
+            }
+            let newton = theta - f / self.distort_slope(theta);
+            let next = if newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
+            if (next - theta).abs() < 1e-12 {
+                return next;
+            }
+            theta = next;
         }
         theta
+    }
+
+    /// The first angle up to `up_to_deg` [deg] (0.1° steps) at which θ_d stops growing, if
+    /// any: beyond it the lens would image two angles to one radius.
+    pub fn fold_deg(&self, up_to_deg: f64) -> Option<f64> {
+        (1..=(up_to_deg * 10.0).round() as u32)
+            .map(|s| f64::from(s) / 10.0)
+            .find(|d| self.distort(d.to_radians()) <= self.distort((d - 0.1).to_radians()))
     }
 
     /// The image radius of the angle θ from the axis [px].
@@ -199,6 +236,22 @@ mod tests {
                 "{deg}"
             );
         }
+        // A lens that folds at θ ≈ 1.97 rad: a θ_d below the fold's finds its angle before the
+        // fold, though Newton from θ_d itself (2.4, past the fold) would run the wrong way.
+        let steep = Fisheye {
+            k: [0.3, -0.06, 0.0, 0.0],
+            ..CAM
+        };
+        let fold = steep.fold_deg(180.0).unwrap().to_radians();
+        assert!((1.9..2.0).contains(&fold), "{fold}");
+        let theta = steep.undistort(2.4);
+        assert!(
+            theta < fold && (steep.distort(theta) - 2.4).abs() < 1e-12,
+            "{theta}"
+        );
+        // beyond the fold's θ_d, no angle
+        assert!(steep.undistort(steep.distort(fold) + 0.1).is_nan());
+        assert_eq!(KB.fold_deg(90.0), None);
         assert_eq!(CAM.radius_px(1.0), 150.0);
     }
 

@@ -9,13 +9,15 @@
 //! meridian ellipse, `R(χ) = a b / √(a² cos²χ + b² sin²χ)` (b = a (1 − flattening)), and the
 //! limb's angular radius is `asin((R(χ) + H(χ)) / (R_E + h))`, H the limb's height: the CO₂
 //! layer's mean height, plus ½ S sin(lat) (S the summer pole's limb over the winter pole's)
-//! plus ½ D cos(2 lat) (D the equator's over the poles'), the limb point's latitude
-//! lat = 90° − χ. The limb radiance is
+//! plus ½ D cos(2 lat) (D the equator's over the poles'). The limb's tangent points lie
+//! γ = arccos(R_E / (R_E + h)) from the sub-satellite point (29.5° at 950 km), so over the
+//! equator the limb point at χ has sin(lat) = sin γ cos χ = cos ρ_E cos χ: from low orbit the
+//! limb never reaches the poles, and S and D show only that far. The limb radiance is
 //! `(earth − space) (1 + A cos χ)`. The Sun is a disk of 0.267° radius blurred by the same PSF,
 //! hidden where the Earth is in front of it: a disk smaller than the PSF images as the PSF
 //! holding its flux, `L (R² / 2σ²) exp(−d² / 2σ²)` at d px from its centre; a larger one as a
-//! blurred edge. Distances are angles × f: exact along a radius of the image (`r = f θ`),
-//! compressed by sin θ / θ across it.
+//! blurred edge. Distances are angles × f: exact along a radius of the ideal lens's image
+//! (`r = f θ`), compressed by sin θ / θ across it.
 
 /// The WGS 84 equatorial radius [km].
 const EQUATORIAL_RADIUS_KM: f64 = 6378.137;
@@ -60,12 +62,11 @@ impl Hazards {
         self.limb_height_seasonal_km != 0.0 || self.limb_height_latitude_km != 0.0
     }
 
-    /// H at cos χ [km].
-    fn limb_height_at(&self, cos_chi: f64) -> f64 {
-        // sin(lat) = cos χ; cos(2 lat) = 1 − 2 sin²(lat).
+    /// H at the latitude whose sine is `sin_lat` [km] (cos(2 lat) = 1 − 2 sin²(lat)).
+    fn limb_height_at(&self, sin_lat: f64) -> f64 {
         self.limb_height_km
-            + 0.5 * self.limb_height_seasonal_km * cos_chi
-            + 0.5 * self.limb_height_latitude_km * (1.0 - 2.0 * cos_chi * cos_chi)
+            + 0.5 * self.limb_height_seasonal_km * sin_lat
+            + 0.5 * self.limb_height_latitude_km * (1.0 - 2.0 * sin_lat * sin_lat)
     }
 }
 
@@ -78,6 +79,8 @@ pub struct HazardFrame {
     e: [f64; 3],
     pole: [f64; 3],
     orbit_km: f64,
+    /// sin(lat) of the limb point at χ = 0: cos ρ_E.
+    sin_lat_max: f64,
     a_km: f64,
     b_km: f64,
     /// Pixels with u·ê above this are inside the Earth beyond any limb blur; below `cos_out`,
@@ -111,14 +114,16 @@ impl HazardFrame {
         };
         let band = 8.0 * psf_sigma_px / f_px;
         // H's extremes: at the poles, the equator, or where its derivative in cos χ vanishes.
-        let mut cos_chis = vec![-1.0, 0.0, 1.0];
+        // sin(lat) of the limb points spans ±cos ρ_E (the module's notes).
+        let sin_lat_max = (1.0 - (MEAN_RADIUS_KM / orbit_km).powi(2)).max(0.0).sqrt();
+        let mut sin_lats = vec![-sin_lat_max, 0.0, sin_lat_max];
         if h.limb_height_latitude_km != 0.0 {
-            let c = h.limb_height_seasonal_km / (4.0 * h.limb_height_latitude_km);
-            if c.abs() <= 1.0 {
-                cos_chis.push(c);
+            let s = h.limb_height_seasonal_km / (4.0 * h.limb_height_latitude_km);
+            if s.abs() <= sin_lat_max {
+                sin_lats.push(s);
             }
         }
-        let heights = cos_chis.iter().map(|&c| h.limb_height_at(c));
+        let heights = sin_lats.iter().map(|&s| h.limb_height_at(s));
         let h_min = heights.clone().fold(f64::INFINITY, f64::min);
         let h_max = heights.fold(f64::NEG_INFINITY, f64::max);
         let rho_min = ((b_km + h_min) / orbit_km).min(1.0).asin();
@@ -127,6 +132,7 @@ impl HazardFrame {
             e,
             pole,
             orbit_km,
+            sin_lat_max,
             a_km,
             b_km,
             cos_in: (rho_min - band).max(0.0).cos(),
@@ -181,7 +187,7 @@ impl HazardFrame {
             let (ca, sa2) = (chi, 1.0 - chi * chi);
             let r_km = self.a_km * self.b_km
                 / (self.a_km * self.a_km * ca * ca + self.b_km * self.b_km * sa2).sqrt()
-                + h.limb_height_at(chi);
+                + h.limb_height_at(self.sin_lat_max * chi);
             let rho = (r_km / self.orbit_km).min(1.0).asin();
             self.blurred((c.clamp(-1.0, 1.0).acos() - rho) * self.f_px)
         };
@@ -256,9 +262,9 @@ mod tests {
 
     #[test]
     fn the_limb_is_at_its_height_by_latitude_and_season() {
-        // mean 40 km, the summer (+Y) pole's limb 6 km above the winter pole's, the equator's
-        // 8 km above the poles': at the summer pole 40 + 3 − 4, the winter pole 40 − 3 − 4,
-        // the equator 40 + 4 km.
+        // mean 40 km, the summer (+Y) pole 6 km above the winter pole, the equator 8 km above
+        // the poles; from 950 km the limb reaches sin(lat) = ±cos ρ_E = ±0.4927 (29.5°), so
+        // along ±Y it is at 40 ± 3·0.4927 + 4·(1 − 2·0.4927²) km, across at 40 + 4 km.
         let f = frame(Hazards {
             limb_height_km: 40.0,
             limb_height_seasonal_km: 6.0,
@@ -266,10 +272,13 @@ mod tests {
             ..Default::default()
         });
         let orbit = MEAN_RADIUS_KM + 950.0;
+        let s = (MEAN_RADIUS_KM / orbit).asin().cos();
+        assert!((s - 0.4927).abs() < 1e-4, "{s}");
+        let lat_term = 4.0 * (1.0 - 2.0 * s * s);
         let half = std::f64::consts::FRAC_PI_2;
         for (phi, height) in [
-            (half, 39.0),
-            (-half, 33.0),
+            (half, 40.0 + 3.0 * s + lat_term),
+            (-half, 40.0 - 3.0 * s + lat_term),
             (0.0, 44.0),
             (std::f64::consts::PI, 44.0),
         ] {
