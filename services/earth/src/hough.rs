@@ -100,6 +100,8 @@ pub struct Hough {
     /// Zero between frames: only the cells a frame voted for are reset.
     votes: Vec<u32>,
     touched: Vec<u32>,
+    /// The frame's edge points in the ideal lens's image.
+    undistorted: Vec<(f64, f64)>,
     radii: Vec<u32>,
 }
 
@@ -138,10 +140,9 @@ impl Hough {
         let (r0, r1) = (r_min_px.max(1.0).round() as i64, r_max_px.round() as i64);
         // Through a distorted lens the votes, the radius and the fit are cast in the ideal
         // lens's image (`r = f θ`), where the limb is the circle math.md §4.7 fits.
-        let undistorted: Vec<(f64, f64)> = (edges_px.iter())
-            .map(|&(x, y)| cam.to_equidistant(x, y))
-            .collect();
-        for (&(x, y), &(xe, ye)) in edges_px.iter().zip(&undistorted) {
+        self.undistorted.clear();
+        (self.undistorted).extend(edges_px.iter().map(|&(x, y)| cam.to_equidistant(x, y)));
+        for (&(x, y), &(xe, ye)) in edges_px.iter().zip(&self.undistorted) {
             let (xi, yi) = (x as usize, y as usize);
             if xi == 0 || yi == 0 || xi >= w - 1 || yi >= h - 1 {
                 continue;
@@ -200,7 +201,7 @@ impl Hough {
         // The radius: the most common distance, 1-px bins.
         self.radii.clear();
         self.radii.resize((r1 - r0 + 1) as usize, 0);
-        for &(x, y) in &undistorted {
+        for &(x, y) in &self.undistorted {
             let d = (x - cx).hypot(y - cy).round() as i64;
             if (r0..=r1).contains(&d) {
                 self.radii[(d - r0) as usize] += 1;
@@ -209,7 +210,7 @@ impl Hough {
         let (k, _) =
             (self.radii.iter().enumerate()).max_by_key(|(k, c)| (**c, std::cmp::Reverse(*k)))?;
         let r = (r0 + k as i64) as f64;
-        let inliers: Vec<(f64, f64)> = (undistorted.iter())
+        let inliers: Vec<(f64, f64)> = (self.undistorted.iter())
             .filter(|&&(x, y)| ((x - cx).hypot(y - cy) - r).abs() <= INLIER_PX)
             .copied()
             .collect();
