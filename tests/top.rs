@@ -135,7 +135,17 @@ fn top_shows_every_service_of_a_live_deployment() {
         .expect("glint top quits on q");
     let out = waiter.join().unwrap();
     assert!(out.status.success(), "{out:?}");
-    let screen = String::from_utf8_lossy(&out.stdout);
+    // The bytes are ratatui's diff redraws (a name can be written in pieces around letters
+    // already on screen), so read the screen a terminal would show, not the raw stream: the
+    // alternate screen as it stood just before `q` left it.
+    const LEAVE_ALTERNATE: &[u8] = b"\x1b[?1049l";
+    let shown = (out.stdout.windows(LEAVE_ALTERNATE.len()))
+        .rposition(|w| w == LEAVE_ALTERNATE)
+        .map_or(&out.stdout[..], |end| &out.stdout[..end]);
+    let size = |n| std::num::NonZeroU16::new(n).unwrap();
+    let mut term = vt100::Parser::new(size(30), size(150), 0);
+    term.process(shown);
+    let screen = term.screen().contents();
     for name in [
         "glint top",
         prefix.as_str(),
