@@ -449,6 +449,11 @@ pub(crate) struct RunArgs {
     /// recovery and each process's memory over time.
     #[arg(long, value_name = "DURATION", value_parser = parse_duration_s)]
     pub soak: Option<f64>,
+    /// In a deployment split across hosts (`[hosts]`): run this host's part. The host marked
+    /// `orchestrator` (the default) runs the orchestrator of record and writes the report;
+    /// every other host runs its services and its bridge until the orchestrator ends the run.
+    #[arg(long)]
+    pub host: Option<String>,
 }
 
 /// `90`, `90s`, `10m`, `1.5h` → seconds.
@@ -512,4 +517,7 @@ pub(crate) struct ServiceArgs {
     /// Started again by supervision after a failure: recover from the producers' replay.
     #[arg(long)]
     pub restarted: bool,
+    /// The host it runs on, in a deployment split across hosts (`[hosts]`).
+    #[arg(long)]
+    pub host: Option<String>,
 }

@@ -6,7 +6,7 @@ use shared_types::ServiceId;
 
 /// Runs service `id` until `Shutdown` or a termination signal: the one place a service of the
 /// table is bound to the node type of its crate.
-pub fn run(id: ServiceId, args: ServiceArgs<'_>) -> Result<()> {
+pub fn run(id: ServiceId, args: ServiceArgs<'_>, host: Option<&str>) -> Result<()> {
     match id {
         ServiceId::Sensor => run_service::<glint_sensor::node::SensorNode>(args),
         ServiceId::Detector => run_service::<glint_detector::node::DetectorNode>(args),
@@ -15,11 +15,26 @@ pub fn run(id: ServiceId, args: ServiceArgs<'_>) -> Result<()> {
         ServiceId::Earth => run_service::<glint_earth::node::EarthNode>(args),
         ServiceId::RelNav => run_service::<glint_relnav::node::RelNavNode>(args),
         ServiceId::Photometry => run_service::<glint_photometry::node::PhotometryNode>(args),
+        ServiceId::Bridge => bridge(args, host),
         ServiceId::Orchestrator => bail!("the orchestrator is `glint run`, not a service"),
     }
 }
 
-/// `glint service NAME --prefix P --scenario FILE [--restarted]`.
+/// One host's bridge of a deployment split across hosts.
+#[cfg(feature = "hosts")]
+fn bridge(args: ServiceArgs<'_>, host: Option<&str>) -> Result<()> {
+    let Some(host) = host else {
+        bail!("the bridge runs with --host NAME (a host of the scenario's [hosts])");
+    };
+    glint_bridge::node::run(args.prefix, args.scenario, host)
+}
+
+#[cfg(not(feature = "hosts"))]
+fn bridge(_: ServiceArgs<'_>, _: Option<&str>) -> Result<()> {
+    bail!("{}", crate::run::hosts::WITHOUT_HOSTS)
+}
+
+/// `glint service NAME --prefix P --scenario FILE [--restarted] [--host NAME]`.
 pub(crate) fn command(args: crate::cli::ServiceArgs) -> std::process::ExitCode {
     use std::process::ExitCode;
     let crate::cli::ServiceArgs {
@@ -27,6 +42,7 @@ pub(crate) fn command(args: crate::cli::ServiceArgs) -> std::process::ExitCode {
         prefix,
         scenario,
         restarted,
+        host,
     } = args;
     glint_runtime::init_tracing(&name);
     // A service ends with the process that started it (see glint_runtime::lifeline).
@@ -50,7 +66,7 @@ pub(crate) fn command(args: crate::cli::ServiceArgs) -> std::process::ExitCode {
         );
         return ExitCode::from(2);
     };
-    let result = run(id, args);
+    let result = run(id, args, host.as_deref());
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

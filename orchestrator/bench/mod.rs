@@ -250,6 +250,7 @@ fn deploy(
         replace: true,
         progress,
         record,
+        host: None,
     };
     let (dir, ok) = crate::run::run(opts)?;
     let report = crate::report::Report::read(&dir.join("report.json"))?;
@@ -327,6 +328,7 @@ pub fn measure(sc: shared_types::Scenario, run_dir: PathBuf, progress: bool) -> 
         replace: true,
         progress,
         record: false,
+        host: None,
     };
     let (dir, ok) = crate::run::run(opts)?;
     let report_path = dir.join("report.json");

@@ -100,6 +100,7 @@ pub fn run_value(
             replace: true,
             progress,
             record: false,
+            host: None,
         })?;
         run::bail_if_interrupted("campaign")?;
         Ok((

@@ -87,6 +87,7 @@ pub fn run(
             replace: true,
             progress,
             record: false,
+            host: None,
         })?;
         run::bail_if_interrupted("campaign")?;
         all_ok &= ok;

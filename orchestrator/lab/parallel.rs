@@ -53,6 +53,7 @@ fn deploy(
                 replace: true,
                 progress: false,
                 record: false,
+                host: None,
             })
         })?;
     let report = Report::read(&run_dir.join("report.json"))?;

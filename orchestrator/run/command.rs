@@ -171,6 +171,7 @@ pub(crate) fn command(args: RunArgs) -> ExitCode {
         faults,
         soak,
         record,
+        host,
     } = args;
     glint_runtime::init_tracing("orchestrator");
     let (mut sc, file) = match load_with_seed(scenario.as_ref(), seed) {
@@ -194,6 +195,13 @@ pub(crate) fn command(args: RunArgs) -> ExitCode {
         eprintln!("error: {file}: a [campaign] scenario runs with `glint lab campaign {file}`");
         return ExitCode::from(2);
     }
+    let host = match run::hosts::resolve(&sc, host.as_deref()) {
+        Ok(h) => h,
+        Err(e) => {
+            eprintln!("error: {file}: {e}");
+            return ExitCode::from(2);
+        }
+    };
     let opts = run::RunOptions {
         scenario: sc,
         scenario_file: file,
@@ -201,6 +209,7 @@ pub(crate) fn command(args: RunArgs) -> ExitCode {
         replace: force,
         progress: std::io::stderr().is_terminal(),
         record,
+        host,
     };
     if opts.scenario.matrix.is_some() {
         return finish(matrix::run_matrix(opts));

@@ -49,8 +49,9 @@ pub struct ServiceProcess {
 }
 
 impl ServiceProcess {
-    /// Spawns `exe service <name> --prefix P --scenario FILE`; stderr goes to `logs/<name>.log`.
-    /// `restarts` > 0: a restart by supervision (`--restarted`); its log is appended to.
+    /// Spawns `exe service <name> --prefix P --scenario FILE [--host H]`; stderr goes to
+    /// `logs/<name>.log`. `restarts` > 0: a restart by supervision (`--restarted`); its log is
+    /// appended to. `host`: this host's name in a deployment split across hosts.
     pub fn spawn(
         exe: &Path,
         id: ServiceId,
@@ -58,6 +59,7 @@ impl ServiceProcess {
         scenario: &Path,
         log_dir: &Path,
         restarts: u32,
+        host: Option<&str>,
     ) -> Result<Self> {
         use std::io::Write;
         use std::os::unix::process::CommandExt;
@@ -94,6 +96,7 @@ impl ServiceProcess {
             } else {
                 &[]
             })
+            .args(host.map(|h| ["--host", h]).into_iter().flatten())
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::from(log))
@@ -277,7 +280,7 @@ mod tests {
         .unwrap();
         std::fs::set_permissions(&exe, std::os::unix::fs::PermissionsExt::from_mode(0o755))
             .unwrap();
-        let spawn = |id| ServiceProcess::spawn(&exe, id, "p", &exe, &dir, 0).unwrap();
+        let spawn = |id| ServiceProcess::spawn(&exe, id, "p", &exe, &dir, 0, None).unwrap();
         let mut children = [
             spawn(ServiceId::Sensor),
             spawn(ServiceId::Detector),

@@ -45,6 +45,8 @@ pub struct Spawner<'a> {
     /// The resolved scenario file the services read.
     pub scenario_file: &'a Path,
     pub log_dir: PathBuf,
+    /// This host, in a deployment split across hosts.
+    pub host: Option<&'a str>,
 }
 
 impl Spawner<'_> {
@@ -56,6 +58,7 @@ impl Spawner<'_> {
             self.scenario_file,
             &self.log_dir,
             restarts,
+            self.host,
         )
     }
 }
@@ -67,6 +70,9 @@ pub struct Live<'a> {
     pub consumer: Consumer,
     sequencer: Option<Sequencer>,
     children: Vec<ServiceProcess>,
+    /// Services of the deployment on other hosts (a split deployment): heard from through the
+    /// bridge, never spawned or signalled from here.
+    remote: Vec<ServiceId>,
     injector: Injector,
     supervisor: Supervisor,
     membership: Membership,
@@ -104,9 +110,10 @@ impl<'a> Live<'a> {
         sequencer: Option<Sequencer>,
         progress: bool,
     ) -> Result<Self> {
-        let children = (deployment::services(scenario).into_iter())
+        let children = (crate::run::hosts::local_services(scenario, spawner.host).into_iter())
             .map(|id| spawner.spawn(id, 0))
             .collect::<Result<Vec<_>>>()?;
+        let remote = crate::run::hosts::remote_services(scenario, spawner.host);
         tracing::info!(
             prefix = spawner.prefix,
             services = children.len(),
@@ -132,6 +139,7 @@ impl<'a> Live<'a> {
             consumer,
             sequencer,
             children,
+            remote,
             injector: Injector::new(scenario),
             supervisor,
             membership: Membership::default(),
@@ -264,8 +272,9 @@ impl<'a> Live<'a> {
 
     /// Hands each service's latest heartbeat to the faults.
     fn hear_from_services(&mut self) {
-        let current =
-            |id: &ServiceId, pid: u32| self.children.iter().any(|c| c.id == *id && c.pid == pid);
+        let current = |id: &ServiceId, pid: u32| {
+            self.remote.contains(id) || self.children.iter().any(|c| c.id == *id && c.pid == pid)
+        };
         let heard: Vec<(ServiceId, Heard)> = (self.consumer.seen.iter())
             // The current incarnation's heartbeats only (a dead one's last may linger).
             .filter(|(id, seen)| current(id, seen.heartbeat.pid))
@@ -291,10 +300,12 @@ impl<'a> Live<'a> {
     /// Sends `Start` once every service is ready; fails the run past the startup timeout.
     fn start_when_ready(&mut self) -> Result<Option<Step>> {
         let seen = &self.consumer.seen;
-        let ready = self.children.iter().all(|c| {
-            seen.get(&c.id)
+        let ready_id = |id: &ServiceId| {
+            seen.get(id)
                 .is_some_and(|s| s.heartbeat.state >= Heartbeat::READY)
-        });
+        };
+        let ready =
+            self.children.iter().all(|c| ready_id(&c.id)) && self.remote.iter().all(ready_id);
         let timeout_ms = self.scenario.run.startup_timeout_ms;
         if ready {
             self.consumer.command(Command::Start, Control::ALL)?;
@@ -351,6 +362,9 @@ impl<'a> Live<'a> {
                 if let Some(stop) = self.supervise(now, now_s)? {
                     return Ok(Some(stop));
                 }
+                if let Some(why) = self.remote_silent(now) {
+                    return Ok(Some(self.fail(why)));
+                }
             }
             Phase::Done => {}
         }
@@ -381,6 +395,21 @@ impl<'a> Live<'a> {
             ));
         }
         Ok(None)
+    }
+
+    /// A service of another host whose heartbeats stopped crossing: the run fails (it cannot be
+    /// signalled or restarted from here).
+    fn remote_silent(&self, now: Instant) -> Option<String> {
+        let deadline = Duration::from_millis(self.scenario.run.heartbeat_deadline_ms);
+        let silent = (self.remote.iter())
+            .find(|id| (self.consumer.seen.get(id)).is_none_or(|s| now - s.at > deadline))?;
+        Some(format!(
+            "service {} on host {} sent no heartbeat across the bridge for \
+             run.heartbeat_deadline_ms = {} ms",
+            silent.name(),
+            self.scenario.host_of(*silent).unwrap_or("?"),
+            deadline.as_millis()
+        ))
     }
 
     /// Realtime mode replays nothing to a restarted service: it resumes at the newest input.
@@ -599,19 +628,37 @@ impl<'a> Live<'a> {
             }
         }
         let grace = Duration::from_millis(self.scenario.run.shutdown_grace_ms);
-        let shutdown_sent = std::cell::Cell::new(Ok(()));
-        let consumer = std::cell::RefCell::new(&mut self.consumer);
-        stop_ladder(
-            &mut self.children,
-            grace,
-            &mut || {
-                shutdown_sent.set((consumer.borrow_mut()).command(Command::Shutdown, Control::ALL))
-            },
-            &mut || {
-                let _ = consumer.borrow_mut().poll();
-            },
-        );
-        shutdown_sent.into_inner()?;
+        // A split deployment's other hosts stop on this Shutdown too, however the local
+        // services end.
+        if !self.remote.is_empty() {
+            self.consumer.command(Command::Shutdown, Control::ALL)?;
+        }
+        // The bridge (last of the children) goes last: the services' last heartbeats cross it.
+        let bridges = (self.children.iter())
+            .filter(|c| c.id == ServiceId::Bridge)
+            .count();
+        let (n, split) = (self.children.len(), self.children.len() - bridges);
+        for (range, target) in [
+            (0..split, Control::ALL),
+            (split..n, ServiceId::Bridge as u32),
+        ] {
+            let shutdown_sent = std::cell::Cell::new(Ok(()));
+            let consumer = std::cell::RefCell::new(&mut self.consumer);
+            stop_ladder(
+                &mut self.children[range],
+                grace,
+                &mut || {
+                    shutdown_sent.set((consumer.borrow_mut()).command(Command::Shutdown, target))
+                },
+                &mut || {
+                    let _ = consumer.borrow_mut().poll();
+                },
+            );
+            shutdown_sent.into_inner()?;
+            if target == Control::ALL {
+                await_remote_stopping(&mut self.consumer, &self.remote, grace)?;
+            }
+        }
         self.consumer.poll()?;
         // The last heartbeats may settle a fault's verdict; a fault that never fired fails
         // the run (it did not test what it was asked to).
@@ -663,12 +710,49 @@ impl<'a> Live<'a> {
             },
         );
         facts.solve_tampered = solve_tampered;
+        // Another host's services, as their heartbeats across the bridge last told.
+        for &id in &self.remote {
+            let seen = self.consumer.seen.get(&id);
+            let stopped = seen.is_some_and(|s| s.heartbeat.state == Heartbeat::STOPPING);
+            let host = self.scenario.host_of(id).unwrap_or("?");
+            facts.services.push(crate::report::ServiceFact {
+                name: id.name().to_string(),
+                pid: seen.map_or(0, |s| s.heartbeat.pid),
+                restarts: 0,
+                ending: match stopped {
+                    true => Ending::Shutdown,
+                    false => Ending::Exited(format!("no last heartbeat from host {host}")),
+                },
+                cpu_s: None,
+                time: seen.map(|s| s.heartbeat.time),
+            });
+        }
         facts.membership = self.membership.report();
         facts.memory = self.memory.traces();
         facts.soak_end = self.soak_end;
         facts.recording = recorder.as_ref().map(|r| r.summary());
         facts.recorder = recorder;
         facts
+    }
+}
+
+/// Waits up to `grace` for every service of another host (`remote`) to say in a heartbeat that
+/// it is stopping (its counters final), reading what arrives meanwhile.
+fn await_remote_stopping(
+    consumer: &mut Consumer,
+    remote: &[ServiceId],
+    grace: Duration,
+) -> Result<()> {
+    let t0 = Instant::now();
+    loop {
+        consumer.poll()?;
+        let stopping = |id: &ServiceId| {
+            (consumer.seen.get(id)).is_some_and(|s| s.heartbeat.state == Heartbeat::STOPPING)
+        };
+        if remote.iter().all(stopping) || t0.elapsed() >= grace {
+            return Ok(());
+        }
+        std::thread::sleep(Duration::from_millis(5));
     }
 }
 

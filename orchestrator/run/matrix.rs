@@ -99,6 +99,7 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
             replace: opts.replace,
             progress: false,
             record: opts.record,
+            host: None,
         })?;
         run::bail_if_interrupted("the fault matrix")?;
         Report::read(&sub.join("report.json")).with_context(|| format!("{case}'s report"))

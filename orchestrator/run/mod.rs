@@ -6,6 +6,7 @@ pub mod command;
 pub mod consume;
 pub mod deploy;
 pub mod faults;
+pub mod hosts;
 pub mod latency;
 pub mod live;
 pub mod matrix;
@@ -41,6 +42,9 @@ pub struct RunOptions {
     pub progress: bool,
     /// `--record`: every tapped topic to `DIR/run.mcap` ([`record`]).
     pub record: bool,
+    /// `--host`: this host's part of a deployment split across hosts (`None`: not split, or
+    /// the orchestrator's host).
+    pub host: Option<String>,
 }
 
 /// Runs a deployment to the end. Returns the run directory and whether the run succeeded.
@@ -58,6 +62,11 @@ pub fn bail_if_interrupted(what: &str) -> Result<()> {
 
 pub fn run(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let scenario = &opts.scenario;
+    // A host of a split deployment other than the orchestrator's runs its part only.
+    if let Some(host) = (opts.host.as_deref()).filter(|h| Some(*h) != scenario.orchestrator_host())
+    {
+        return hosts::run_host(&opts, host);
+    }
     let prefix = run_prefix();
     let id = prefix.trim_start_matches("glint_").trim_end_matches('_');
     // Held (locked) until the report is written: no other run can use this directory.
@@ -154,6 +163,7 @@ fn deploy_and_run(
         prefix,
         scenario_file: resolved,
         log_dir: out_dir.join("logs"),
+        host: opts.host.as_deref(),
     };
     let mut live = Live::spawn(scenario, &node, spawner, consumer, sequencer, progress)?;
     // A signal is seen by one wait loop of the process: a deployment run beside the one that

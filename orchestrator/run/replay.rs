@@ -80,6 +80,7 @@ pub(crate) fn command(args: ReplayArgs) -> ExitCode {
         replace: args.force,
         progress: std::io::stderr().is_terminal(),
         record: false,
+        host: None,
     };
     let result = run::run(opts);
     let Ok((dir, ok)) = &result else {

@@ -28,6 +28,8 @@ pub struct Housekeeping {
     continues: Vec<(TopicId, u64, u64)>,
     /// `Shutdown` has arrived (possibly while the service waited outside its loop).
     pub shutdown_requested: bool,
+    /// A `Shutdown` addressed to this service alone (not to all) has arrived.
+    pub shutdown_addressed: bool,
     /// Obey in-band fault commands (the scenario's `faults.enabled`); refused ones are counted.
     pub faults_enabled: bool,
     /// In-band fault commands refused because faults are not enabled.
@@ -80,6 +82,7 @@ impl Housekeeping {
                 ends: vec![],
                 continues: vec![],
                 shutdown_requested: false,
+                shutdown_addressed: false,
                 faults_enabled: false,
                 faults_refused: 0,
                 faults_obeyed: 0,
@@ -101,9 +104,10 @@ impl Housekeeping {
     pub fn poll_control(&mut self) -> Result<Vec<Command>> {
         let me = self.id as u32;
         let mut cmds = vec![];
-        let (replays, shutdown, ends, continues) = (
+        let (replays, shutdown, addressed, ends, continues) = (
             &mut self.replays,
             &mut self.shutdown_requested,
+            &mut self.shutdown_addressed,
             &mut self.ends,
             &mut self.continues,
         );
@@ -112,6 +116,7 @@ impl Housekeeping {
             if r.msg.target == me || r.msg.target == Control::ALL {
                 if let Some(c) = Command::from_u32(r.msg.command) {
                     *shutdown |= c == Command::Shutdown;
+                    *addressed |= c == Command::Shutdown && r.msg.target == me;
                     cmds.push(c);
                 }
                 if let Some(order) = r.msg.as_replay() {

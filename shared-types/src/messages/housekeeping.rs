@@ -19,15 +19,18 @@ pub enum DropReason {
     Late = 3,
     /// Duplicate or out-of-order sequence number.
     Stale = 4,
+    /// Lost on a link between hosts: a gap in a bridge's link sequence.
+    Link = 5,
 }
 
 impl DropReason {
-    pub const ALL: [DropReason; 5] = [
+    pub const ALL: [DropReason; 6] = [
         DropReason::Overflow,
         DropReason::Malformed,
         DropReason::Injected,
         DropReason::Late,
         DropReason::Stale,
+        DropReason::Link,
     ];
 
     pub fn name(self) -> &'static str {
@@ -37,6 +40,7 @@ impl DropReason {
             DropReason::Injected => "injected",
             DropReason::Late => "late",
             DropReason::Stale => "stale",
+            DropReason::Link => "link",
         }
     }
 }

@@ -11,6 +11,7 @@ mod camera;
 mod campaign;
 mod earth;
 mod fault;
+mod hosts;
 mod matrix;
 mod photometry;
 mod placement;
@@ -24,6 +25,7 @@ pub use camera::*;
 pub use campaign::*;
 pub use earth::*;
 pub use fault::*;
+pub use hosts::*;
 pub use matrix::*;
 pub use photometry::*;
 pub use placement::*;
@@ -135,6 +137,10 @@ pub struct Scenario {
     /// Where each process runs (`[services.detector] cpu = 1`), by service name.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub services: std::collections::BTreeMap<String, ServicePlacement>,
+    /// The machines of a deployment split across hosts (`[hosts.<name>]`), by name; empty:
+    /// one host.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub hosts: std::collections::BTreeMap<String, HostSpec>,
 }
 
 fn default_seed() -> u64 {
@@ -347,6 +353,7 @@ impl Scenario {
         soak::check_soak(&mut c, self);
         replay::check_replay(&mut c, self);
         placement::check_placement(&mut c, self);
+        hosts::check_hosts(&mut c, self);
         if let Some(camp) = &self.campaign {
             c.range_u("campaign.values (count)", camp.values.len() as u64, 1, 100);
             c.range_u("campaign.seeds", camp.seeds as u64, 1, 1000);

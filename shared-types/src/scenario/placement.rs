@@ -24,6 +24,10 @@ pub struct ServicePlacement {
     /// The CPU it runs on, 0–1023 (as numbered in /proc/cpuinfo); unset: any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cpu: Option<u32>,
+    /// The host it runs on, a name of `[hosts]` (a split deployment); unset: the
+    /// orchestrator's host.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host: Option<String>,
 }
 
 /// The highest CPU number a placement may name.

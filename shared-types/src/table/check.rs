@@ -125,7 +125,8 @@ mod tests {
         assert_eq!(ServiceId::from_u32(5), Some(ServiceId::Earth));
         assert_eq!(ServiceId::from_u32(6), Some(ServiceId::RelNav));
         assert_eq!(ServiceId::from_u32(7), Some(ServiceId::Photometry));
-        assert_eq!(ServiceId::from_u32(8), None);
+        assert_eq!(ServiceId::from_u32(8), Some(ServiceId::Bridge));
+        assert_eq!(ServiceId::from_u32(9), None);
         assert_eq!(
             TopicId::from_name("photometry_estimate"),
             Some(TopicId::PhotometryEstimate)
@@ -139,7 +140,7 @@ mod tests {
         );
         assert_eq!(
             ServiceId::names(),
-            "sensor, detector, tracker, inversion, earth, relnav, photometry"
+            "sensor, detector, tracker, inversion, earth, relnav, photometry, bridge"
         );
     }
 

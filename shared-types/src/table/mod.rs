@@ -35,6 +35,8 @@ pub enum ServiceId {
     Earth = 5,
     RelNav = 6,
     Photometry = 7,
+    /// One per host of a split deployment: carries the topics that cross hosts (ADR 0038).
+    Bridge = 8,
 }
 
 /// Topics of the chain. The numeric value travels in [`Ack::topic`] and the heartbeats' counters.
@@ -74,6 +76,8 @@ pub enum Section {
     Stereo,
     /// `[photometry]`: the ground telescope's light curve ([001]).
     Photometry,
+    /// `[hosts]`: a deployment split across machines.
+    Hosts,
 }
 
 impl Section {
@@ -86,6 +90,7 @@ impl Section {
             Section::Earth => scenario.earth.is_some(),
             Section::Stereo => scenario.stereo.is_some(),
             Section::Photometry => scenario.photometry.is_some(),
+            Section::Hosts => scenario.split(),
         }
     }
 
@@ -98,6 +103,7 @@ impl Section {
             Section::Earth => "[earth]",
             Section::Stereo => "[stereo]",
             Section::Photometry => "[photometry]",
+            Section::Hosts => "[hosts]",
         }
     }
 }
@@ -214,8 +220,8 @@ pub struct ServiceSpec {
 }
 
 impl ServiceId {
-    pub const ALL: [ServiceId; 8] = {
-        let mut all = [ServiceId::Orchestrator; 8];
+    pub const ALL: [ServiceId; 9] = {
+        let mut all = [ServiceId::Orchestrator; 9];
         let mut i = 0;
         while i < SERVICES.len() {
             all[i] = SERVICES[i].id;

@@ -1,0 +1,120 @@
+//! Out of this host: every exported topic's messages taken from shared memory (the bridge is
+//! one more subscriber on its host) and put on Zenoh, each with its envelope. A put under
+//! `Block` waits for the link: what cannot go yet stays in the subscriber's queue, which the
+//! sim-clock credit keeps from overflowing; in realtime mode a gap is counted by seq.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use anyhow::{anyhow, Result};
+use glint_runtime::stats::SeqVerdict;
+use glint_runtime::{run_loop, Step, TopicStats};
+use shared_types::Scenario;
+use zenoh::qos::{CongestionControl, Priority};
+use zenoh::Wait;
+
+use super::ports::{taker, TakeBytes};
+use super::{key, Shared};
+use crate::envelope::Envelope;
+use crate::link::LinkSeqs;
+use crate::routes::{exported_by, Routes};
+
+/// How often the loop looks at the stop flag when nothing arrives.
+const TICK: Duration = Duration::from_millis(50);
+
+struct Route {
+    port: Box<dyn TakeBytes>,
+    publisher: zenoh::pubsub::Publisher<'static>,
+    /// This hop's accounting of a data topic: taken from shared memory, put on the wire.
+    stats: Option<TopicStats>,
+}
+
+/// The egress thread's body: runs until `stop` is set or a termination signal arrives;
+/// `ready` is called once every port is open.
+pub fn run(
+    prefix: &str,
+    scenario: &Scenario,
+    routes: &Routes,
+    session: &zenoh::Session,
+    shared: &Shared,
+    stop: &AtomicBool,
+    ready: impl FnOnce(),
+) -> Result<()> {
+    let node = glint_runtime::open_node(prefix, "bridge-out")?;
+    let deployment = scenario.deployment_key();
+    let mut out = vec![];
+    let mut listeners = vec![];
+    for &t in &routes.exports {
+        let data = t.spec().is_data();
+        let priority = if data {
+            Priority::Data
+        } else {
+            Priority::RealTime
+        };
+        let publisher = (session.declare_publisher(key(&deployment, t)))
+            .congestion_control(CongestionControl::Block)
+            .priority(priority)
+            .express(!data)
+            .wait()
+            .map_err(|e| anyhow!("zenoh publisher for {}: {e}", t.name()))?;
+        let (port, listener) = taker(&node, scenario, t)?;
+        listeners.push(listener);
+        out.push(Route {
+            port,
+            publisher,
+            stats: data.then(|| TopicStats::new(t)),
+        });
+    }
+    ready();
+    let inputs: Vec<_> = listeners.iter().map(|l| (l, None)).collect();
+    let mut links = LinkSeqs::default();
+    run_loop(&inputs, TICK, |_| {
+        if stop.load(Ordering::SeqCst) {
+            return Ok(Step::Stop);
+        }
+        for r in out.iter_mut() {
+            forward(r, scenario, routes, &mut links)?;
+            if let Some(s) = &r.stats {
+                shared.set(s);
+            }
+        }
+        Ok(Step::Wait)
+    })?;
+    Ok(())
+}
+
+/// Puts every queued message of one route on the wire: one copy, from shared memory into the
+/// buffer Zenoh sends.
+fn forward(
+    r: &mut Route,
+    scenario: &Scenario,
+    routes: &Routes,
+    links: &mut LinkSeqs,
+) -> Result<()> {
+    let topic = r.port.topic();
+    loop {
+        let mut bytes = Vec::new();
+        let Some(taken) = r.port.take(&mut bytes)? else {
+            return Ok(());
+        };
+        // Only what was written on this host leaves it (an import stays home: no loops).
+        if !exported_by(scenario, &routes.host, taken.producer) {
+            continue;
+        }
+        // A replay's copies (a consumer restarted) cross too; they count as duplicates here.
+        if let Some(s) = r.stats.as_mut() {
+            if s.observe(taken.producer, taken.seq) == SeqVerdict::Accept {
+                s.accept();
+            }
+        }
+        let seq = links.stamp(topic, routes.host_index);
+        let envelope = Envelope::new(topic, routes.host_index, seq, r.port.digest());
+        (r.publisher.put(bytes))
+            .attachment(envelope.to_bytes().to_vec())
+            .wait()
+            .map_err(|e| anyhow!("zenoh put on {}: {e}", topic.name()))?;
+        if let Some(s) = r.stats.as_mut() {
+            s.published += 1;
+        }
+    }
+}

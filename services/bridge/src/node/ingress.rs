@@ -1,0 +1,121 @@
+//! Into this host: one Zenoh subscriber on the deployment's keys; each message's envelope is
+//! checked (contract, topic, type, size: a failure is a counted `malformed` drop), its link
+//! sequence accounted (a gap is counted `link` lost), and its bytes copied into a sample loaned
+//! from the topic's shared memory here, then sent as the producer sent it (seq, times and
+//! producer unchanged), so consumers here account for it end to end as for a local one.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use anyhow::{anyhow, Result};
+use glint_runtime::TopicStats;
+use shared_types::{DropReason, Scenario, TopicId};
+use zenoh::sample::Locality;
+use zenoh::Wait;
+
+use super::ports::{putter, PutBytes};
+use super::Shared;
+use crate::envelope::{Envelope, Refusal};
+use crate::link::{LinkSeqs, LinkVerdict};
+use crate::routes::Routes;
+
+/// How long a wait for the wire lasts before the stop flag is looked at again.
+const POLL: Duration = Duration::from_millis(50);
+
+struct Route {
+    port: Box<dyn PutBytes>,
+    /// This hop's accounting of a data topic: taken off the wire, published here.
+    stats: Option<TopicStats>,
+}
+
+/// The ingress thread's body: runs until `stop` is set; `ready` is called once every port and
+/// the subscriber are open.
+pub fn run(
+    prefix: &str,
+    scenario: &Scenario,
+    routes: &Routes,
+    session: &zenoh::Session,
+    shared: &Shared,
+    stop: &AtomicBool,
+    ready: impl FnOnce(),
+) -> Result<()> {
+    let node = glint_runtime::open_node(prefix, "bridge-in")?;
+    let mut inbound: BTreeMap<TopicId, Route> = BTreeMap::new();
+    for &t in &routes.imports {
+        let route = Route {
+            port: putter(&node, scenario, t)?,
+            stats: t.spec().is_data().then(|| TopicStats::new(t)),
+        };
+        inbound.insert(t, route);
+    }
+    let keys = format!("glint/{}/*", scenario.deployment_key());
+    let subscriber = (session.declare_subscriber(&keys))
+        .allowed_origin(Locality::Remote)
+        .wait()
+        .map_err(|e| anyhow!("zenoh subscriber on {keys}: {e}"))?;
+    ready();
+    let mut links = LinkSeqs::default();
+    let mut refused = 0u64;
+    while !stop.load(Ordering::SeqCst) && glint_runtime::lifeline::end_requested().is_none() {
+        let sample = match subscriber.recv_timeout(POLL) {
+            Ok(Some(s)) => s,
+            Ok(None) => continue,
+            Err(e) => return Err(anyhow!("zenoh subscriber on {keys}: {e}")),
+        };
+        // The key's last chunk names the topic; a topic this host does not read is another
+        // host's (a deployment of three or more).
+        let name = sample.key_expr().as_str().rsplit('/').next().unwrap_or("");
+        let Some(route) = TopicId::from_name(name).and_then(|t| inbound.get_mut(&t)) else {
+            continue;
+        };
+        let topic = route.port.topic();
+        let attachment = sample.attachment().map(|a| a.to_bytes());
+        let payload = sample.payload().to_bytes();
+        let checked =
+            Envelope::read(attachment.as_deref(), topic, route.port.digest()).and_then(|e| {
+                match payload.len() == route.port.len() {
+                    true => Ok(e),
+                    false => Err(Refusal::Size),
+                }
+            });
+        let envelope = match checked {
+            Ok(e) => e,
+            Err(why) => {
+                refused += 1;
+                if refused == 1 || refused.is_power_of_two() {
+                    tracing::warn!(topic = topic.name(), refused, "refused off the wire: {why}");
+                }
+                if let Some(s) = route.stats.as_mut() {
+                    s.malformed();
+                    shared.set(s);
+                }
+                continue;
+            }
+        };
+        match links.observe(topic, envelope.origin_host, envelope.link_seq) {
+            LinkVerdict::Repeat => {
+                if let Some(s) = route.stats.as_mut() {
+                    s.duplicates += 1;
+                }
+                continue;
+            }
+            LinkVerdict::Take { lost } => {
+                if lost > 0 {
+                    tracing::warn!(topic = topic.name(), lost, "lost on the link");
+                }
+                if let Some(s) = route.stats.as_mut() {
+                    s.dropped[DropReason::Link as usize] += lost;
+                    s.accept();
+                }
+            }
+        }
+        route.port.put(&payload)?;
+        if let Some(s) = route.stats.as_mut() {
+            s.published += 1;
+            s.next_seq = envelope.link_seq + 1;
+            shared.set(s);
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,213 @@
+//! `glint service bridge --host NAME`: one host's bridge. Three threads, each with its own
+//! iceoryx2 node (ports are not `Send`) around one Zenoh session: *egress* takes the exported
+//! topics from shared memory and puts them on Zenoh; *ingress* takes the imported ones off
+//! Zenoh and publishes them here; the main thread obeys control and sends the bridge's
+//! heartbeat, which carries each bridged data topic's per-hop counters.
+
+mod egress;
+mod ingress;
+mod ports;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::Duration;
+
+use anyhow::{anyhow, Context, Result};
+use glint_runtime::{run_loop, Housekeeping, Step, TopicStats};
+use shared_types::{Heartbeat, Scenario, ServiceId, TopicId};
+use zenoh::Wait;
+
+use crate::routes::{routes, Routes};
+
+/// The Zenoh key of a topic of a deployment: `glint/<deployment>/<topic>`.
+pub fn key(deployment: &str, topic: TopicId) -> String {
+    format!("glint/{deployment}/{}", topic.name())
+}
+
+/// The per-hop counters the threads keep and the heartbeat carries.
+#[derive(Default)]
+pub struct Shared {
+    stats: Mutex<Vec<TopicStats>>,
+    /// A thread's error: the bridge stops with it.
+    failed: Mutex<Option<String>>,
+}
+
+impl Shared {
+    fn set(&self, s: &TopicStats) {
+        let mut all = self.stats.lock().unwrap_or_else(|p| p.into_inner());
+        match all.iter_mut().find(|x| x.topic == s.topic) {
+            Some(x) => *x = s.clone(),
+            None => all.push(s.clone()),
+        }
+    }
+
+    fn snapshot(&self) -> Vec<TopicStats> {
+        self.stats.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+
+    fn fail(&self, why: String) {
+        let mut f = self.failed.lock().unwrap_or_else(|p| p.into_inner());
+        f.get_or_insert(why);
+    }
+
+    fn failure(&self) -> Option<String> {
+        self.failed
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
+    }
+}
+
+/// The Zenoh session of `host`: a peer that listens on its own endpoint and connects to every
+/// other host's, with no multicast scouting (it meets only the hosts the scenario names).
+fn session(scenario: &Scenario, host: &str) -> Result<zenoh::Session> {
+    let own = (scenario.hosts.get(host))
+        .ok_or_else(|| anyhow!("`{host}` is not a host of the scenario's [hosts]"))?;
+    let others: Vec<&str> = (scenario.hosts.iter())
+        .filter(|(n, _)| n.as_str() != host)
+        .map(|(_, h)| h.endpoint.as_str())
+        .collect();
+    let json = |v: serde_json::Value| v.to_string();
+    let mut config = zenoh::Config::default();
+    for (k, v) in [
+        ("mode", json("peer".into())),
+        ("listen/endpoints", json(vec![own.endpoint.as_str()].into())),
+        ("connect/endpoints", json(others.into())),
+        ("scouting/multicast/enabled", "false".to_string()),
+        ("scouting/gossip/enabled", "false".to_string()),
+    ] {
+        (config.insert_json5(k, &v)).map_err(|e| anyhow!("zenoh config {k} = {v}: {e}"))?;
+    }
+    zenoh::open(config)
+        .wait()
+        .map_err(|e| anyhow!("opening the zenoh session on {}: {e}", own.endpoint))
+}
+
+/// Runs `host`'s bridge of the deployment under `prefix` until a termination signal.
+pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
+    let routes = routes(scenario, host);
+    tracing::info!(
+        host,
+        deployment = scenario.deployment_key(),
+        exports = ?names(&routes.exports),
+        imports = ?names(&routes.imports),
+        "bridge routes"
+    );
+    let session = session(scenario, host)?;
+    let node = glint_runtime::open_node(prefix, "bridge")?;
+    let (mut hk, control) = Housekeeping::open(&node, ServiceId::Bridge)?;
+    let period = Duration::from_millis(scenario.run.heartbeat_period_ms);
+    hk.heartbeat_period = period;
+    let shared = Arc::new(Shared::default());
+    let stop = Arc::new(AtomicBool::new(false));
+    let (ready_tx, ready_rx) = mpsc::channel();
+    let threads = [Direction::Egress, Direction::Ingress].map(|dir| {
+        let (prefix, scenario, routes) = (prefix.to_string(), scenario.clone(), routes.clone());
+        let (session, shared, stop, ready) = (
+            session.clone(),
+            shared.clone(),
+            stop.clone(),
+            ready_tx.clone(),
+        );
+        std::thread::Builder::new()
+            .name(format!("bridge-{}", dir.name()))
+            .spawn(move || {
+                let r = dir.run(
+                    &prefix,
+                    &scenario,
+                    &routes,
+                    &session,
+                    &shared,
+                    &stop,
+                    || {
+                        let _ = ready.send(dir);
+                    },
+                );
+                if let Err(e) = r {
+                    shared.fail(format!("{}: {e:#}", dir.name()));
+                }
+                // Whatever ended this thread ends the bridge.
+                stop.store(true, Ordering::SeqCst);
+            })
+    });
+    let threads = threads.into_iter().collect::<std::io::Result<Vec<_>>>()?;
+    drop(ready_tx);
+    for _ in 0..threads.len() {
+        ready_rx
+            .recv()
+            .map_err(|_| anyhow!("{}", shared.failure().unwrap_or_default()))
+            .context("opening the bridge's ports")?;
+    }
+    hk.state = Heartbeat::READY;
+    tracing::info!(host, "bridge ready");
+    let beat = |hk: &mut Housekeeping| -> Result<()> {
+        let stats = shared.snapshot();
+        hk.beat(0, &stats.iter().collect::<Vec<_>>())
+    };
+    beat(&mut hk)?;
+    // The bridge stops on a `Shutdown` addressed to it, which the orchestrator sends once the
+    // services it carries for have stopped and their last heartbeats crossed (a `Shutdown` to
+    // all is theirs), or on SIGTERM.
+    let exit = run_loop(&[(&control, None)], period, |_| {
+        if hk.poll_control()?.contains(&shared_types::Command::Start) {
+            hk.state = Heartbeat::RUNNING;
+        }
+        if stop.load(Ordering::SeqCst) || hk.shutdown_addressed {
+            return Ok(Step::Stop);
+        }
+        beat(&mut hk)?;
+        Ok(Step::Wait)
+    });
+    stop.store(true, Ordering::SeqCst);
+    for t in threads {
+        let _ = t.join();
+    }
+    hk.state = Heartbeat::STOPPING;
+    beat(&mut hk)?;
+    if let Some(f) = shared.failure() {
+        return Err(anyhow!("bridge of host {host}: {f}"));
+    }
+    exit?;
+    let _ = session.close().wait();
+    Ok(())
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Direction {
+    Egress,
+    Ingress,
+}
+
+impl Direction {
+    fn name(self) -> &'static str {
+        match self {
+            Direction::Egress => "egress",
+            Direction::Ingress => "ingress",
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        self,
+        prefix: &str,
+        scenario: &Scenario,
+        routes: &Routes,
+        session: &zenoh::Session,
+        shared: &Shared,
+        stop: &AtomicBool,
+        ready: impl FnOnce(),
+    ) -> Result<()> {
+        match self {
+            Direction::Egress => {
+                egress::run(prefix, scenario, routes, session, shared, stop, ready)
+            }
+            Direction::Ingress => {
+                ingress::run(prefix, scenario, routes, session, shared, stop, ready)
+            }
+        }
+    }
+}
+
+fn names(topics: &[TopicId]) -> Vec<&'static str> {
+    topics.iter().map(|t| t.name()).collect()
+}

@@ -1,0 +1,166 @@
+//! What crosses hosts, from the table and the scenario's placement alone (so every host's
+//! bridge derives the same routes without talking): a host *exports* a topic when one of its
+//! services writes it and a service of another host reads it, and *imports* it when the
+//! reverse holds.
+
+use shared_types::scenario::Scenario;
+use shared_types::table::{From, TOPICS};
+use shared_types::{deployment, ServiceId, TopicId};
+
+/// The services that read `topic` in `scenario`.
+pub fn readers(scenario: &Scenario, topic: TopicId) -> Vec<ServiceId> {
+    match topic {
+        // Data topics: the consumers the table lists (the orchestrator's taps among them).
+        TopicId::Frame
+        | TopicId::Spectrum
+        | TopicId::Truth
+        | TopicId::Detections
+        | TopicId::Tracks
+        | TopicId::EarthFrame
+        | TopicId::EarthAttitude
+        | TopicId::Stereo
+        | TopicId::RelNav
+        | TopicId::Photometry
+        | TopicId::PhotometryEstimate => deployment::consumers(scenario, topic),
+        TopicId::Heartbeat => vec![ServiceId::Orchestrator],
+        // Every service obeys control.
+        TopicId::Control => deployment::services(scenario)
+            .into_iter()
+            .filter(|s| *s != ServiceId::Bridge)
+            .collect(),
+        // A producer reads its consumers' acks (its sim-clock credit).
+        TopicId::Ack => {
+            let mut producers: Vec<ServiceId> = (TOPICS.iter())
+                .filter(|t| t.is_data() && deployment::carries(scenario, t.id))
+                .filter_map(|t| t.producer())
+                .collect();
+            producers.sort_unstable();
+            producers.dedup();
+            producers
+        }
+        // Calls are not bridged: the scenario check keeps a call's client and server on one
+        // host.
+        TopicId::Range | TopicId::Solve => vec![],
+    }
+}
+
+/// The services that write `topic` in `scenario` (the bridge's own heartbeats stay home).
+pub fn writers(scenario: &Scenario, topic: TopicId) -> Vec<ServiceId> {
+    if !deployment::carries(scenario, topic) {
+        return vec![];
+    }
+    match topic.spec().from {
+        From::One(s) => vec![s],
+        From::Every => std::iter::once(ServiceId::Orchestrator)
+            .chain(deployment::services(scenario))
+            .filter(|s| *s != ServiceId::Bridge)
+            .collect(),
+    }
+}
+
+/// The topics one host's bridge carries.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Routes {
+    /// This host's name.
+    pub host: String,
+    /// Its index among the scenario's hosts, sorted by name ([`host_index`]).
+    pub host_index: u32,
+    /// Written here, read elsewhere: taken from iceoryx2, put on Zenoh.
+    pub exports: Vec<TopicId>,
+    /// Written elsewhere, read here: taken from Zenoh, published into iceoryx2.
+    pub imports: Vec<TopicId>,
+}
+
+/// `host`'s index among the scenario's hosts (sorted by name), as envelopes carry it.
+pub fn host_index(scenario: &Scenario, host: &str) -> Option<u32> {
+    scenario
+        .hosts
+        .keys()
+        .position(|h| h == host)
+        .map(|i| i as u32)
+}
+
+/// The routes of `host`'s bridge.
+pub fn routes(scenario: &Scenario, host: &str) -> Routes {
+    let on = |s: &ServiceId| scenario.host_of(*s) == Some(host);
+    let mut exports = vec![];
+    let mut imports = vec![];
+    for t in TopicId::ALL {
+        let (w, r) = (writers(scenario, t), readers(scenario, t));
+        if w.iter().any(on) && r.iter().any(|s| !on(s)) {
+            exports.push(t);
+        }
+        if w.iter().any(|s| !on(s)) && r.iter().any(on) {
+            imports.push(t);
+        }
+    }
+    Routes {
+        host: host.to_string(),
+        host_index: host_index(scenario, host).unwrap_or(u32::MAX),
+        exports,
+        imports,
+    }
+}
+
+/// Whether `host`'s bridge puts a message of `producer` on the wire: only what was written on
+/// its own host (what it imported stays home, so nothing loops), never a bridge's.
+pub fn exported_by(scenario: &Scenario, host: &str, producer: u32) -> bool {
+    ServiceId::from_u32(producer)
+        .is_some_and(|p| p != ServiceId::Bridge && scenario.host_of(p) == Some(host))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The paper's debris scene, sensor | detector + tracker, the laser as given.
+    fn split(laser: bool) -> Result<Scenario, String> {
+        use shared_types::scenario::{HostSpec, ServicePlacement};
+        let text = include_str!("../../../scenarios/debris-geo.toml");
+        let mut sc = Scenario::from_toml_str(text, "debris-geo.toml").unwrap();
+        sc.camera.as_mut().unwrap().tracker.laser = laser;
+        for (name, port, orchestrator) in [("a", 7501, true), ("b", 7502, false)] {
+            let endpoint = format!("tcp/127.0.0.1:{port}");
+            (sc.hosts).insert(
+                name.into(),
+                HostSpec {
+                    endpoint,
+                    orchestrator,
+                },
+            );
+        }
+        for s in ["detector", "tracker"] {
+            let host = Some("b".to_string());
+            (sc.services).insert(s.into(), ServicePlacement { host, cpu: None });
+        }
+        Scenario::from_toml_str(&sc.to_toml(), "split.toml").map_err(|e| e.to_string())
+    }
+
+    /// The debris chain split sensor | detector + tracker: frames go out, detections and tracks
+    /// come back; control goes out, heartbeats come back, acks both ways; truth stays home.
+    #[test]
+    fn the_split_debris_chain_routes_what_each_side_reads() {
+        let sc = split(false).unwrap();
+        let a = routes(&sc, "a");
+        let b = routes(&sc, "b");
+        use TopicId::*;
+        assert_eq!(a.exports, [Frame, Control, Ack]);
+        assert_eq!(a.imports, [Heartbeat, Ack, Detections, Tracks]);
+        assert_eq!(b.exports, [Heartbeat, Ack, Detections, Tracks]);
+        assert_eq!(b.imports, [Frame, Control, Ack]);
+        assert_eq!((a.host_index, b.host_index), (0, 1));
+        // what a bridge imported never goes back
+        assert!(exported_by(&sc, "a", ServiceId::Orchestrator as u32));
+        assert!(!exported_by(&sc, "a", ServiceId::Detector as u32));
+        assert!(exported_by(&sc, "b", ServiceId::Detector as u32));
+        assert!(!exported_by(&sc, "b", ServiceId::Bridge as u32));
+    }
+
+    /// A call would cross hosts with the laser on: refused, with the way out.
+    #[test]
+    fn a_call_across_hosts_is_refused_with_the_placement_that_works() {
+        let msg = split(true).unwrap_err();
+        assert!(msg.contains("services.tracker.host"), "{msg}");
+        assert!(msg.contains("camera.tracker.laser = false"), "{msg}");
+    }
+}

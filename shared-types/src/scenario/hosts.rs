@@ -1,0 +1,268 @@
+//! `[hosts.<name>]`: a deployment split across machines (docs/hosts.md). Each host runs
+//! `glint run SCENARIO --host <name>` with the same scenario file; its services and one bridge
+//! (ADR 0038) run there, and the bridges carry the topics that cross hosts over Zenoh. The
+//! host marked `orchestrator` runs the orchestrator of record: it starts the run, accounts for
+//! every message on every host and writes the one report.
+//!
+//! ```toml
+//! [hosts.ground]
+//! endpoint = "tcp/10.0.0.1:7447"
+//! orchestrator = true
+//! [hosts.board]
+//! endpoint = "tcp/10.0.0.2:7447"
+//!
+//! [services.detector]
+//! host = "board"
+//! [services.tracker]
+//! host = "board"
+//! ```
+//!
+//! A service without `host` runs on the orchestrator's host.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use super::Checker;
+use crate::topics::TopicId;
+use crate::ServiceId;
+
+/// One machine of a split deployment.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HostSpec {
+    /// Where this host's bridge listens, and the other hosts' bridges connect:
+    /// `tcp/<IPv4 address>:<port>` (a Zenoh TCP locator).
+    pub endpoint: String,
+    /// Whether this host runs the orchestrator of record (exactly one host does).
+    #[serde(default)]
+    pub orchestrator: bool,
+}
+
+/// Hosts at most in one deployment (a bridge connects to every other host).
+pub const MAX_HOSTS: usize = 8;
+
+impl super::Scenario {
+    /// Whether the deployment is split across hosts.
+    pub fn split(&self) -> bool {
+        !self.hosts.is_empty()
+    }
+
+    /// The host that runs the orchestrator of record (`None`: one host, not split).
+    pub fn orchestrator_host(&self) -> Option<&str> {
+        (self.hosts.iter())
+            .find(|(_, h)| h.orchestrator)
+            .map(|(n, _)| n.as_str())
+    }
+
+    /// The host `service` runs on (`None`: one host, not split). The orchestrator, and a
+    /// service without `services.<name>.host`, run on the orchestrator's host. The bridge
+    /// runs on every host and has none.
+    pub fn host_of(&self, service: ServiceId) -> Option<&str> {
+        let orchestrator = self.orchestrator_host()?;
+        let placed = (self.services.get(service.name())).and_then(|p| p.host.as_deref());
+        Some(placed.unwrap_or(orchestrator))
+    }
+
+    /// Whether `service` runs on `host` (any service does when not split).
+    pub fn runs_on(&self, service: ServiceId, host: Option<&str>) -> bool {
+        match (self.host_of(service), host) {
+            (Some(h), Some(on)) => h == on,
+            _ => true,
+        }
+    }
+
+    /// The key under which this deployment's hosts meet on Zenoh (`glint/<key>/…`): 16 hex
+    /// digits of the xxh3 of the scenario as glint reads it, so every host that runs the same
+    /// scenario agrees without talking first, and different scenarios never meet.
+    pub fn deployment_key(&self) -> String {
+        format!(
+            "{:016x}",
+            xxhash_rust::xxh3::xxh3_64(self.to_toml().as_bytes())
+        )
+    }
+}
+
+/// `tcp/<a.b.c.d>:<port>`, port 1–65535.
+fn endpoint_ok(endpoint: &str) -> bool {
+    let Some(addr) = endpoint.strip_prefix("tcp/") else {
+        return false;
+    };
+    addr.parse::<std::net::SocketAddrV4>()
+        .is_ok_and(|a| a.port() != 0)
+}
+
+pub(super) fn check_hosts(c: &mut Checker, scenario: &super::Scenario) {
+    let hosts: &BTreeMap<String, HostSpec> = &scenario.hosts;
+    if hosts.is_empty() {
+        for (name, p) in &scenario.services {
+            if p.host.is_some() {
+                c.fail(
+                    &format!("services.{name}.host"),
+                    "names a host, but the scenario has no [hosts.<name>] section".into(),
+                );
+            }
+        }
+        return;
+    }
+    c.range_u("hosts (count)", hosts.len() as u64, 2, MAX_HOSTS as u64);
+    for (name, h) in hosts {
+        if !endpoint_ok(&h.endpoint) {
+            c.fail(
+                &format!("hosts.{name}.endpoint"),
+                format!(
+                    "`{}` is not a TCP endpoint; allowed: tcp/<IPv4 address>:<port 1-65535>",
+                    h.endpoint
+                ),
+            );
+        }
+        if !name
+            .chars()
+            .all(|ch| ch.is_ascii_alphanumeric() || ch == '-' || ch == '_')
+        {
+            c.fail(
+                &format!("hosts.{name}"),
+                "a host name has letters, digits, '-' and '_' only".into(),
+            );
+        }
+    }
+    let orchestrators: Vec<&String> = (hosts.iter())
+        .filter(|(_, h)| h.orchestrator)
+        .map(|(n, _)| n)
+        .collect();
+    if orchestrators.len() != 1 {
+        c.fail(
+            "hosts.<name>.orchestrator",
+            format!(
+                "exactly one host runs the orchestrator of record; {} do ({})",
+                orchestrators.len(),
+                join(orchestrators.iter().map(|s| s.as_str()))
+            ),
+        );
+    }
+    let mut endpoints: Vec<&str> = hosts.values().map(|h| h.endpoint.as_str()).collect();
+    endpoints.sort_unstable();
+    if endpoints.windows(2).any(|w| w[0] == w[1]) {
+        c.fail(
+            "hosts.<name>.endpoint",
+            "two hosts give the same endpoint".into(),
+        );
+    }
+    for (name, p) in &scenario.services {
+        if let Some(host) = &p.host {
+            if !hosts.contains_key(host) {
+                c.fail(
+                    &format!("services.{name}.host"),
+                    format!(
+                        "`{host}` is not a host of [hosts]; allowed: {}",
+                        join(hosts.keys().map(|s| s.as_str()))
+                    ),
+                );
+            }
+        }
+    }
+    if !c.errors.is_empty() {
+        return;
+    }
+    check_what_crosses(c, scenario);
+}
+
+/// What a bridge cannot carry yet is refused here, with the placement that would work.
+fn check_what_crosses(c: &mut Checker, scenario: &super::Scenario) {
+    let orchestrator = scenario.orchestrator_host().unwrap_or_default();
+    // Calls (request/response) do not cross hosts yet: a call's client and server share one.
+    for service in crate::deployment::services(scenario) {
+        for &call in service.spec().calls {
+            let (made, hint) = call_made(scenario, call);
+            if !crate::deployment::carries(scenario, call) || !made {
+                continue;
+            }
+            let Some(server) = crate::deployment::producer(call) else {
+                continue;
+            };
+            if scenario.host_of(service) != scenario.host_of(server) {
+                c.fail(
+                    &format!("services.{}.host", service.name()),
+                    format!(
+                        "{} calls `{}` on {}, and calls do not cross hosts yet: place them on one \
+                         host{hint}",
+                        service.name(),
+                        call.name(),
+                        server.name(),
+                    ),
+                );
+            }
+        }
+    }
+    if let Some(server) = crate::deployment::producer(TopicId::Solve) {
+        let solves = crate::deployment::carries(scenario, TopicId::Solve)
+            && crate::deployment::deploys(scenario, server);
+        if solves && scenario.host_of(server) != Some(orchestrator) {
+            c.fail(
+                &format!("services.{}.host", server.name()),
+                format!(
+                    "the orchestrator calls `solve` on {}, and calls do not cross hosts yet: \
+                     place it on the orchestrator's host `{orchestrator}`",
+                    server.name()
+                ),
+            );
+        }
+    }
+    // Supervision and faults act on processes of the orchestrator's host only, so far.
+    for f in &scenario.fault {
+        let service = ServiceId::from_name(&f.service);
+        if service.is_some_and(|s| scenario.host_of(s) != Some(orchestrator)) {
+            c.fail(
+                "fault.service",
+                format!(
+                    "`{}` runs on another host than the orchestrator's; faults act on the \
+                     orchestrator's host only so far",
+                    f.service
+                ),
+            );
+        }
+    }
+    for (what, present) in [
+        ("[matrix]", scenario.matrix.is_some()),
+        ("[soak]", scenario.soak.is_some()),
+        ("[campaign]", scenario.campaign.is_some()),
+        ("[replay]", scenario.replay.is_some()),
+    ] {
+        if present {
+            c.fail(
+                "hosts",
+                format!("{what} runs on one host so far: remove [hosts] or {what}"),
+            );
+        }
+    }
+}
+
+/// Whether the scenario makes calls on topic `call` (the laser is the tracker's choice), and
+/// how a user turns them off.
+fn call_made(scenario: &super::Scenario, call: TopicId) -> (bool, &'static str) {
+    match call {
+        TopicId::Range => (
+            (scenario.camera.as_ref()).is_some_and(|c| c.tracker.laser),
+            " (or set camera.tracker.laser = false)",
+        ),
+        TopicId::Solve => (true, ""),
+        TopicId::Frame
+        | TopicId::Spectrum
+        | TopicId::Truth
+        | TopicId::Heartbeat
+        | TopicId::Control
+        | TopicId::Ack
+        | TopicId::Detections
+        | TopicId::Tracks
+        | TopicId::EarthFrame
+        | TopicId::EarthAttitude
+        | TopicId::Stereo
+        | TopicId::RelNav
+        | TopicId::Photometry
+        | TopicId::PhotometryEstimate => (false, ""),
+    }
+}
+
+fn join<'a>(names: impl Iterator<Item = &'a str>) -> String {
+    names.collect::<Vec<_>>().join(", ")
+}
