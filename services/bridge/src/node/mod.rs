@@ -138,6 +138,19 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
             .map_err(|_| anyhow!("{}", shared.failure().unwrap_or_default()))
             .context("opening the bridge's ports")?;
     }
+    // Presence: every bridge holds a liveliness token; a host whose token goes (its bridge
+    // ended, or its link was silent for Zenoh's lease) is gone.
+    let deployment = scenario.deployment_key();
+    let _token = (session.liveliness())
+        .declare_token(format!("glint/{deployment}/@bridge/{host}"))
+        .wait()
+        .map_err(|e| anyhow!("zenoh liveliness token: {e}"))?;
+    let presence = (session.liveliness())
+        .declare_subscriber(format!("glint/{deployment}/@bridge/*"))
+        .history(true)
+        .wait()
+        .map_err(|e| anyhow!("zenoh liveliness subscriber: {e}"))?;
+    let mut peers = Peers::default();
     hk.state = Heartbeat::READY;
     tracing::info!(host, "bridge ready");
     let beat = |hk: &mut Housekeeping| -> Result<()> {
@@ -155,6 +168,23 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
         if stop.load(Ordering::SeqCst) || hk.shutdown_addressed {
             return Ok(Step::Stop);
         }
+        while let Ok(Some(s)) = presence.try_recv() {
+            let peer = s
+                .key_expr()
+                .as_str()
+                .rsplit('/')
+                .next()
+                .unwrap_or("")
+                .to_string();
+            let here = s.kind() == zenoh::sample::SampleKind::Put;
+            if let Some(why) = peers.saw(scenario, host, &peer, here) {
+                // After the run's Shutdown, the orchestrator's host leaving is the run's end.
+                if !hk.shutdown_requested {
+                    shared.fail(why);
+                }
+                return Ok(Step::Stop);
+            }
+        }
         beat(&mut hk)?;
         Ok(Step::Wait)
     });
@@ -170,6 +200,32 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
     exit?;
     let _ = session.close().wait();
     Ok(())
+}
+
+/// The other hosts' bridges this one has seen come and go.
+#[derive(Default)]
+struct Peers {
+    present: Vec<String>,
+}
+
+impl Peers {
+    /// A peer's token appeared (`here`) or went. The orchestrator's host gone ends the bridge
+    /// of every other host (nothing of glint outlives its orchestrator): the reason returned.
+    fn saw(&mut self, scenario: &Scenario, host: &str, peer: &str, here: bool) -> Option<String> {
+        if peer == host {
+            return None;
+        }
+        if here {
+            tracing::info!(peer, "host joined");
+            self.present.push(peer.to_string());
+            return None;
+        }
+        tracing::warn!(peer, "host gone");
+        self.present.retain(|p| p != peer);
+        let orchestrator = scenario.orchestrator_host();
+        (orchestrator == Some(peer))
+            .then(|| format!("the orchestrator's host `{peer}` is gone (its bridge ended)"))
+    }
 }
 
 #[derive(Debug, Clone, Copy)]

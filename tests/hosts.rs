@@ -1,0 +1,194 @@
+//! A deployment split across hosts (`[hosts]`, the bridge over Zenoh), run as a user runs it:
+//! two `glint run --host` processes with the same scenario, here on one machine over loopback
+//! (each host's part under its own shared-memory prefix, so nothing crosses but through the
+//! bridges). The split debris chain gives the single-host run's science; a host's bridge killed
+//! or the orchestrator's host lost ends every part of the run, with the reason named.
+
+#![cfg(feature = "hosts")]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use common::procs::*;
+use common::*;
+use rustix::process::{kill_process, Signal};
+
+/// A TCP port free on loopback now (the OS's pick).
+fn free_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
+    l.local_addr().unwrap().port()
+}
+
+/// scenarios/debris-split.toml with `frames`, free ports, and `extra` before the first table.
+fn split(dir: &Path, frames: u32, extra: &str) -> PathBuf {
+    let (a, b) = (free_port(), free_port());
+    let ports = [
+        ("127.0.0.1:7447", format!("127.0.0.1:{a}")),
+        ("127.0.0.1:7448", format!("127.0.0.1:{b}")),
+    ];
+    let frames = format!("frames = {frames}");
+    let head = format!("{extra}\n[hosts.board]");
+    scenario_variant(
+        "debris-split.toml",
+        &[
+            (ports[0].0, &ports[0].1),
+            (ports[1].0, &ports[1].1),
+            ("frames = 50", &frames),
+            ("[hosts.board]", &head),
+        ],
+        dir,
+    )
+}
+
+/// The same scenario on one host: no `[hosts]`, no placement.
+fn single(split_file: &Path, dir: &Path) -> PathBuf {
+    let text = std::fs::read_to_string(split_file).unwrap();
+    let mut out = String::new();
+    let mut skipping = false;
+    for line in text.lines() {
+        if line.starts_with('[') {
+            skipping = line.starts_with("[hosts.") || line.starts_with("[services.");
+        }
+        if !skipping {
+            out += line;
+            out += "\n";
+        }
+    }
+    let file = dir.join("single.toml");
+    std::fs::write(&file, out).unwrap();
+    file
+}
+
+/// The ground host's part (`glint run --host ground`), killed if the test ends first.
+fn start_ground(file: &Path, out: &Path) -> KillOnDrop {
+    start_run(file, out, &["--host", "ground"])
+}
+
+/// The split chain gives the single-host run's science digest and every topic's digest; every
+/// message is accounted for across the hosts (the detector and tracker on `ground` report
+/// through the bridge); what crossed is counted per hop on both sides.
+#[test]
+fn the_split_debris_chain_gives_the_single_host_science() {
+    let dir = temp_dir("hosts-split");
+    let file = split(&dir, 20, "");
+    let mut ground = start_ground(&file, &dir.join("ground"));
+    let board = run_ok(Some(&file), &dir.join("board"), &[]);
+    let status = wait_for_exit(&mut ground, Duration::from_secs(30));
+    let ground_summary = std::fs::read_to_string(dir.join("ground/summary.md")).unwrap();
+    assert!(status.success(), "{ground_summary}");
+    let alone = run_ok(Some(&single(&file, &dir)), &dir.join("single"), &[]);
+
+    let (split_r, single_r) = (&board.typed.results, &alone.typed.results);
+    assert_eq!(split_r.science.digest_xxh3, single_r.science.digest_xxh3);
+    for (topic, t) in &single_r.topics {
+        assert_eq!(split_r.topics[topic].digest_xxh3, t.digest_xxh3, "{topic}");
+    }
+    // The remote consumers' counters arrived across the bridge: every frame taken on ground.
+    let frame = &split_r.topics["frame"];
+    assert_eq!(frame.consumers["detector"].received, Some(20));
+    assert_eq!(
+        split_r.topics["tracks"].consumers["orchestrator"].received,
+        Some(20)
+    );
+    assert!(split_r.accounting.invariant_held);
+    for name in ["sensor", "detector", "tracker", "bridge"] {
+        assert_eq!(ending(&board.typed, name), "shutdown", "{name}");
+    }
+    // Per hop: ground's bridge took 20 frames off the wire and passed 20 on; it put 20
+    // detections and 20 tracks on the wire. None lost, none refused.
+    for row in [
+        "| frame | 20 | 20 | 0 | 0 |",
+        "| detections | 20 | 20 | 0 | 0 |",
+        "| tracks | 20 | 20 | 0 | 0 |",
+    ] {
+        assert!(ground_summary.contains(row), "{row} in\n{ground_summary}");
+    }
+    for part in ["board", "ground", "single"] {
+        let log = std::fs::read_to_string(stderr_path(&dir.join(part))).unwrap_or_default();
+        assert!(!log.contains("panicked"), "{part}: {log}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Waits until `ground`'s `glint service <name>` is up; its pid.
+fn ground_service(ground: &KillOnDrop, name: &str) -> u32 {
+    let pid = wait_for_service(ground, name, Duration::from_millis(5));
+    pid.as_raw_nonzero().get() as u32
+}
+
+/// The ground host's bridge SIGKILLed mid-run: the orchestrator of record hears nothing more
+/// from the services there and fails the run within the heartbeat deadline, naming the host;
+/// the ground part ends too (its bridge gone), and no process of either host remains.
+#[test]
+fn a_killed_bridge_fails_the_run_naming_the_host_and_nothing_remains() {
+    let dir = temp_dir("hosts-bridge-kill");
+    let run = "clock = \"realtime\"\n[run]\ntimeout_s = 120.0\nheartbeat_deadline_ms = 1000\n";
+    let file = split(&dir, 2000, run);
+    let mut ground = start_ground(&file, &dir.join("ground"));
+    let mut board = start_run(&file, &dir.join("board"), &[]);
+    wait_for_start(&dir.join("board"));
+    let bridge = ground_service(&ground, "bridge");
+    let detector = ground_service(&ground, "detector");
+    std::thread::sleep(Duration::from_millis(500));
+    let pid = rustix::process::Pid::from_raw(bridge as i32).unwrap();
+    kill_process(pid, Signal::KILL).expect("SIGKILL ground's bridge");
+    let killed = Instant::now();
+    let status = wait_for_exit(&mut board, Duration::from_secs(30));
+    assert_eq!(status.code(), Some(1));
+    let report = read_report(&dir.join("board/report.json"));
+    let failure = report.results.failure.clone().unwrap_or_default();
+    assert!(
+        failure.contains("on host ground") && failure.contains("across the bridge"),
+        "{failure}"
+    );
+    // detected at the heartbeat deadline, not at the run's timeout
+    assert!(
+        killed.elapsed() < Duration::from_secs(10),
+        "{:?}",
+        killed.elapsed()
+    );
+    let status = wait_for_exit(&mut ground, Duration::from_secs(30));
+    assert!(!status.success());
+    let summary = std::fs::read_to_string(dir.join("ground/summary.md")).unwrap();
+    assert!(
+        summary.contains("bridge exited before the run ended"),
+        "{summary}"
+    );
+    assert_eq!(process_state(detector).filter(|s| *s != 'Z'), None);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The orchestrator of record SIGKILLed: its host's processes go with it (parent-death
+/// signal), the ground bridge sees the board's bridge gone and the ground part stops its
+/// services and ends, naming why; `glint clean` removes what the killed orchestrator left.
+#[test]
+fn a_killed_orchestrator_ends_the_other_hosts_part() {
+    let dir = temp_dir("hosts-orchestrator-kill");
+    let run = "clock = \"realtime\"\n[run]\ntimeout_s = 120.0\n";
+    let file = split(&dir, 2000, run);
+    let mut ground = start_ground(&file, &dir.join("ground"));
+    let mut board = start_run(&file, &dir.join("board"), &[]);
+    wait_for_start(&dir.join("board"));
+    let sensor = wait_for_service(&board, "sensor", Duration::from_millis(5));
+    let prefix = prefix_of(sensor);
+    let detector = ground_service(&ground, "detector");
+    board.0.kill().expect("SIGKILL the orchestrator");
+    board.0.wait().expect("reap");
+    let status = wait_for_exit(&mut ground, Duration::from_secs(30));
+    assert!(!status.success());
+    let summary = std::fs::read_to_string(dir.join("ground/summary.md")).unwrap();
+    assert!(
+        summary.contains("the orchestrator's host `board` is gone"),
+        "{summary}"
+    );
+    assert_eq!(process_state(detector).filter(|s| *s != 'Z'), None);
+    let cleaned = glint()
+        .args(["clean", "--prefix", &prefix])
+        .output()
+        .unwrap();
+    assert!(cleaned.status.success(), "{cleaned:?}");
+    assert!(shm_left(&prefix).is_empty(), "{:?}", shm_left(&prefix));
+    let _ = std::fs::remove_dir_all(&dir);
+}
