@@ -192,3 +192,168 @@ fn a_killed_orchestrator_ends_the_other_hosts_part() {
     assert!(shm_left(&prefix).is_empty(), "{:?}", shm_left(&prefix));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Two network namespaces joined by a veth pair (`ip netns`, as root): the two hosts of a
+/// split deployment on one machine, each with only its own address, and a link that can be
+/// cut. `None` where this machine cannot make them (no root, no iproute2).
+struct Namespaces {
+    names: [String; 2],
+    addrs: [String; 2],
+    /// `board`'s end of the link.
+    veth: String,
+}
+
+fn ip(args: &[&str]) -> bool {
+    std::process::Command::new("ip")
+        .args(args)
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+impl Namespaces {
+    fn new() -> Option<Self> {
+        let id = std::process::id() % 100_000;
+        let names = [format!("glint-a{id}"), format!("glint-b{id}")];
+        let veth = [format!("gla{id}"), format!("glb{id}")];
+        let net = 10 + id % 200;
+        let addrs = [format!("10.{net}.7.1"), format!("10.{net}.7.2")];
+        let ns = Namespaces {
+            names: names.clone(),
+            addrs: addrs.clone(),
+            veth: veth[0].clone(),
+        };
+        let made = ip(&["netns", "add", &names[0]])
+            && ip(&["netns", "add", &names[1]])
+            && ip(&[
+                "link", "add", &veth[0], "type", "veth", "peer", "name", &veth[1],
+            ])
+            && (0..2).all(|i| {
+                ip(&["link", "set", &veth[i], "netns", &names[i]])
+                    && ip(&[
+                        "-n",
+                        &names[i],
+                        "addr",
+                        "add",
+                        &format!("{}/24", addrs[i]),
+                        "dev",
+                        &veth[i],
+                    ])
+                    && ip(&["-n", &names[i], "link", "set", &veth[i], "up"])
+                    && ip(&["-n", &names[i], "link", "set", "lo", "up"])
+            });
+        made.then_some(ns)
+    }
+
+    /// `glint run FILE --out OUT --host HOST` inside namespace `i`.
+    fn run(&self, i: usize, file: &Path, out: &Path, host: &str) -> KillOnDrop {
+        let stderr = std::fs::File::create(stderr_path(out)).unwrap();
+        KillOnDrop(
+            std::process::Command::new("ip")
+                .args([
+                    "netns",
+                    "exec",
+                    &self.names[i],
+                    env!("CARGO_BIN_EXE_glint"),
+                    "run",
+                ])
+                .arg(file)
+                .arg("--out")
+                .arg(out)
+                .args(["--host", host])
+                .stdout(std::process::Stdio::null())
+                .stderr(stderr)
+                .spawn()
+                .expect("ip netns exec glint run"),
+        )
+    }
+
+    /// Takes `board`'s end of the link down (`up` false) or up again; the wall clock then.
+    fn link(&self, up: bool) -> u64 {
+        let state = if up { "up" } else { "down" };
+        assert!(ip(&[
+            "-n",
+            &self.names[0],
+            "link",
+            "set",
+            &self.veth,
+            state
+        ]));
+        unix_ms()
+    }
+}
+
+impl Drop for Namespaces {
+    fn drop(&mut self) {
+        for n in &self.names {
+            ip(&["netns", "del", n]);
+        }
+    }
+}
+
+fn unix_ms() -> u64 {
+    let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH);
+    now.unwrap().as_millis() as u64
+}
+
+/// The link between the hosts cut for 2 s in the middle of a sim-clock run (two network
+/// namespaces, a veth pair, `ip link set down`): the orchestrator notices the other host cut
+/// off within 0.5 s, hears it again once the link is back, and nothing is lost: every frame is
+/// accounted for and the science equals the single-host run's. The outage is in the report.
+#[test]
+fn a_two_second_partition_is_noticed_and_nothing_is_lost() {
+    let Some(ns) = Namespaces::new() else {
+        eprintln!("SKIPPED: this machine cannot make network namespaces (root and iproute2)");
+        return;
+    };
+    let dir = temp_dir("hosts-partition");
+    let frames = 4000;
+    let file = split(&dir, frames, "");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let mut text = text.replace("width_px = 1024", "width_px = 256");
+    text = text.replace("height_px = 1024", "height_px = 256");
+    // board's endpoint comes first in the file, ground's second
+    text = text.replacen("127.0.0.1", &ns.addrs[0], 1);
+    text = text.replacen("127.0.0.1", &ns.addrs[1], 1);
+    std::fs::write(&file, &text).unwrap();
+    let mut ground = ns.run(1, &file, &dir.join("ground"), "ground");
+    let mut board = ns.run(0, &file, &dir.join("board"), "board");
+    wait_for_start(&dir.join("board"));
+    std::thread::sleep(Duration::from_millis(300));
+    let cut_ms = ns.link(false);
+    std::thread::sleep(Duration::from_secs(2));
+    let back_ms = ns.link(true);
+    let status = wait_for_exit(&mut board, Duration::from_secs(120));
+    let log = std::fs::read_to_string(stderr_path(&dir.join("board"))).unwrap_or_default();
+    assert!(status.success(), "{log}");
+    assert!(wait_for_exit(&mut ground, Duration::from_secs(30)).success());
+    let report = read_report(&dir.join("board/report.json"));
+    let r = &report.results;
+    assert!(r.accounting.invariant_held);
+    assert_eq!(
+        r.topics["frame"].consumers["detector"].received,
+        Some(frames as u64)
+    );
+    let alone = run_ok(Some(&single(&file, &dir)), &dir.join("single"), &[]);
+    assert_eq!(
+        r.science.digest_xxh3,
+        alone.typed.results.science.digest_xxh3
+    );
+    let ground_host = (report.run.hosts.iter())
+        .find(|h| h.name == "ground")
+        .unwrap();
+    let [outage] = ground_host.outages.as_slice() else {
+        panic!("one outage: {:?}", ground_host.outages);
+    };
+    let noticed_ms = outage.detected_unix_ms as i64 - cut_ms as i64;
+    let heard_ms = outage.recovered_unix_ms.expect("heard again") as i64 - back_ms as i64;
+    eprintln!("partition of 2 s: noticed {noticed_ms} ms after the cut, heard again {heard_ms} ms after the link came back");
+    assert!(
+        (0..500).contains(&noticed_ms),
+        "noticed {noticed_ms} ms after the cut"
+    );
+    assert!(
+        (0..1000).contains(&heard_ms),
+        "heard again {heard_ms} ms after the link came back"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

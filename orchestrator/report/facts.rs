@@ -88,6 +88,8 @@ pub struct RunFacts {
     /// A soak's end ([`crate::run::live::SoakEnd`]).
     pub soak_end: Option<crate::run::live::SoakEnd>,
     pub membership: super::MembershipReport,
+    /// A split deployment's hosts ([`crate::run::links`]).
+    pub hosts: Vec<crate::run::links::HostReport>,
 }
 
 fn consumer_fact(c: TopicCounters) -> ConsumerFact {
@@ -198,6 +200,7 @@ impl RunFacts {
             faults,
             solve_tampered: [0; 4],
             membership: Default::default(),
+            hosts: vec![],
             memory: BTreeMap::new(),
             soak_end: None,
             recording: None,

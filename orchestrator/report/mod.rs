@@ -143,6 +143,7 @@ pub fn build(scenario: &Scenario, f: &RunFacts) -> Report {
                 .map(|s| (s.name.clone(), s.pid))
                 .collect(),
             recording: f.recording.clone(),
+            hosts: f.hosts.clone(),
         },
         timing: Timing {
             wall_s: f.wall_s,
@@ -280,6 +281,7 @@ fn summary_md(scenario: &Scenario, f: &RunFacts, r: &Report) -> String {
                 .map_or("—".into(), |t| format!("{:.0} %", busy_percent(&t)))
         );
     }
+    s.push_str(&crate::run::links::markdown(&f.hosts));
     s.push_str(&faults::markdown(f));
     let _ = writeln!(
         s,

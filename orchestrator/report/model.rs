@@ -230,6 +230,10 @@ pub struct RunInfo {
     /// What `glint run --record` wrote.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub recording: Option<crate::run::record::RecordingReport>,
+    /// A deployment split across hosts: each host, its services, the times it was cut off,
+    /// and the orchestrator's host's bridge per hop (docs/hosts.md).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub hosts: Vec<crate::run::links::HostReport>,
 }
 
 /// Percentiles of a latency sample [µs].

@@ -73,6 +73,8 @@ pub struct Live<'a> {
     /// Services of the deployment on other hosts (a split deployment): heard from through the
     /// bridge, never spawned or signalled from here.
     remote: Vec<ServiceId>,
+    /// The other hosts, heard through the bridge: when each was cut off.
+    links: crate::run::links::Links,
     injector: Injector,
     supervisor: Supervisor,
     membership: Membership,
@@ -114,6 +116,7 @@ impl<'a> Live<'a> {
             .map(|id| spawner.spawn(id, 0))
             .collect::<Result<Vec<_>>>()?;
         let remote = crate::run::hosts::remote_services(scenario, spawner.host);
+        let links = crate::run::links::Links::new(scenario, spawner.host, &remote);
         tracing::info!(
             prefix = spawner.prefix,
             services = children.len(),
@@ -139,6 +142,7 @@ impl<'a> Live<'a> {
             consumer,
             sequencer,
             children,
+            links,
             remote,
             injector: Injector::new(scenario),
             supervisor,
@@ -362,6 +366,11 @@ impl<'a> Live<'a> {
                 if let Some(stop) = self.supervise(now, now_s)? {
                     return Ok(Some(stop));
                 }
+                let t_running = self.t_running;
+                let since = |t: Instant| {
+                    t_running.map_or(0.0, |t0| t.saturating_duration_since(t0).as_secs_f64())
+                };
+                self.links.step(now, &self.consumer.seen, since);
                 if let Some(why) = self.remote_silent(now) {
                     return Ok(Some(self.fail(why)));
                 }
@@ -710,6 +719,12 @@ impl<'a> Live<'a> {
             },
         );
         facts.solve_tampered = solve_tampered;
+        let bridge = self.consumer.seen.get(&ServiceId::Bridge);
+        facts.hosts = (self.links).report(
+            self.scenario,
+            self.spawner.host,
+            bridge.map(|s| &s.heartbeat),
+        );
         // Another host's services, as their heartbeats across the bridge last told.
         for &id in &self.remote {
             let seen = self.consumer.seen.get(&id);

@@ -8,6 +8,7 @@ pub mod deploy;
 pub mod faults;
 pub mod hosts;
 pub mod latency;
+pub mod links;
 pub mod live;
 pub mod matrix;
 pub mod membership;
