@@ -172,6 +172,12 @@ pub(crate) enum BenchCmd {
         /// scenario): e.g. `--cpu sensor=0 --cpu detector=1`.
         #[arg(long, value_parser = parse_placement)]
         cpu: Vec<(String, u32)>,
+        /// Also deploy the chain split across two hosts on this machine (sensor | detector +
+        /// tracker, a bridge each side over loopback; needs `--laser off` and the `hosts`
+        /// feature): its frames/s, latencies and bytes on the wire beside the local
+        /// deployment's, and one TCP stream's frames/s, the link's limit.
+        #[arg(long, conflicts_with = "source")]
+        split: bool,
     },
     /// The pipeline bench swept over frame size (at 4 debris) and number of debris (at
     /// 1024²): frames/s and each core's time per frame, and the exponent of their growth.

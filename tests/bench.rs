@@ -412,3 +412,42 @@ fn bench_scaling_sweeps_size_and_targets() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--split`: the chain also deployed across two `glint run --host` processes on this machine;
+/// every frame crossed the bridge (counted on the wire), none lost or refused, the science the
+/// local deployment's; beside it, one TCP stream's frames/s. Figures are printed, not asserted.
+#[cfg(feature = "hosts")]
+#[test]
+fn bench_pipeline_split_carries_every_frame_across_the_bridge() {
+    let dir = temp_dir("bench-pipeline-split");
+    let args = ["pipeline", "--frames", "30", "--size", "256x256"];
+    let stdout = glint_bench(&[&args[..], &["--laser", "off", "--split"]].concat(), &dir);
+    assert!(stdout.contains("split across two hosts"), "{stdout}");
+    let s = &read_json(&dir.join("bench.json"))["pipeline"]["split"];
+    assert_eq!(s["frames_on_wire"], 30, "{s}");
+    // header, 256² u16 pixels and the 32-byte envelope, per frame
+    let header = std::mem::size_of::<shared_types::FrameHeader>() as u64;
+    assert_eq!(
+        s["frame_bytes_on_wire"],
+        30 * (header + 2 * 256 * 256 + 32),
+        "{s}"
+    );
+    assert_eq!(
+        (&s["link_lost"], &s["refused"], &s["dropped"]),
+        (&0.into(), &0.into(), &0.into())
+    );
+    assert_eq!(s["science_equal"], true, "{s}");
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert!(
+        f(&s["frames_per_s"]) > 0.0 && f(&s["tcp_frames_per_s"]) > 0.0,
+        "{s}"
+    );
+    // `--split` with the laser on is refused: its calls would cross
+    let out = glint()
+        .args(["bench", "pipeline", "--frames", "5", "--split"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--laser off"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

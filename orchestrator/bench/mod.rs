@@ -6,6 +6,7 @@
 pub mod ipc;
 pub mod pipeline;
 pub mod scaling;
+pub mod split;
 
 use std::path::{Path, PathBuf};
 
@@ -366,7 +367,9 @@ pub fn run_pipeline(
     sc: shared_types::Scenario,
     record: bool,
     replayed: Option<shared_types::Scenario>,
+    split: bool,
 ) -> Result<()> {
+    let split_sc = split.then(|| sc.clone());
     std::fs::create_dir_all(&o.out).with_context(|| format!("creating {}", o.out.display()))?;
     let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let recorded_sc = record.then(|| sc.clone());
@@ -401,6 +404,10 @@ pub fn run_pipeline(
             "frames_per_s_rendered": deployed.fps,
             "ratio": fps / deployed.fps,
         });
+    }
+    if let Some(sc) = split_sc {
+        let s = split::measure(&sc, &o.out, progress)?;
+        section["split"] = split::report(&s, &deployed);
     }
     if let Some(sc) = recorded_sc {
         let r = measure_recorded(sc, o.out.join("run-recorded"), progress)?;
@@ -472,8 +479,19 @@ pub(crate) fn command(bench: crate::cli::BenchCmd) -> std::process::ExitCode {
             record,
             source,
             cpu,
+            split,
         } => {
             glint_runtime::init_tracing("orchestrator");
+            if split && matches!(laser, OnOff::On) {
+                eprintln!(
+                    "error: --split: the tracker's laser calls do not cross hosts yet; add --laser off"
+                );
+                return ExitCode::from(2);
+            }
+            if split && !cfg!(feature = "hosts") {
+                eprintln!("error: --split: {}", crate::run::hosts::WITHOUT_HOSTS);
+                return ExitCode::from(2);
+            }
             let opts = crate::bench::pipeline::PipelineOptions {
                 out: out.unwrap_or_else(|| {
                     PathBuf::from("runs")
@@ -512,7 +530,7 @@ pub(crate) fn command(bench: crate::cli::BenchCmd) -> std::process::ExitCode {
                     return ExitCode::from(2);
                 }
             }
-            match crate::bench::run_pipeline(&opts, sc, record, replayed) {
+            match crate::bench::run_pipeline(&opts, sc, record, replayed, split) {
                 Ok(()) => ExitCode::SUCCESS,
                 Err(e) => {
                     eprintln!("error: {e:#}");
