@@ -73,14 +73,21 @@ fn start_ground(file: &Path, out: &Path) -> KillOnDrop {
 fn the_split_debris_chain_gives_the_single_host_science() {
     let dir = temp_dir("hosts-split");
     let file = split(&dir, 20, "");
+    // The orchestrator's host first, the other a second later: the run starts only once both
+    // bridges take each other's topics (nothing sent before would arrive).
+    let mut board_run = start_run(&file, &dir.join("board"), &[]);
+    std::thread::sleep(Duration::from_secs(1));
     let mut ground = start_ground(&file, &dir.join("ground"));
-    let board = run_ok(Some(&file), &dir.join("board"), &[]);
+    let board_status = wait_for_exit(&mut board_run, Duration::from_secs(60));
+    let board_log = std::fs::read_to_string(stderr_path(&dir.join("board"))).unwrap_or_default();
+    assert!(board_status.success(), "{board_log}");
+    let board = read_report(&dir.join("board/report.json"));
     let status = wait_for_exit(&mut ground, Duration::from_secs(30));
     let ground_summary = std::fs::read_to_string(dir.join("ground/summary.md")).unwrap();
     assert!(status.success(), "{ground_summary}");
     let alone = run_ok(Some(&single(&file, &dir)), &dir.join("single"), &[]);
 
-    let (split_r, single_r) = (&board.typed.results, &alone.typed.results);
+    let (split_r, single_r) = (&board.results, &alone.typed.results);
     assert_eq!(split_r.science.digest_xxh3, single_r.science.digest_xxh3);
     for (topic, t) in &single_r.topics {
         assert_eq!(split_r.topics[topic].digest_xxh3, t.digest_xxh3, "{topic}");
@@ -94,7 +101,7 @@ fn the_split_debris_chain_gives_the_single_host_science() {
     );
     assert!(split_r.accounting.invariant_held);
     for name in ["sensor", "detector", "tracker", "bridge"] {
-        assert_eq!(ending(&board.typed, name), "shutdown", "{name}");
+        assert_eq!(ending(&board, name), "shutdown", "{name}");
     }
     // Per hop: ground's bridge took 20 frames off the wire and passed 20 on; it put 20
     // detections and 20 tracks on the wire. None lost, none refused.
@@ -180,7 +187,7 @@ fn a_killed_orchestrator_ends_the_other_hosts_part() {
     assert!(!status.success());
     let summary = std::fs::read_to_string(dir.join("ground/summary.md")).unwrap();
     assert!(
-        summary.contains("the orchestrator's host `board` is gone"),
+        summary.contains("lost the orchestrator's host `board`"),
         "{summary}"
     );
     assert_eq!(process_state(detector).filter(|s| *s != 'Z'), None);
@@ -211,12 +218,13 @@ fn ip(args: &[&str]) -> bool {
 }
 
 impl Namespaces {
-    fn new() -> Option<Self> {
+    /// The pair numbered `k` (one per test of this process).
+    fn new(k: u32) -> Option<Self> {
         let id = std::process::id() % 100_000;
-        let names = [format!("glint-a{id}"), format!("glint-b{id}")];
-        let veth = [format!("gla{id}"), format!("glb{id}")];
+        let names = [format!("glint-a{id}-{k}"), format!("glint-b{id}-{k}")];
+        let veth = [format!("gla{id}-{k}"), format!("glb{id}-{k}")];
         let net = 10 + id % 200;
-        let addrs = [format!("10.{net}.7.1"), format!("10.{net}.7.2")];
+        let addrs = [format!("10.{net}.{k}.1"), format!("10.{net}.{k}.2")];
         let ns = Namespaces {
             names: names.clone(),
             addrs: addrs.clone(),
@@ -268,6 +276,19 @@ impl Namespaces {
     }
 
     /// Takes `board`'s end of the link down (`up` false) or up again; the wall clock then.
+    /// The split scenario of `frames` 256² frames, its hosts at the namespaces' addresses.
+    fn scenario(&self, dir: &Path, frames: u32) -> PathBuf {
+        let file = split(dir, frames, "");
+        let text = std::fs::read_to_string(&file).unwrap();
+        let mut text = text.replace("width_px = 1024", "width_px = 256");
+        text = text.replace("height_px = 1024", "height_px = 256");
+        // board's endpoint comes first in the file, ground's second
+        text = text.replacen("127.0.0.1", &self.addrs[0], 1);
+        text = text.replacen("127.0.0.1", &self.addrs[1], 1);
+        std::fs::write(&file, &text).unwrap();
+        file
+    }
+
     fn link(&self, up: bool) -> u64 {
         let state = if up { "up" } else { "down" };
         assert!(ip(&[
@@ -301,20 +322,13 @@ fn unix_ms() -> u64 {
 /// accounted for and the science equals the single-host run's. The outage is in the report.
 #[test]
 fn a_two_second_partition_is_noticed_and_nothing_is_lost() {
-    let Some(ns) = Namespaces::new() else {
+    let Some(ns) = Namespaces::new(1) else {
         eprintln!("SKIPPED: this machine cannot make network namespaces (root and iproute2)");
         return;
     };
     let dir = temp_dir("hosts-partition");
     let frames = 4000;
-    let file = split(&dir, frames, "");
-    let text = std::fs::read_to_string(&file).unwrap();
-    let mut text = text.replace("width_px = 1024", "width_px = 256");
-    text = text.replace("height_px = 1024", "height_px = 256");
-    // board's endpoint comes first in the file, ground's second
-    text = text.replacen("127.0.0.1", &ns.addrs[0], 1);
-    text = text.replacen("127.0.0.1", &ns.addrs[1], 1);
-    std::fs::write(&file, &text).unwrap();
+    let file = ns.scenario(&dir, frames);
     let mut ground = ns.run(1, &file, &dir.join("ground"), "ground");
     let mut board = ns.run(0, &file, &dir.join("board"), "board");
     wait_for_start(&dir.join("board"));
@@ -356,4 +370,72 @@ fn a_two_second_partition_is_noticed_and_nothing_is_lost() {
         "heard again {heard_ms} ms after the link came back"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A slow link (`tc` token bucket on the veth, 100 Mbit/s both ways): the split chain runs at
+/// what the link carries, and still loses nothing and gives the single-host science.
+#[test]
+fn a_slow_link_slows_the_chain_and_loses_nothing() {
+    let Some(ns) = Namespaces::new(2) else {
+        eprintln!("SKIPPED: this machine cannot make network namespaces (root and iproute2)");
+        return;
+    };
+    let dir = temp_dir("hosts-slow-link");
+    let frames = 200;
+    let file = ns.scenario(&dir, frames);
+    const RATE_BIT_S: f64 = 100e6;
+    for (i, veth) in [(0, ns.veth.clone()), (1, ns.veth.replacen("gla", "glb", 1))] {
+        let tbf = [
+            "-n",
+            &ns.names[i],
+            "qdisc",
+            "add",
+            "dev",
+            &veth,
+            "root",
+            "tbf",
+        ];
+        let rate = ["rate", "100mbit", "burst", "32kb", "latency", "400ms"];
+        assert!(tc(&[&tbf[..], &rate[..]].concat()), "tc tbf on {veth}");
+    }
+    let mut ground = ns.run(1, &file, &dir.join("ground"), "ground");
+    let mut board = ns.run(0, &file, &dir.join("board"), "board");
+    let status = wait_for_exit(&mut board, Duration::from_secs(120));
+    let log = std::fs::read_to_string(stderr_path(&dir.join("board"))).unwrap_or_default();
+    assert!(status.success(), "{log}");
+    assert!(wait_for_exit(&mut ground, Duration::from_secs(30)).success());
+    let report = read_report(&dir.join("board/report.json"));
+    let r = &report.results;
+    assert!(r.accounting.invariant_held);
+    assert_eq!(
+        r.topics["frame"].consumers["detector"].received,
+        Some(frames as u64)
+    );
+    let alone = run_ok(Some(&single(&file, &dir)), &dir.join("single"), &[]);
+    assert_eq!(
+        r.science.digest_xxh3,
+        alone.typed.results.science.digest_xxh3
+    );
+    // the limit took effect: the frames crossed no faster than the link carries them
+    let frame_bits =
+        8.0 * (std::mem::size_of::<shared_types::FrameHeader>() + 2 * 256 * 256) as f64;
+    let fps = report.timing.frames_per_s;
+    assert!(
+        fps * frame_bits < 1.1 * RATE_BIT_S,
+        "{fps} frames/s over 100 Mbit/s"
+    );
+    eprintln!(
+        "slow link (100 Mbit/s): {fps:.1} frames/s ({:.0} Mbit/s of frames); one host: {:.1} frames/s",
+        fps * frame_bits / 1e6,
+        alone.typed.timing.frames_per_s
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `tc ARGS…` (iproute2's traffic control).
+fn tc(args: &[&str]) -> bool {
+    std::process::Command::new("tc")
+        .args(args)
+        .status()
+        .is_ok_and(|s| s.success())
 }

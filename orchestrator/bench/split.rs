@@ -14,6 +14,16 @@ use shared_types::{FrameHeader, Scenario};
 
 use super::pipeline::{self, Deployed};
 
+/// The ground host's part, ended with the bench whatever happens to the board's.
+struct KillOnDrop(std::process::Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
 /// What the split deployment measured.
 pub struct Split {
     pub deployed: Deployed,
@@ -70,15 +80,17 @@ pub fn measure(sc: &Scenario, out: &Path, progress: bool) -> Result<Split> {
     let exe = std::env::current_exe()?;
     let ground_dir = out.join("split-ground");
     let ground_log = std::fs::File::create(out.join("split-ground.stderr"))?;
-    let mut ground = std::process::Command::new(exe)
-        .arg("run")
-        .arg(&file)
-        .args(["--host", "ground", "--force", "--out"])
-        .arg(&ground_dir)
-        .stdout(std::process::Stdio::null())
-        .stderr(ground_log)
-        .spawn()
-        .context("starting the ground host's part")?;
+    let mut ground = KillOnDrop(
+        std::process::Command::new(exe)
+            .arg("run")
+            .arg(&file)
+            .args(["--host", "ground", "--force", "--out"])
+            .arg(&ground_dir)
+            .stdout(std::process::Stdio::null())
+            .stderr(ground_log)
+            .spawn()
+            .context("starting the ground host's part")?,
+    );
     let opts = crate::run::RunOptions {
         scenario: split.clone(),
         scenario_file: file.display().to_string(),
@@ -89,7 +101,7 @@ pub fn measure(sc: &Scenario, out: &Path, progress: bool) -> Result<Split> {
         host: Some("board".into()),
     };
     let board = crate::run::run(opts);
-    let ground_ok = ground.wait().is_ok_and(|s| s.success());
+    let ground_ok = ground.0.wait().is_ok_and(|s| s.success());
     let (dir, ok) = board?;
     let report: Value = serde_json::from_str(
         &std::fs::read_to_string(dir.join("report.json")).context("the split run's report")?,

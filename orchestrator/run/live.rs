@@ -322,8 +322,16 @@ impl<'a> Live<'a> {
                 "all services ready; started"
             );
         } else if self.t_start.elapsed() > Duration::from_millis(timeout_ms) {
+            // Hosts that run different scenarios (another file, --seed, --fault) never meet.
+            let hint = match self.remote.is_empty() {
+                true => "",
+                false => {
+                    " (a split deployment: is every host's part running, with the same \
+                     scenario file, --seed and --fault?)"
+                }
+            };
             return Ok(Some(self.fail(format!(
-                "services not ready within run.startup_timeout_ms = {timeout_ms} ms"
+                "services not ready within run.startup_timeout_ms = {timeout_ms} ms{hint}"
             ))));
         }
         Ok(None)

@@ -88,8 +88,9 @@ fn endpoint_ok(endpoint: &str) -> bool {
     let Some(addr) = endpoint.strip_prefix("tcp/") else {
         return false;
     };
+    // The others connect to it: an unspecified address (0.0.0.0) names no host.
     addr.parse::<std::net::SocketAddrV4>()
-        .is_ok_and(|a| a.port() != 0)
+        .is_ok_and(|a| a.port() != 0 && !a.ip().is_unspecified())
 }
 
 pub(super) fn check_hosts(c: &mut Checker, scenario: &super::Scenario) {
@@ -111,7 +112,7 @@ pub(super) fn check_hosts(c: &mut Checker, scenario: &super::Scenario) {
             c.fail(
                 &format!("hosts.{name}.endpoint"),
                 format!(
-                    "`{}` is not a TCP endpoint; allowed: tcp/<IPv4 address>:<port 1-65535>",
+                    "`{}` is not a TCP endpoint; allowed: tcp/<IPv4 address, not 0.0.0.0>:<port 1-65535>",
                     h.endpoint
                 ),
             );
@@ -161,8 +162,35 @@ pub(super) fn check_hosts(c: &mut Checker, scenario: &super::Scenario) {
             }
         }
     }
+    if scenario
+        .services
+        .get("bridge")
+        .is_some_and(|p| p.host.is_some())
+    {
+        c.fail(
+            "services.bridge.host",
+            "every host runs its own bridge; it is placed by [hosts], not here".into(),
+        );
+    }
     if !c.errors.is_empty() {
         return;
+    }
+    // A host runs something: a host without a service would have nothing to carry, not even
+    // the orchestrator's Shutdown.
+    let deployed = crate::deployment::services(scenario);
+    for (name, h) in hosts.iter().filter(|(_, h)| !h.orchestrator) {
+        let runs_one = (deployed.iter())
+            .any(|s| *s != ServiceId::Bridge && scenario.host_of(*s) == Some(name.as_str()));
+        if !runs_one {
+            c.fail(
+                &format!("hosts.{name}"),
+                format!(
+                    "runs no service of this scenario; place one there with \
+                     [services.<name>] host = \"{name}\" (endpoint {}), or remove the host",
+                    h.endpoint
+                ),
+            );
+        }
     }
     check_what_crosses(c, scenario);
 }
@@ -211,7 +239,12 @@ fn check_what_crosses(c: &mut Checker, scenario: &super::Scenario) {
     // Supervision and faults act on processes of the orchestrator's host only, so far.
     for f in &scenario.fault {
         let service = ServiceId::from_name(&f.service);
-        if service.is_some_and(|s| scenario.host_of(s) != Some(orchestrator)) {
+        if service == Some(ServiceId::Bridge) {
+            c.fail(
+                "fault.service",
+                "the bridge is not a fault target yet (cut or slow the link instead)".into(),
+            );
+        } else if service.is_some_and(|s| scenario.host_of(s) != Some(orchestrator)) {
             c.fail(
                 "fault.service",
                 format!(
@@ -265,4 +298,107 @@ fn call_made(scenario: &super::Scenario, call: TopicId) -> (bool, &'static str) 
 
 fn join<'a>(names: impl Iterator<Item = &'a str>) -> String {
     names.collect::<Vec<_>>().join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::Scenario;
+
+    const SPLIT: &str = r#"
+name = "split"
+[camera]
+width_px = 64
+height_px = 64
+fov_deg = 10.0
+exposure_s = 0.02
+interval_s = 0.02
+frames = 2
+background_dn = 100.0
+read_noise_dn = 5.0
+psf_sigma_px = 0.8
+reference_signal_dn = 40000.0
+orbit_semi_major_axis_km = 42164.1696
+[[camera.debris]]
+x_m = 9000.0
+y_m = 600.0
+z_m = -500.0
+vx_mps = -100.0
+vy_mps = -600.0
+vz_mps = 400.0
+size_m = 0.1
+[camera.tracker]
+laser = false
+[hosts.a]
+endpoint = "tcp/127.0.0.1:7501"
+orchestrator = true
+[hosts.b]
+endpoint = "tcp/127.0.0.1:7502"
+[services.detector]
+host = "b"
+"#;
+
+    /// The fields a placement names in its errors, for `SPLIT` with `(from, to)` replaced.
+    fn errors(from: &str, to: &str) -> Vec<String> {
+        errors_of(&[(from, to)])
+    }
+
+    fn errors_of(replacements: &[(&str, &str)]) -> Vec<String> {
+        let mut text = SPLIT.to_string();
+        for (from, to) in replacements {
+            assert!(text.contains(from), "{from}");
+            text = text.replace(from, to);
+        }
+        match Scenario::from_toml_str(&text, "split.toml") {
+            Ok(_) => vec![],
+            Err(crate::scenario::ScenarioError::Invalid { errors, .. }) => {
+                errors.into_iter().map(|e| e.field).collect()
+            }
+            Err(e) => vec![e.to_string()],
+        }
+    }
+
+    #[test]
+    fn a_placement_is_checked_field_by_field() {
+        assert_eq!(errors("", ""), Vec::<String>::new());
+        assert_eq!(
+            errors("host = \"b\"", "host = \"c\""),
+            ["services.detector.host"]
+        );
+        assert_eq!(
+            errors("127.0.0.1:7502", "0.0.0.0:7502"),
+            ["hosts.b.endpoint"]
+        );
+        assert_eq!(
+            errors("127.0.0.1:7502", "127.0.0.1:0"),
+            ["hosts.b.endpoint"]
+        );
+        assert_eq!(
+            errors("tcp/127.0.0.1:7502", "udp/127.0.0.1:7502"),
+            ["hosts.b.endpoint"]
+        );
+        assert_eq!(
+            errors("127.0.0.1:7502", "127.0.0.1:7501"),
+            ["hosts.<name>.endpoint"]
+        );
+        assert_eq!(
+            errors("orchestrator = true", ""),
+            ["hosts.<name>.orchestrator"]
+        );
+        // a host that runs nothing
+        assert_eq!(errors("host = \"b\"", "host = \"a\""), ["hosts.b"]);
+        // the laser's calls would cross
+        let tracker_on_b = "[services.tracker]\nhost = \"b\"\n[services.detector]";
+        let laser = [
+            ("laser = false", "laser = true"),
+            ("[services.detector]", tracker_on_b),
+        ];
+        assert_eq!(errors_of(&laser), ["services.tracker.host"]);
+        assert_eq!(errors_of(&laser[1..]), Vec::<String>::new());
+        // the bridge is placed by [hosts]
+        let bridge = "[services.detector]\nhost = \"b\"\n[services.bridge]\nhost = \"a\"";
+        assert_eq!(
+            errors("[services.detector]\nhost = \"b\"", bridge),
+            ["services.bridge.host"]
+        );
+    }
 }

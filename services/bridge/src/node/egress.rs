@@ -11,6 +11,7 @@ use glint_runtime::stats::SeqVerdict;
 use glint_runtime::{run_loop, Step, TopicStats};
 use shared_types::Scenario;
 use zenoh::qos::{CongestionControl, Priority};
+use zenoh::sample::Locality;
 use zenoh::Wait;
 
 use super::ports::{taker, TakeBytes};
@@ -21,6 +22,9 @@ use crate::routes::{exported_by, Routes};
 
 /// How often the loop looks at the stop flag when nothing arrives.
 const TICK: Duration = Duration::from_millis(50);
+/// Messages one topic may put on the wire per round: a topic that always has more (frames on
+/// a slow link) does not hold back the others (heartbeats, control, acks go first each round).
+const BATCH: usize = 8;
 
 struct Route {
     port: Box<dyn TakeBytes>,
@@ -44,7 +48,10 @@ pub fn run(
     let deployment = scenario.deployment_key();
     let mut out = vec![];
     let mut listeners = vec![];
-    for &t in &routes.exports {
+    // Housekeeping first: each round serves heartbeats, control and acks before data.
+    let mut exports = routes.exports.clone();
+    exports.sort_by_key(|t| t.spec().is_data());
+    for &t in &exports {
         let data = t.spec().is_data();
         let priority = if data {
             Priority::Data
@@ -55,6 +62,7 @@ pub fn run(
             .congestion_control(CongestionControl::Block)
             .priority(priority)
             .express(!data)
+            .allowed_destination(Locality::Remote)
             .wait()
             .map_err(|e| anyhow!("zenoh publisher for {}: {e}", t.name()))?;
         let (port, listener) = taker(&node, scenario, t)?;
@@ -65,37 +73,56 @@ pub fn run(
             stats: data.then(|| TopicStats::new(t)),
         });
     }
+    // Ready once the other hosts' bridges take every exported topic: nothing put before that
+    // (the run's `Start` among it) would reach them.
+    for r in &out {
+        while !(r.publisher.matching_status().wait())
+            .map_err(|e| anyhow!("zenoh matching status: {e}"))?
+            .matching()
+        {
+            if stop.load(Ordering::SeqCst) || glint_runtime::lifeline::end_requested().is_some() {
+                return Ok(());
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
     ready();
     let inputs: Vec<_> = listeners.iter().map(|l| (l, None)).collect();
     let mut links = LinkSeqs::default();
     run_loop(&inputs, TICK, |_| {
-        if stop.load(Ordering::SeqCst) {
-            return Ok(Step::Stop);
-        }
+        let mut more = false;
         for r in out.iter_mut() {
-            forward(r, scenario, routes, &mut links)?;
+            if stop.load(Ordering::SeqCst) {
+                return Ok(Step::Stop);
+            }
+            more |= forward(r, scenario, routes, &mut links)?;
             if let Some(s) = &r.stats {
                 shared.set(s);
             }
         }
-        Ok(Step::Wait)
+        // A topic left with messages is served again at once, after the others.
+        Ok(if more {
+            Step::WaitAtMost(Duration::ZERO)
+        } else {
+            Step::Wait
+        })
     })?;
     Ok(())
 }
 
-/// Puts every queued message of one route on the wire: one copy, from shared memory into the
-/// buffer Zenoh sends.
+/// Puts up to [`BATCH`] queued messages of one route on the wire (one copy, from shared
+/// memory into the buffer Zenoh sends); whether it stopped at the batch's end.
 fn forward(
     r: &mut Route,
     scenario: &Scenario,
     routes: &Routes,
     links: &mut LinkSeqs,
-) -> Result<()> {
+) -> Result<bool> {
     let topic = r.port.topic();
-    loop {
+    for _ in 0..BATCH {
         let mut bytes = Vec::new();
         let Some(taken) = r.port.take(&mut bytes)? else {
-            return Ok(());
+            return Ok(false);
         };
         // Only what was written on this host leaves it (an import stays home: no loops).
         if !exported_by(scenario, &routes.host, taken.producer) {
@@ -117,4 +144,5 @@ fn forward(
             s.published += 1;
         }
     }
+    Ok(true)
 }

@@ -22,6 +22,9 @@ use crate::routes::Routes;
 
 /// How long a wait for the wire lasts before the stop flag is looked at again.
 const POLL: Duration = Duration::from_millis(50);
+/// Messages off the wire waiting for shared memory, at most: when full, Zenoh's receiving
+/// thread waits, and with it the link (backpressure to the sending bridge, nothing dropped).
+const INBOX: usize = 256;
 
 struct Route {
     port: Box<dyn PutBytes>,
@@ -49,24 +52,36 @@ pub fn run(
         };
         inbound.insert(t, route);
     }
-    let keys = format!("glint/{}/*", scenario.deployment_key());
-    let subscriber = (session.declare_subscriber(&keys))
-        .allowed_origin(Locality::Remote)
-        .wait()
-        .map_err(|e| anyhow!("zenoh subscriber on {keys}: {e}"))?;
+    // One subscriber per imported topic (only what this host reads comes to it), all into
+    // one bounded inbox.
+    let (tx, inbox) = std::sync::mpsc::sync_channel::<(TopicId, zenoh::sample::Sample)>(INBOX);
+    let deployment = scenario.deployment_key();
+    let mut subscribers = vec![];
+    for &t in inbound.keys() {
+        let key = super::key(&deployment, t);
+        let tx = tx.clone();
+        let subscriber = (session.declare_subscriber(&key))
+            .allowed_origin(Locality::Remote)
+            .callback(move |sample| {
+                let _ = tx.send((t, sample));
+            })
+            .wait()
+            .map_err(|e| anyhow!("zenoh subscriber on {key}: {e}"))?;
+        subscribers.push(subscriber);
+    }
+    drop(tx);
     ready();
     let mut links = LinkSeqs::default();
     let mut refused = 0u64;
     while !stop.load(Ordering::SeqCst) && glint_runtime::lifeline::end_requested().is_none() {
-        let sample = match subscriber.recv_timeout(POLL) {
-            Ok(Some(s)) => s,
-            Ok(None) => continue,
-            Err(e) => return Err(anyhow!("zenoh subscriber on {keys}: {e}")),
+        let (topic, sample) = match inbox.recv_timeout(POLL) {
+            Ok(x) => x,
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                return Err(anyhow!("the zenoh subscribers closed"));
+            }
         };
-        // The key's last chunk names the topic; a topic this host does not read is another
-        // host's (a deployment of three or more).
-        let name = sample.key_expr().as_str().rsplit('/').next().unwrap_or("");
-        let Some(route) = TopicId::from_name(name).and_then(|t| inbound.get_mut(&t)) else {
+        let Some(route) = inbound.get_mut(&topic) else {
             continue;
         };
         let topic = route.port.topic();
@@ -117,5 +132,6 @@ pub fn run(
             shared.set(s);
         }
     }
+    drop(subscribers);
     Ok(())
 }

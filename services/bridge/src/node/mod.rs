@@ -223,8 +223,12 @@ impl Peers {
         tracing::warn!(peer, "host gone");
         self.present.retain(|p| p != peer);
         let orchestrator = scenario.orchestrator_host();
-        (orchestrator == Some(peer))
-            .then(|| format!("the orchestrator's host `{peer}` is gone (its bridge ended)"))
+        (orchestrator == Some(peer)).then(|| {
+            format!(
+                "lost the orchestrator's host `{peer}` (its bridge ended, or the link was \
+                     silent past Zenoh's lease)"
+            )
+        })
     }
 }
 
