@@ -86,7 +86,7 @@ pub fn run(
         };
         let topic = route.port.topic();
         let attachment = sample.attachment().map(|a| a.to_bytes());
-        let payload = sample.payload().to_bytes();
+        let payload = sample.payload();
         let checked =
             Envelope::read(attachment.as_deref(), topic, route.port.digest()).and_then(|e| {
                 match payload.len() == route.port.len() {
@@ -125,7 +125,7 @@ pub fn run(
                 }
             }
         }
-        route.port.put(&payload)?;
+        route.port.put(&mut payload.slices())?;
         if let Some(s) = route.stats.as_mut() {
             s.published += 1;
             s.next_seq = envelope.link_seq + 1;

@@ -38,8 +38,23 @@ pub trait PutBytes {
     fn digest(&self) -> u64;
     /// Bytes of one message (header and payload).
     fn len(&self) -> usize;
-    /// Loans a sample, copies `bytes` into it (`len()` of them), sends and notifies.
-    fn put(&mut self, bytes: &[u8]) -> Result<()>;
+    /// Loans a sample, copies `parts` into it one after the other (`len()` bytes in all, as
+    /// they arrived off the wire, without joining them first), sends and notifies.
+    fn put(&mut self, parts: &mut dyn Iterator<Item = &[u8]>) -> Result<()>;
+}
+
+/// Copies `parts` into `dst` from its start; the bytes copied.
+fn fill(dst: &mut [u8], parts: &mut dyn Iterator<Item = &[u8]>) -> usize {
+    let mut at = 0;
+    for p in parts {
+        let n = p.len().min(dst.len() - at);
+        dst[at..at + n].copy_from_slice(&p[..n]);
+        at += n;
+        if at == dst.len() {
+            break;
+        }
+    }
+    at
 }
 
 fn listener(node: &IpcNode, t: TopicId) -> Result<Listener<Ipc>> {
@@ -174,27 +189,38 @@ impl PutBytes for FramePut {
     fn len(&self) -> usize {
         HEADER_BYTES + 2 * self.pixels
     }
-    fn put(&mut self, bytes: &[u8]) -> Result<()> {
+    fn put(&mut self, parts: &mut dyn Iterator<Item = &[u8]>) -> Result<()> {
         let name = self.topic.name();
         let mut sample = (self.publisher.loan_slice_uninit(self.pixels))
             .map_err(|e| anyhow!("{name} loan: {e:?}"))?;
-        *sample.user_header_mut() = bytemuck::pod_read_unaligned(&bytes[..HEADER_BYTES]);
-        let pixels = &bytes[HEADER_BYTES..];
+        // The header's bytes first (they may span parts), then the pixels straight into the
+        // loan.
+        let mut header = [0u8; HEADER_BYTES];
+        let mut parts = parts.peekable();
+        let mut rest: &[u8] = &[];
+        let mut at = 0;
+        while at < HEADER_BYTES {
+            let Some(p) = parts.next() else { break };
+            let n = p.len().min(HEADER_BYTES - at);
+            header[at..at + n].copy_from_slice(&p[..n]);
+            at += n;
+            rest = &p[n..];
+        }
+        *sample.user_header_mut() = bytemuck::pod_read_unaligned(&header);
         let slots = sample.payload_mut();
+        // SAFETY: `slots` is `pixels` u16 slots of mapped shared memory (every byte
+        // initialised at the OS level, any bit pattern a valid u16), viewed as bytes only to
+        // be overwritten; `assume_init` follows only once all of them were (checked below).
+        let bytes: &mut [u8] = unsafe {
+            std::slice::from_raw_parts_mut(slots.as_mut_ptr() as *mut u8, 2 * slots.len())
+        };
+        let copied = fill(bytes, &mut std::iter::once(rest).chain(parts));
         anyhow::ensure!(
-            pixels.len() == 2 * slots.len(),
+            at == HEADER_BYTES && copied == bytes.len(),
             "{name}: not a frame of the topic's size"
         );
-        // SAFETY: `slots` is `pixels` u16 slots of the loaned sample and `pixels` holds exactly
-        // that many bytes (checked above); every byte is written before `assume_init`.
-        let sample = unsafe {
-            std::ptr::copy_nonoverlapping(
-                pixels.as_ptr(),
-                slots.as_mut_ptr() as *mut u8,
-                pixels.len(),
-            );
-            sample.assume_init()
-        };
+        // SAFETY: every pixel was written above.
+        let sample = unsafe { sample.assume_init() };
         sample.send().map_err(|e| anyhow!("{name} send: {e:?}"))?;
         (self.notifier.notify_with_custom_event_id(EVENT_DATA))
             .map_err(|e| anyhow!("{name} notify: {e:?}"))?;
@@ -218,9 +244,14 @@ impl<T: Message> PutBytes for MessagePut<T> {
     fn len(&self) -> usize {
         std::mem::size_of::<T>()
     }
-    fn put(&mut self, bytes: &[u8]) -> Result<()> {
+    fn put(&mut self, parts: &mut dyn Iterator<Item = &[u8]>) -> Result<()> {
         let name = self.topic.name();
-        let msg: T = bytemuck::pod_read_unaligned(bytes);
+        let mut bytes = vec![0u8; std::mem::size_of::<T>()];
+        anyhow::ensure!(
+            fill(&mut bytes, parts) == bytes.len(),
+            "{name}: not a message of the topic's size"
+        );
+        let msg: T = bytemuck::pod_read_unaligned(&bytes);
         let sample = (self.publisher.loan_uninit()).map_err(|e| anyhow!("{name} loan: {e:?}"))?;
         (sample.write_payload(msg).send()).map_err(|e| anyhow!("{name} send: {e:?}"))?;
         (self.notifier.notify_with_custom_event_id(EVENT_DATA))
