@@ -22,6 +22,7 @@ use crate::run::deploy::{stop_ladder, Ending, ServiceProcess};
 use crate::run::faults::{Act, Heard, Injector};
 use crate::run::membership::Membership;
 use crate::run::memory::Memory;
+use crate::run::remote::Remote;
 use crate::run::sequence::Sequencer;
 use crate::run::supervise::{Action, Noticed, Observation, Supervisor};
 
@@ -70,11 +71,9 @@ pub struct Live<'a> {
     pub consumer: Consumer,
     sequencer: Option<Sequencer>,
     children: Vec<ServiceProcess>,
-    /// Services of the deployment on other hosts (a split deployment): heard from through the
-    /// bridge, never spawned or signalled from here.
-    remote: Vec<ServiceId>,
-    /// The other hosts, heard through the bridge: when each was cut off.
-    links: crate::run::links::Links,
+    /// Services of the deployment on other hosts (a split deployment), heard through the
+    /// bridge.
+    remote: Remote,
     injector: Injector,
     supervisor: Supervisor,
     membership: Membership,
@@ -115,8 +114,7 @@ impl<'a> Live<'a> {
         let children = (crate::run::hosts::local_services(scenario, spawner.host).into_iter())
             .map(|id| spawner.spawn(id, 0))
             .collect::<Result<Vec<_>>>()?;
-        let remote = crate::run::hosts::remote_services(scenario, spawner.host);
-        let links = crate::run::links::Links::new(scenario, spawner.host, &remote);
+        let remote = Remote::new(scenario, spawner.host);
         tracing::info!(
             prefix = spawner.prefix,
             services = children.len(),
@@ -142,7 +140,6 @@ impl<'a> Live<'a> {
             consumer,
             sequencer,
             children,
-            links,
             remote,
             injector: Injector::new(scenario),
             supervisor,
@@ -304,12 +301,10 @@ impl<'a> Live<'a> {
     /// Sends `Start` once every service is ready; fails the run past the startup timeout.
     fn start_when_ready(&mut self) -> Result<Option<Step>> {
         let seen = &self.consumer.seen;
-        let ready_id = |id: &ServiceId| {
-            seen.get(id)
+        let ready = self.children.iter().all(|c| {
+            seen.get(&c.id)
                 .is_some_and(|s| s.heartbeat.state >= Heartbeat::READY)
-        };
-        let ready =
-            self.children.iter().all(|c| ready_id(&c.id)) && self.remote.iter().all(ready_id);
+        }) && self.remote.ready(&self.consumer);
         let timeout_ms = self.scenario.run.startup_timeout_ms;
         if ready {
             self.consumer.command(Command::Start, Control::ALL)?;
@@ -378,8 +373,8 @@ impl<'a> Live<'a> {
                 let since = |t: Instant| {
                     t_running.map_or(0.0, |t0| t.saturating_duration_since(t0).as_secs_f64())
                 };
-                self.links.step(now, &self.consumer.seen, since);
-                if let Some(why) = self.remote_silent(now) {
+                let silent = (self.remote).check(self.scenario, &self.consumer, now, since);
+                if let Some(why) = silent {
                     return Ok(Some(self.fail(why)));
                 }
             }
@@ -412,21 +407,6 @@ impl<'a> Live<'a> {
             ));
         }
         Ok(None)
-    }
-
-    /// A service of another host whose heartbeats stopped crossing: the run fails (it cannot be
-    /// signalled or restarted from here).
-    fn remote_silent(&self, now: Instant) -> Option<String> {
-        let deadline = Duration::from_millis(self.scenario.run.heartbeat_deadline_ms);
-        let silent = (self.remote.iter())
-            .find(|id| (self.consumer.seen.get(id)).is_none_or(|s| now - s.at > deadline))?;
-        Some(format!(
-            "service {} on host {} sent no heartbeat across the bridge for \
-             run.heartbeat_deadline_ms = {} ms",
-            silent.name(),
-            self.scenario.host_of(*silent).unwrap_or("?"),
-            deadline.as_millis()
-        ))
     }
 
     /// Realtime mode replays nothing to a restarted service: it resumes at the newest input.
@@ -673,7 +653,7 @@ impl<'a> Live<'a> {
             );
             shutdown_sent.into_inner()?;
             if target == Control::ALL {
-                await_remote_stopping(&mut self.consumer, &self.remote, grace)?;
+                self.remote.await_stopping(&mut self.consumer, grace)?;
             }
         }
         self.consumer.poll()?;
@@ -727,55 +707,13 @@ impl<'a> Live<'a> {
             },
         );
         facts.solve_tampered = solve_tampered;
-        let bridge = self.consumer.seen.get(&ServiceId::Bridge);
-        facts.hosts = (self.links).report(
-            self.scenario,
-            self.spawner.host,
-            bridge.map(|s| &s.heartbeat),
-        );
-        // Another host's services, as their heartbeats across the bridge last told.
-        for &id in &self.remote {
-            let seen = self.consumer.seen.get(&id);
-            let stopped = seen.is_some_and(|s| s.heartbeat.state == Heartbeat::STOPPING);
-            let host = self.scenario.host_of(id).unwrap_or("?");
-            facts.services.push(crate::report::ServiceFact {
-                name: id.name().to_string(),
-                pid: seen.map_or(0, |s| s.heartbeat.pid),
-                restarts: 0,
-                ending: match stopped {
-                    true => Ending::Shutdown,
-                    false => Ending::Exited(format!("no last heartbeat from host {host}")),
-                },
-                cpu_s: None,
-                time: seen.map(|s| s.heartbeat.time),
-            });
-        }
+        (self.remote).add_facts(&mut facts, self.scenario, &self.consumer, self.spawner.host);
         facts.membership = self.membership.report();
         facts.memory = self.memory.traces();
         facts.soak_end = self.soak_end;
         facts.recording = recorder.as_ref().map(|r| r.summary());
         facts.recorder = recorder;
         facts
-    }
-}
-
-/// Waits up to `grace` for every service of another host (`remote`) to say in a heartbeat that
-/// it is stopping (its counters final), reading what arrives meanwhile.
-fn await_remote_stopping(
-    consumer: &mut Consumer,
-    remote: &[ServiceId],
-    grace: Duration,
-) -> Result<()> {
-    let t0 = Instant::now();
-    loop {
-        consumer.poll()?;
-        let stopping = |id: &ServiceId| {
-            (consumer.seen.get(id)).is_some_and(|s| s.heartbeat.state == Heartbeat::STOPPING)
-        };
-        if remote.iter().all(stopping) || t0.elapsed() >= grace {
-            return Ok(());
-        }
-        std::thread::sleep(Duration::from_millis(5));
     }
 }
 

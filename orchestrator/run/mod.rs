@@ -14,6 +14,7 @@ pub mod matrix;
 pub mod membership;
 pub mod memory;
 pub mod record;
+pub mod remote;
 pub mod replay;
 pub mod run_dir;
 pub mod sequence;
