@@ -336,22 +336,7 @@ fn a_two_second_partition_is_noticed_and_nothing_is_lost() {
     let cut_ms = ns.link(false);
     std::thread::sleep(Duration::from_secs(2));
     let back_ms = ns.link(true);
-    let status = wait_for_exit(&mut board, Duration::from_secs(120));
-    let log = std::fs::read_to_string(stderr_path(&dir.join("board"))).unwrap_or_default();
-    assert!(status.success(), "{log}");
-    assert!(wait_for_exit(&mut ground, Duration::from_secs(30)).success());
-    let report = read_report(&dir.join("board/report.json"));
-    let r = &report.results;
-    assert!(r.accounting.invariant_held);
-    assert_eq!(
-        r.topics["frame"].consumers["detector"].received,
-        Some(frames as u64)
-    );
-    let alone = run_ok(Some(&single(&file, &dir)), &dir.join("single"), &[]);
-    assert_eq!(
-        r.science.digest_xxh3,
-        alone.typed.results.science.digest_xxh3
-    );
+    let (report, _) = ended_whole(&mut board, &mut ground, &file, &dir, frames);
     let ground_host = (report.run.hosts.iter())
         .find(|h| h.name == "ground")
         .unwrap();
@@ -400,22 +385,7 @@ fn a_slow_link_slows_the_chain_and_loses_nothing() {
     }
     let mut ground = ns.run(1, &file, &dir.join("ground"), "ground");
     let mut board = ns.run(0, &file, &dir.join("board"), "board");
-    let status = wait_for_exit(&mut board, Duration::from_secs(120));
-    let log = std::fs::read_to_string(stderr_path(&dir.join("board"))).unwrap_or_default();
-    assert!(status.success(), "{log}");
-    assert!(wait_for_exit(&mut ground, Duration::from_secs(30)).success());
-    let report = read_report(&dir.join("board/report.json"));
-    let r = &report.results;
-    assert!(r.accounting.invariant_held);
-    assert_eq!(
-        r.topics["frame"].consumers["detector"].received,
-        Some(frames as u64)
-    );
-    let alone = run_ok(Some(&single(&file, &dir)), &dir.join("single"), &[]);
-    assert_eq!(
-        r.science.digest_xxh3,
-        alone.typed.results.science.digest_xxh3
-    );
+    let (report, alone) = ended_whole(&mut board, &mut ground, &file, &dir, frames);
     // the limit took effect: the frames crossed no faster than the link carries them
     let frame_bits =
         8.0 * (std::mem::size_of::<shared_types::FrameHeader>() + 2 * 256 * 256) as f64;
@@ -427,9 +397,35 @@ fn a_slow_link_slows_the_chain_and_loses_nothing() {
     eprintln!(
         "slow link (100 Mbit/s): {fps:.1} frames/s ({:.0} Mbit/s of frames); one host: {:.1} frames/s",
         fps * frame_bits / 1e6,
-        alone.typed.timing.frames_per_s
+        alone.timing.frames_per_s
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Both parts of a split run ended well, every frame reached the detector on `ground`, every
+/// message is accounted for, and the science equals the same scenario's on one host: the
+/// board's report and the single-host run's report.
+fn ended_whole(
+    board: &mut KillOnDrop,
+    ground: &mut KillOnDrop,
+    file: &Path,
+    dir: &Path,
+    frames: u32,
+) -> (glint::report::Report, glint::report::Report) {
+    let status = wait_for_exit(board, Duration::from_secs(120));
+    let log = std::fs::read_to_string(stderr_path(&dir.join("board"))).unwrap_or_default();
+    assert!(status.success(), "{log}");
+    assert!(wait_for_exit(ground, Duration::from_secs(30)).success());
+    let report = read_report(&dir.join("board/report.json"));
+    let r = &report.results;
+    assert!(r.accounting.invariant_held);
+    assert_eq!(
+        r.topics["frame"].consumers["detector"].received,
+        Some(frames as u64)
+    );
+    let alone = run_ok(Some(&single(file, dir)), &dir.join("single"), &[]).typed;
+    assert_eq!(r.science.digest_xxh3, alone.results.science.digest_xxh3);
+    (report, alone)
 }
 
 /// `tc ARGS…` (iproute2's traffic control).

@@ -211,9 +211,9 @@ fn serve(
         }
         Ok(())
     });
-    let ended_well = |c: &ServiceProcess| match c.id {
-        ServiceId::Bridge => c.exit_ok == Some(true),
-        _ => matches!(c.ending, Ending::Shutdown) || c.exit_ok == Some(true),
+    // A service ends on the orchestrator's Shutdown, the bridge by its own exit status.
+    let ended_well = |c: &ServiceProcess| {
+        c.exit_ok == Some(true) || (c.id != ServiceId::Bridge && c.ending == Ending::Shutdown)
     };
     let ok = why.is_none() && children.iter().all(ended_well);
     if why.is_none() && !ok {
