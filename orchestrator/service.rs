@@ -72,7 +72,17 @@ pub(crate) fn command(args: crate::cli::ServiceArgs) -> std::process::ExitCode {
         Err(e) => {
             tracing::error!("{e:#}");
             eprintln!("error: {e:#}");
-            ExitCode::from(1)
+            ExitCode::from(exit_status(&e))
         }
     }
+}
+
+/// 1 for a failed service; the bridge's own status when the orchestrator's host was lost.
+fn exit_status(e: &anyhow::Error) -> u8 {
+    #[cfg(feature = "hosts")]
+    if e.is::<glint_bridge::node::OrchestratorLost>() {
+        return glint_bridge::node::EXIT_ORCHESTRATOR_LOST;
+    }
+    let _ = e;
+    1
 }

@@ -42,6 +42,8 @@ pub struct ServiceProcess {
     pub ending: Ending,
     /// Set once it exited: whether with status 0.
     pub exit_ok: Option<bool>,
+    /// Set once it exited with a status: its code.
+    pub exit_code: Option<i32>,
     /// CPU time the process used (user + system) [s], read when it exited.
     pub cpu_s: Option<f64>,
     child: Option<Child>,
@@ -109,6 +111,7 @@ impl ServiceProcess {
             restarts,
             ending: Ending::Running,
             exit_ok: None,
+            exit_code: None,
             cpu_s: None,
             child: Some(child),
             log_path,
@@ -127,6 +130,7 @@ impl ServiceProcess {
         match child.try_wait() {
             Ok(Some(status)) => {
                 self.exit_ok = Some(status.success());
+                self.exit_code = status.code();
                 if self.ending == Ending::Running {
                     self.ending = Ending::Exited(status.to_string());
                 }

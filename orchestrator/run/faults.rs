@@ -117,11 +117,13 @@ pub struct Injector {
 }
 
 impl Injector {
-    /// The scenario's faults (already validated).
-    pub fn new(scenario: &Scenario) -> Self {
+    /// The scenario's faults (already validated) that `host`'s part fires (every fault when
+    /// the deployment is not split).
+    pub fn new(scenario: &Scenario, host: Option<&str>) -> Self {
         let faults = scenario
             .fault
             .iter()
+            .filter(|spec| host.is_none() || spec.on_host(scenario) == host)
             .filter_map(|spec| {
                 let service = spec.service_id()?;
                 Some(Fault {
@@ -418,7 +420,12 @@ impl Fault {
             .spec
             .duration_s
             .map_or(String::new(), |d| format!(",duration_s={d}"));
-        format!("{}:{}@{at}{d}", self.service.name(), self.spec.kind.name())
+        let host = (self.spec.host.as_ref()).map_or(String::new(), |h| format!(",host={h}"));
+        format!(
+            "{}:{}@{at}{d}{host}",
+            self.service.name(),
+            self.spec.kind.name()
+        )
     }
 
     /// The report's entry; `lost` is what the service's inputs carried and it never

@@ -11,7 +11,7 @@ fn injector(specs: &[&str]) -> Injector {
     sc.fault = specs.iter().map(|s| FaultSpec::parse(s).unwrap()).collect();
     sc.faults.enabled = true;
     sc.validate().unwrap();
-    Injector::new(&sc)
+    Injector::new(&sc, None)
 }
 
 /// A heartbeat at `at_s` from a service that has taken `progress` inputs, no fault order

@@ -2,7 +2,10 @@
 //! and the part of every host but the orchestrator's — its services and its bridge, run until
 //! the orchestrator of record ends the run over the bridge (its `Shutdown` arrives like any
 //! control message), then stopped with the ladder, the bridge last so that the services' last
-//! heartbeats reach the orchestrator.
+//! heartbeats reach the orchestrator. The bridge is supervised here as `[supervision]` says
+//! (once it was first ready): killed or hung, it is restarted, and the other hosts' bridges put
+//! again what it may have lost; a service of this host that fails ends the part (its restart
+//! needs replay orders only the orchestrator's host gives).
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -13,6 +16,7 @@ use glint_runtime::{open_node, remove_shm, run_loop, Step};
 use shared_types::{deployment, Command, Control, Heartbeat, Scenario, ServiceId, TopicId};
 
 use crate::run::deploy::{stop_ladder, Ending, ServiceProcess};
+use crate::run::keeper::Keeper;
 
 /// What `glint run --host` says when glint was built without the bridge.
 pub const WITHOUT_HOSTS: &str = "this glint was built without the `hosts` feature, which a \
@@ -92,6 +96,10 @@ struct HostSummary {
     processes: Vec<(String, u32, String)>,
     /// The bridge's last heartbeat: its per-hop counters.
     bridge: Option<Heartbeat>,
+    /// Times the bridge was restarted.
+    bridge_restarts: u32,
+    /// The faults this host fired, as a table (empty: none).
+    faults: String,
 }
 
 impl HostSummary {
@@ -108,6 +116,14 @@ impl HostSummary {
         t += "| process | pid | ended |\n|---|---|---|\n";
         for (n, pid, e) in &self.processes {
             t += &format!("| {n} | {pid} | {e} |\n");
+        }
+        t += &self.faults;
+        if self.bridge_restarts > 0 {
+            t += &format!(
+                "\nThe bridge was restarted {} time(s); its counters below are its last \
+                 incarnation's (the report of the orchestrator's host accounts end to end).\n",
+                self.bridge_restarts
+            );
         }
         if let Some(hb) = &self.bridge {
             t += "\nThe bridge, per hop (its side of each topic that crosses):\n\n";
@@ -150,26 +166,50 @@ fn serve(
     let deadline = Instant::now()
         + Duration::from_secs_f64(limits.timeout_s)
         + Duration::from_millis(limits.startup_timeout_ms);
-    let mut bridge_beat: Option<Heartbeat> = None;
+    let mut keeper = Keeper::new(scenario, host);
     let mut why: Option<String> = None;
     let mut shutdown = false;
     let inputs = [(&control_l, None), (&heartbeat_l, None)];
     let exit = run_loop(&inputs, Duration::from_millis(20), |_| {
         control.drain(|r| {
-            shutdown |= r.msg.target == Control::ALL
-                && Command::from_u32(r.msg.command) == Some(Command::Shutdown);
+            let to_all = r.msg.target == Control::ALL;
+            match Command::from_u32(r.msg.command) {
+                Some(Command::Shutdown) if to_all => shutdown = true,
+                Some(Command::Start) if to_all => keeper.start(),
+                _ => {}
+            }
             Ok(())
         })?;
         heartbeats.drain(|r| {
             if r.msg.meta.producer == ServiceId::Bridge as u32 {
-                bridge_beat = Some(*r.msg);
+                keeper.heard(*r.msg);
             }
             Ok(())
         })?;
         if shutdown {
             return Ok(Step::Stop);
         }
-        let exited = children.iter_mut().position(|c| c.poll_exit());
+        // The bridge, last of the children, is the keeper's once it was ready.
+        let b = children.len() - 1;
+        let respawn = |n| {
+            node.try_cleanup_dead_nodes();
+            ServiceProcess::spawn(
+                exe,
+                ServiceId::Bridge,
+                prefix,
+                resolved,
+                &log_dir,
+                n,
+                Some(host),
+            )
+        };
+        if let Some(w) = keeper.step(&mut children[b], respawn)? {
+            why = Some(w);
+            return Ok(Step::Stop);
+        }
+        let kept = usize::from(keeper.supervising());
+        let exited = (children.iter_mut().take(b + 1 - kept).enumerate())
+            .find_map(|(i, c)| c.poll_exit().then_some(i));
         if let Some(c) = exited.map(|i| &children[i]) {
             why = Some(format!(
                 "{} exited before the run ended: {}\n{}",
@@ -207,10 +247,14 @@ fn serve(
     stop_ladder(bridge, grace, &mut || {}, &mut || {});
     let _ = heartbeats.drain(|r| {
         if r.msg.meta.producer == ServiceId::Bridge as u32 {
-            bridge_beat = Some(*r.msg);
+            keeper.heard(*r.msg);
         }
         Ok(())
     });
+    let never = keeper.finish();
+    if why.is_none() && !never.is_empty() {
+        why = Some(never.join("; "));
+    }
     // A service ends on the orchestrator's Shutdown, the bridge by its own exit status.
     let ended_well = |c: &ServiceProcess| {
         c.exit_ok == Some(true) || (c.id != ServiceId::Bridge && c.ending == Ending::Shutdown)
@@ -226,6 +270,8 @@ fn serve(
         ok,
         why,
         processes,
-        bridge: bridge_beat,
+        bridge: keeper.last_beat(),
+        bridge_restarts: keeper.restarts(),
+        faults: keeper.faults_table(),
     })
 }

@@ -115,6 +115,7 @@ impl<'a> Live<'a> {
             .map(|id| spawner.spawn(id, 0))
             .collect::<Result<Vec<_>>>()?;
         let remote = Remote::new(scenario, spawner.host);
+        let injector = Injector::new(scenario, spawner.host);
         tracing::info!(
             prefix = spawner.prefix,
             services = children.len(),
@@ -141,7 +142,7 @@ impl<'a> Live<'a> {
             sequencer,
             children,
             remote,
-            injector: Injector::new(scenario),
+            injector,
             supervisor,
             membership: Membership::default(),
             phase: Phase::Starting,
@@ -373,7 +374,9 @@ impl<'a> Live<'a> {
                 let since = |t: Instant| {
                     t_running.map_or(0.0, |t0| t.saturating_duration_since(t0).as_secs_f64())
                 };
-                let silent = (self.remote).check(self.scenario, &self.consumer, now, since);
+                let bridge = self.supervisor.up_since(ServiceId::Bridge);
+                let remote = &mut self.remote;
+                let silent = remote.check(self.scenario, &self.consumer, now, bridge, since);
                 if let Some(why) = silent {
                     return Ok(Some(self.fail(why)));
                 }

@@ -7,6 +7,7 @@ pub mod consume;
 pub mod deploy;
 pub mod faults;
 pub mod hosts;
+pub mod keeper;
 pub mod latency;
 pub mod links;
 pub mod live;

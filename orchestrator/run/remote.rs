@@ -13,6 +13,18 @@ use crate::run::consume::Consumer;
 use crate::run::deploy::Ending;
 use crate::run::links::Links;
 
+/// How long another host's services may go unheard before the run fails: the heartbeat
+/// deadline, then what that host's own supervision may take to notice a failed bridge and bring
+/// a new one up (its backoff and startup limits). A bridge killed or stopped on that host, or a
+/// partition, shorter than this is an outage the run rides out.
+pub fn silence_limit(scenario: &Scenario) -> Duration {
+    Duration::from_millis(
+        scenario.run.heartbeat_deadline_ms
+            + scenario.supervision.backoff_max_ms
+            + scenario.run.startup_timeout_ms,
+    )
+}
+
 pub struct Remote {
     /// Services of the deployment on other hosts than this one.
     pub services: Vec<ServiceId>,
@@ -44,24 +56,31 @@ impl Remote {
     }
 
     /// Notes outages, and the failure of a service whose heartbeats stopped crossing for
-    /// `run.heartbeat_deadline_ms` (it cannot be signalled or restarted from here).
+    /// longer than [`silence_limit`] (it cannot be signalled or restarted from here). `bridge`:
+    /// since when this host's bridge has been up (`None`: it is being restarted, which
+    /// explains any silence; the limit counts from its return).
     pub fn check(
         &mut self,
         scenario: &Scenario,
         consumer: &Consumer,
         now: Instant,
+        bridge: Option<Instant>,
         since_start: impl Fn(Instant) -> f64,
     ) -> Option<String> {
         self.links.step(now, &consumer.seen, since_start);
-        let deadline = Duration::from_millis(scenario.run.heartbeat_deadline_ms);
-        let silent = (self.services.iter())
-            .find(|id| (consumer.seen.get(id)).is_none_or(|s| now - s.at > deadline))?;
+        let bridge = bridge?;
+        let limit = silence_limit(scenario);
+        let silent = (self.services.iter()).find(|id| {
+            let heard = (consumer.seen.get(id)).map_or(bridge, |s| s.at.max(bridge));
+            now.saturating_duration_since(heard) > limit
+        })?;
         Some(format!(
-            "service {} on host {} sent no heartbeat across the bridge for \
-             run.heartbeat_deadline_ms = {} ms",
+            "service {} on host {} sent no heartbeat across the bridge for {} ms \
+             (run.heartbeat_deadline_ms, then supervision.backoff_max_ms and \
+             run.startup_timeout_ms for that host to bring its bridge back)",
             silent.name(),
             scenario.host_of(*silent).unwrap_or("?"),
-            deadline.as_millis()
+            limit.as_millis()
         ))
     }
 

@@ -134,6 +134,14 @@ impl Supervisor {
             .any(|s| s.id == id && matches!(s.life, Life::Up(_)))
     }
 
+    /// Since when `id`'s current incarnation has been up (`None`: it is down or restarting).
+    pub fn up_since(&self, id: ServiceId) -> Option<Instant> {
+        (self.services.iter().find(|s| s.id == id)).and_then(|s| match s.life {
+            Life::Up(since) => Some(since),
+            Life::Killing | Life::Down(_) | Life::Starting(_) | Life::Failed => None,
+        })
+    }
+
     /// Whether every service is up (none failed, down or restarting).
     pub fn all_up(&self) -> bool {
         self.services.iter().all(|s| matches!(s.life, Life::Up(_)))

@@ -99,12 +99,28 @@ pub fn outputs(scenario: &Scenario, service: ServiceId) -> Vec<TopicId> {
 }
 
 /// The topic whose progress triggers an `at_seq` fault of `service`: its main input; for a
-/// source (the sensor), its main output.
+/// source (the sensor), its main output; for the bridge, the first data topic that crosses
+/// hosts.
 pub fn trigger_topic(scenario: &Scenario, service: ServiceId) -> Option<TopicId> {
     let mut inputs = inputs(scenario, service).into_iter();
     inputs
         .next()
         .or_else(|| outputs(scenario, service).into_iter().next())
+        .or_else(|| crossing(scenario))
+}
+
+/// The first data topic whose producer and a consumer run on different hosts: what a service
+/// with no topics of its own (the bridge) is counted by.
+fn crossing(scenario: &Scenario) -> Option<TopicId> {
+    let home = |s: ServiceId| scenario.host_of(s);
+    (data_topics(scenario).into_iter())
+        .find(|t| {
+            let from = producer(t.id).map(home);
+            consumers(scenario, t.id)
+                .into_iter()
+                .any(|c| Some(home(c)) != from)
+        })
+        .map(|t| t.id)
 }
 
 /// The output an in-band `drop` or `corrupt` fault of `service` hits: its main output.

@@ -18,7 +18,9 @@ pub struct Envelope {
     /// [`TopicId`] as u32 (the key names it too; the two must agree).
     pub topic: u32,
     /// The sending bridge's host, as its index among the scenario's hosts (sorted by name).
-    pub origin_host: u32,
+    pub origin_host: u16,
+    /// [`Envelope::RESENT`] or 0.
+    pub flags: u16,
     /// Gap-free per (topic, origin host) from 0: a gap is what the link lost.
     pub link_seq: u64,
     /// xxh3 of the topic's payload type name and sizes ([`type_digest`]).
@@ -74,15 +76,32 @@ pub fn type_digest(topic: TopicId, header_bytes: usize, element_bytes: usize) ->
 }
 
 impl Envelope {
-    pub fn new(topic: TopicId, origin_host: u32, link_seq: u64, type_digest: u64) -> Self {
+    /// A flag: this message was put on the wire before, and is put again because a host that
+    /// left rejoined (what was in flight to its dead bridge); its consumers may have it.
+    pub const RESENT: u16 = 1;
+
+    pub fn new(topic: TopicId, origin_host: u16, link_seq: u64, type_digest: u64) -> Self {
         Envelope {
             magic: MAGIC,
             contract_version: CONTRACT_VERSION,
             topic: topic as u32,
             origin_host,
+            flags: 0,
             link_seq,
             type_digest,
         }
+    }
+
+    /// The same envelope, marked [`Envelope::RESENT`].
+    pub fn resent(self) -> Self {
+        Envelope {
+            flags: self.flags | Self::RESENT,
+            ..self
+        }
+    }
+
+    pub fn is_resent(&self) -> bool {
+        self.flags & Self::RESENT != 0
     }
 
     pub fn to_bytes(&self) -> [u8; ENVELOPE_BYTES] {
@@ -127,6 +146,9 @@ mod tests {
         let e = Envelope::new(TopicId::Frame, 1, 41, d);
         let bytes = e.to_bytes();
         assert_eq!(Envelope::read(Some(&bytes), TopicId::Frame, d), Ok(e));
+        let again = Envelope::read(Some(&e.resent().to_bytes()), TopicId::Frame, d).unwrap();
+        assert!(again.is_resent() && !e.is_resent());
+        assert_eq!((again.origin_host, again.link_seq), (1, 41));
         assert_eq!(
             Envelope::read(Some(&bytes[..31]), TopicId::Frame, d),
             Err(Refusal::NoEnvelope)

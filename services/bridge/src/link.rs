@@ -1,6 +1,8 @@
 //! A link's own accounting: each bridge numbers what it puts on the wire per (topic, origin
 //! host) without gaps, so the receiving bridge counts what the link lost (a gap) and what it
-//! repeated, whatever Zenoh did underneath.
+//! repeated, whatever Zenoh did underneath. A receiver counts from the first message it sees
+//! of each (topic, origin): a bridge restarted mid-run joins the stream where it stands (what
+//! its dead incarnation missed is counted end to end, by the consumers' seq gaps).
 
 use shared_types::TopicId;
 
@@ -16,12 +18,12 @@ pub enum LinkVerdict {
 /// Next expected link sequence per (topic, origin host).
 #[derive(Debug, Default, Clone)]
 pub struct LinkSeqs {
-    next: Vec<((TopicId, u32), u64)>,
+    next: Vec<((TopicId, u16), u64)>,
 }
 
 impl LinkSeqs {
     /// The next link sequence a sender stamps on `topic` (from 0, gap-free).
-    pub fn stamp(&mut self, topic: TopicId, origin: u32) -> u64 {
+    pub fn stamp(&mut self, topic: TopicId, origin: u16) -> u64 {
         let next = self.slot(topic, origin);
         let seq = *next;
         *next += 1;
@@ -29,7 +31,11 @@ impl LinkSeqs {
     }
 
     /// A receiver's verdict on `link_seq` of `topic` from `origin`.
-    pub fn observe(&mut self, topic: TopicId, origin: u32, link_seq: u64) -> LinkVerdict {
+    pub fn observe(&mut self, topic: TopicId, origin: u16, link_seq: u64) -> LinkVerdict {
+        if !self.next.iter().any(|(k, _)| *k == (topic, origin)) {
+            self.next.push(((topic, origin), link_seq + 1));
+            return LinkVerdict::Take { lost: 0 };
+        }
         let next = self.slot(topic, origin);
         // A sender that starts again from 0 is a new incarnation of that host's bridge.
         if link_seq == 0 && *next > 0 {
@@ -44,7 +50,7 @@ impl LinkSeqs {
         LinkVerdict::Take { lost }
     }
 
-    fn slot(&mut self, topic: TopicId, origin: u32) -> &mut u64 {
+    fn slot(&mut self, topic: TopicId, origin: u16) -> &mut u64 {
         let i = match self.next.iter().position(|(k, _)| *k == (topic, origin)) {
             Some(i) => i,
             None => {
@@ -80,8 +86,13 @@ mod tests {
             rx.observe(TopicId::Frame, 1, 0),
             LinkVerdict::Take { lost: 0 }
         );
+        // a receiver joins a stream where it stands (a bridge restarted mid-run)
         assert_eq!(
-            rx.observe(TopicId::Ack, 0, 1),
+            rx.observe(TopicId::Ack, 0, 7),
+            LinkVerdict::Take { lost: 0 }
+        );
+        assert_eq!(
+            rx.observe(TopicId::Ack, 0, 9),
             LinkVerdict::Take { lost: 1 }
         );
         // a restarted sender begins again at 0

@@ -64,7 +64,7 @@ pub struct Routes {
     /// This host's name.
     pub host: String,
     /// Its index among the scenario's hosts, sorted by name ([`host_index`]).
-    pub host_index: u32,
+    pub host_index: u16,
     /// Written here, read elsewhere: taken from iceoryx2, put on Zenoh.
     pub exports: Vec<TopicId>,
     /// Written elsewhere, read here: taken from Zenoh, published into iceoryx2.
@@ -72,12 +72,12 @@ pub struct Routes {
 }
 
 /// `host`'s index among the scenario's hosts (sorted by name), as envelopes carry it.
-pub fn host_index(scenario: &Scenario, host: &str) -> Option<u32> {
+pub fn host_index(scenario: &Scenario, host: &str) -> Option<u16> {
     scenario
         .hosts
         .keys()
         .position(|h| h == host)
-        .map(|i| i as u32)
+        .map(|i| i as u16)
 }
 
 /// The routes of `host`'s bridge.
@@ -96,7 +96,7 @@ pub fn routes(scenario: &Scenario, host: &str) -> Routes {
     }
     Routes {
         host: host.to_string(),
-        host_index: host_index(scenario, host).unwrap_or(u32::MAX),
+        host_index: host_index(scenario, host).unwrap_or(u16::MAX),
         exports,
         imports,
     }

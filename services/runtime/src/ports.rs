@@ -8,6 +8,7 @@ use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use shared_types::table::Replay;
 use shared_types::topics::{
@@ -51,6 +52,18 @@ pub struct Outbox<T: Message> {
 }
 
 impl<T: Message> Outbox<T> {
+    /// Connects subscribers that joined since the last send and hands them the topic's
+    /// history now, not at the next send (which a held producer may never make: a restarted
+    /// bridge's subscriber waits for what was in flight).
+    pub fn connect(&self) -> Result<()> {
+        (self.publisher.update_connections()).map_err(|e| {
+            anyhow!(
+                "connecting {}'s subscribers: {e:?}",
+                self.stats.topic.name()
+            )
+        })
+    }
+
     /// A publisher on message topic `topic`, from `producer`. A topic the table replays from a
     /// log ([`Replay::Logged`]) keeps every message sent, so that a restarted consumer can be
     /// sent them again.
@@ -343,6 +356,16 @@ pub struct FrameOutbox {
 }
 
 impl FrameOutbox {
+    /// As [`Outbox::connect`].
+    pub fn connect(&self) -> Result<()> {
+        (self.publisher.update_connections()).map_err(|e| {
+            anyhow!(
+                "connecting {}'s subscribers: {e:?}",
+                self.stats.topic.name()
+            )
+        })
+    }
+
     /// A frame publisher on `topic`, frames of the size `scenario` gives it.
     pub fn open(node: &IpcNode, topic: TopicId, scenario: &shared_types::Scenario) -> Result<Self> {
         let pixels = shared_types::topics::frame_pixels(topic, scenario);

@@ -80,9 +80,14 @@ pub trait Output {
     fn restore(&mut self, s: &OutputSnapshot) -> Result<()>;
     /// Forgets logged messages below `seq` (every consumer's checkpoint covers them).
     fn trim(&mut self, seq: u64);
+    /// Hands new subscribers the topic's history now ([`Outbox::connect`]).
+    fn connect(&self) -> Result<()>;
 }
 
 impl<T: Message> Output for Outbox<T> {
+    fn connect(&self) -> Result<()> {
+        Outbox::connect(self)
+    }
     fn stats(&self) -> &TopicStats {
         &self.stats
     }
@@ -121,6 +126,9 @@ impl<T: Message> Output for Outbox<T> {
 }
 
 impl Output for FrameOutbox {
+    fn connect(&self) -> Result<()> {
+        FrameOutbox::connect(self)
+    }
     fn stats(&self) -> &TopicStats {
         &self.stats
     }
@@ -623,15 +631,17 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
             hk.time = timer.time(&input, &svc);
             hk.beat(last_t_ns, &all_stats(&input, &svc))?;
         }
-        // Asleep next with an output's credit used up: held back by a consumer.
-        let mut outputs = svc.outputs();
-        let held = outputs.iter_mut().any(|o| {
+        // Asleep next with an output's credit used up: held back by a consumer. A subscriber
+        // that joined meanwhile (a restarted bridge) gets the history now: what it waits for.
+        let mut held = false;
+        for o in svc.outputs() {
             let topic = o.stats().topic;
-            credits
-                .iter()
-                .find(|(t, _)| *t == topic)
-                .is_some_and(|(_, c)| c.available(o.next_seq()) == 0)
-        });
+            let credit = credits.iter().find(|(t, _)| *t == topic);
+            if credit.is_some_and(|(_, c)| c.available(o.next_seq()) == 0) {
+                held = true;
+                o.connect()?;
+            }
+        }
         timer.asleep(held);
         Ok(step)
     })?;

@@ -163,12 +163,23 @@ pub struct FaultSpec {
     /// `corrupt`: `nan`, `count` or `version` (default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub how: Option<Corruption>,
+    /// A split deployment: which host's `bridge` (default: the orchestrator's host); that
+    /// host's part fires the fault. Only for the bridge.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub host: Option<String>,
 }
 
 impl FaultSpec {
     /// The targeted service (valid after [`check_faults`]).
     pub fn service_id(&self) -> Option<ServiceId> {
         ServiceId::from_name(&self.service).filter(|s| *s != ServiceId::Orchestrator)
+    }
+
+    /// The host whose part fires this fault: `host`, or where its service runs (`None`: the
+    /// deployment is not split).
+    pub fn on_host<'a>(&'a self, scenario: &'a super::Scenario) -> Option<&'a str> {
+        let service = self.service_id()?;
+        self.host.as_deref().or(scenario.host_of(service))
     }
 
     /// `SERVICE:KIND@AT[,duration_s=S]`, where `AT` is a message number (`20`) or a time
@@ -213,6 +224,7 @@ impl FaultSpec {
             count: None,
             every: None,
             how: None,
+            host: None,
         };
         let int = |name: &str, v: &str| {
             v.parse::<u32>()
@@ -229,6 +241,7 @@ impl FaultSpec {
                 Some(("delay_ms", v)) => f.delay_ms = Some(u64::from(int("delay_ms", v)?)),
                 Some(("count", v)) => f.count = Some(int("count", v)?),
                 Some(("every", v)) => f.every = Some(int("every", v)?),
+                Some(("host", v)) => f.host = Some(v.to_string()),
                 Some(("how", v)) => {
                     f.how = Some(Corruption::from_name(v).ok_or(format!(
                         "how `{v}` is not one of {}",
@@ -238,7 +251,7 @@ impl FaultSpec {
                 _ => {
                     return Err(format!(
                         "unknown option `{opt}`; allowed: duration_s=S, delay_ms=N, count=N, \
-                         every=N, how=nan|count|version"
+                         every=N, how=nan|count|version, host=NAME"
                     ))
                 }
             }
@@ -352,6 +365,32 @@ pub(super) fn check_faults(c: &mut Checker, scenario: &super::Scenario) {
         }
         if let Some(k) = f.every {
             c.range_u(&at("every"), u64::from(k), 1, 1000);
+        }
+        let hosts = || {
+            scenario
+                .hosts
+                .keys()
+                .map(|k| k.as_str())
+                .collect::<Vec<_>>()
+        };
+        match (&f.host, f.service_id()) {
+            (Some(h), _) if !scenario.hosts.contains_key(h) => c.fail(
+                &at("host"),
+                match scenario.split() {
+                    true => format!(
+                        "`{h}` is not a host of [hosts]; allowed: {}",
+                        hosts().join(", ")
+                    ),
+                    false => {
+                        format!("`{h}`: the scenario has no [hosts.<name>] (it runs on one host)")
+                    }
+                },
+            ),
+            (Some(_), s) if s != Some(ServiceId::Bridge) => c.fail(
+                &at("host"),
+                "only a bridge fault names its host (a service runs where it is placed)".into(),
+            ),
+            _ => {}
         }
         if f.kind.in_band() && !scenario.faults.enabled {
             c.fail(

@@ -236,20 +236,27 @@ fn check_what_crosses(c: &mut Checker, scenario: &super::Scenario) {
             );
         }
     }
-    // Supervision and faults act on processes of the orchestrator's host only, so far.
-    for f in &scenario.fault {
+    // Faults act on the processes of the orchestrator's host, and on any host's bridge (that
+    // host's part fires it): signals (`kill`; `stop`, the link cut while it is stopped).
+    for (i, f) in scenario.fault.iter().enumerate() {
         let service = ServiceId::from_name(&f.service);
+        let at = |field: &str| format!("fault[{i}].{field}");
         if service == Some(ServiceId::Bridge) {
-            c.fail(
-                "fault.service",
-                "the bridge is not a fault target yet (cut or slow the link instead)".into(),
-            );
+            if f.kind.in_band() {
+                c.fail(
+                    &at("kind"),
+                    format!(
+                        "the bridge takes kill and stop (a signal), not {}",
+                        f.kind.name()
+                    ),
+                );
+            }
         } else if service.is_some_and(|s| scenario.host_of(s) != Some(orchestrator)) {
             c.fail(
-                "fault.service",
+                &at("service"),
                 format!(
                     "`{}` runs on another host than the orchestrator's; faults act on the \
-                     orchestrator's host only so far",
+                     orchestrator's host's services and on any host's bridge so far",
                     f.service
                 ),
             );
@@ -399,6 +406,35 @@ host = "b"
         assert_eq!(
             errors("[services.detector]\nhost = \"b\"", bridge),
             ["services.bridge.host"]
+        );
+        // faults: the orchestrator's host's services and its bridge (kill, stop; at a time)
+        let fault = |f: &str| {
+            let faulted = format!("[services.detector]\nhost = \"b\"\n[[fault]]\n{f}");
+            errors("[services.detector]\nhost = \"b\"", &faulted)
+        };
+        assert_eq!(
+            fault("service = \"bridge\"\nkind = \"kill\"\nat_s = 0.5"),
+            Vec::<String>::new()
+        );
+        assert_eq!(
+            fault("service = \"bridge\"\nkind = \"stop\"\nat_s = 0.5\nduration_s = 1.0"),
+            Vec::<String>::new()
+        );
+        assert_eq!(
+            fault("service = \"bridge\"\nhost = \"b\"\nkind = \"kill\"\nat_seq = 1"),
+            Vec::<String>::new()
+        );
+        assert_eq!(
+            fault("service = \"bridge\"\nhost = \"c\"\nkind = \"kill\"\nat_seq = 1"),
+            ["fault[0].host"]
+        );
+        assert_eq!(
+            fault("service = \"sensor\"\nhost = \"a\"\nkind = \"kill\"\nat_seq = 1"),
+            ["fault[0].host"]
+        );
+        assert_eq!(
+            fault("service = \"detector\"\nkind = \"kill\"\nat_seq = 1"),
+            ["fault[0].service"]
         );
     }
 }

@@ -71,6 +71,7 @@ impl FaultMatrix {
             count: None,
             every: None,
             how: None,
+            host: None,
         };
         match kind {
             FaultKind::Stop => f.duration_s = Some(self.stop_s.unwrap_or(1.0)),

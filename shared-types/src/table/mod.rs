@@ -124,7 +124,8 @@ pub enum Pattern {
         subscribers: usize,
         /// Per-subscriber queue, and the sim-clock credit window of a produced data topic.
         buffer: usize,
-        /// Kept for late joiners: a restarted consumer finds the last `buffer` messages.
+        /// Kept for late joiners: a restarted consumer (or bridge) finds the last `buffer`
+        /// messages.
         history: bool,
     },
     /// Request/response with a reply event: the producer serves, `clients` call.

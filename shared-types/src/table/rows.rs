@@ -9,12 +9,16 @@ const DATA_SUBSCRIBERS: usize = 4;
 /// Publishers per many-to-one topic, subscribers per one-to-many topic: every service, plus restarts.
 const PEERS: usize = 16;
 
-const fn data(buffer: usize, history: bool) -> Pattern {
+/// A data topic: `buffer` per subscriber, and the last `buffer` messages kept for a late
+/// joiner — a restarted consumer, or a restarted bridge that must put on the wire again what
+/// its dead incarnation took and never delivered (even a topic only the orchestrator reads
+/// crosses hosts when its producer runs elsewhere).
+const fn data(buffer: usize) -> Pattern {
     Pattern::Messages {
         publishers: DATA_PUBLISHERS,
         subscribers: DATA_SUBSCRIBERS,
         buffer,
-        history,
+        history: true,
     }
 }
 
@@ -39,7 +43,7 @@ pub const TOPICS: [TopicSpec; 16] = [
     TopicSpec {
         id: TopicId::Spectrum,
         name: "spectrum",
-        pattern: data(32, true),
+        pattern: data(32),
         section: Section::Spectra,
         from: From::One(ServiceId::Sensor),
         count: Count::Stream {
@@ -53,7 +57,7 @@ pub const TOPICS: [TopicSpec; 16] = [
     TopicSpec {
         id: TopicId::Truth,
         name: "truth",
-        pattern: data(32, false),
+        pattern: data(32),
         section: Section::Always,
         from: From::One(ServiceId::Sensor),
         count: Count::Truth,
@@ -128,7 +132,7 @@ pub const TOPICS: [TopicSpec; 16] = [
     TopicSpec {
         id: TopicId::Detections,
         name: "detections",
-        pattern: data(16, true),
+        pattern: data(16),
         section: Section::Camera,
         from: From::One(ServiceId::Detector),
         count: Count::PerInput(TopicId::Frame),
@@ -139,7 +143,7 @@ pub const TOPICS: [TopicSpec; 16] = [
     TopicSpec {
         id: TopicId::Tracks,
         name: "tracks",
-        pattern: data(16, false),
+        pattern: data(16),
         section: Section::Camera,
         from: From::One(ServiceId::Tracker),
         count: Count::PerInput(TopicId::Detections),
@@ -181,7 +185,7 @@ pub const TOPICS: [TopicSpec; 16] = [
     TopicSpec {
         id: TopicId::EarthAttitude,
         name: "earth_attitude",
-        pattern: data(16, true),
+        pattern: data(16),
         section: Section::Earth,
         from: From::One(ServiceId::Earth),
         count: Count::PerInput(TopicId::EarthFrame),
@@ -192,7 +196,7 @@ pub const TOPICS: [TopicSpec; 16] = [
     TopicSpec {
         id: TopicId::Stereo,
         name: "stereo",
-        pattern: data(32, true),
+        pattern: data(32),
         section: Section::Stereo,
         from: From::One(ServiceId::Sensor),
         count: Count::Stream {
@@ -208,7 +212,7 @@ pub const TOPICS: [TopicSpec; 16] = [
     TopicSpec {
         id: TopicId::RelNav,
         name: "relnav",
-        pattern: data(16, false),
+        pattern: data(16),
         section: Section::Stereo,
         from: From::One(ServiceId::RelNav),
         count: Count::PerInput(TopicId::Stereo),
@@ -219,7 +223,7 @@ pub const TOPICS: [TopicSpec; 16] = [
     TopicSpec {
         id: TopicId::Photometry,
         name: "photometry",
-        pattern: data(64, true),
+        pattern: data(64),
         section: Section::Photometry,
         from: From::One(ServiceId::Sensor),
         count: Count::Stream {
@@ -235,7 +239,7 @@ pub const TOPICS: [TopicSpec; 16] = [
     TopicSpec {
         id: TopicId::PhotometryEstimate,
         name: "photometry_estimate",
-        pattern: data(16, false),
+        pattern: data(16),
         section: Section::Photometry,
         from: From::One(ServiceId::Photometry),
         count: Count::PerInput(TopicId::Photometry),

@@ -2,7 +2,14 @@
 //! one more subscriber on its host) and put on Zenoh, each with its envelope. A put under
 //! `Block` waits for the link: what cannot go yet stays in the subscriber's queue, which the
 //! sim-clock credit keeps from overflowing; in realtime mode a gap is counted by seq.
+//!
+//! A host whose bridge left (killed, restarted) misses what was put while it was dying. The
+//! egress holds while any host is away, and when one comes back puts again the last messages
+//! of each topic, as many as the topic's credit window: in sim clock no producer is further
+//! ahead of its slowest consumer than that, so whatever the dead bridge lost is among them.
+//! They go marked [`Envelope::RESENT`]; consumers skip those they already had (`duplicates`).
 
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
@@ -10,6 +17,7 @@ use anyhow::{anyhow, Result};
 use glint_runtime::stats::SeqVerdict;
 use glint_runtime::{run_loop, Step, TopicStats};
 use shared_types::Scenario;
+use zenoh::bytes::ZBytes;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Locality;
 use zenoh::Wait;
@@ -31,6 +39,10 @@ struct Route {
     publisher: zenoh::pubsub::Publisher<'static>,
     /// This hop's accounting of a data topic: taken from shared memory, put on the wire.
     stats: Option<TopicStats>,
+    /// The last messages put (their bytes, shared with Zenoh's buffers, not copied), at most
+    /// `keep`: put again when a host comes back.
+    sent: VecDeque<ZBytes>,
+    keep: usize,
 }
 
 /// The egress thread's body: runs until `stop` is set or a termination signal arrives;
@@ -71,6 +83,8 @@ pub fn run(
             port,
             publisher,
             stats: data.then(|| TopicStats::new(t)),
+            sent: VecDeque::new(),
+            keep: shared_types::topics::credit_window(t, scenario),
         });
     }
     // Ready once the other hosts' bridges take every exported topic: nothing put before that
@@ -89,7 +103,26 @@ pub fn run(
     ready();
     let inputs: Vec<_> = listeners.iter().map(|l| (l, None)).collect();
     let mut links = LinkSeqs::default();
+    let mut rejoins = shared.rejoins.load(Ordering::SeqCst);
     run_loop(&inputs, TICK, |_| {
+        if shared.away.load(Ordering::SeqCst) > 0 {
+            // Hold: nothing leaves while a host is away (its bridge would not take it).
+            return Ok(if stop.load(Ordering::SeqCst) {
+                Step::Stop
+            } else {
+                Step::WaitAtMost(TICK)
+            });
+        }
+        let now = shared.rejoins.load(Ordering::SeqCst);
+        if now != rejoins {
+            rejoins = now;
+            for r in out.iter_mut() {
+                resend(r, routes, &mut links)?;
+                if let Some(s) = &r.stats {
+                    shared.set(s);
+                }
+            }
+        }
         let mut more = false;
         for r in out.iter_mut() {
             if stop.load(Ordering::SeqCst) {
@@ -136,13 +169,46 @@ fn forward(
         }
         let seq = links.stamp(topic, routes.host_index);
         let envelope = Envelope::new(topic, routes.host_index, seq, r.port.digest());
-        (r.publisher.put(bytes))
-            .attachment(envelope.to_bytes().to_vec())
-            .wait()
-            .map_err(|e| anyhow!("zenoh put on {}: {e}", topic.name()))?;
+        let bytes = ZBytes::from(bytes);
+        put(r, bytes.clone(), envelope)?;
+        if r.keep > 0 {
+            if r.sent.len() == r.keep {
+                r.sent.pop_front();
+            }
+            r.sent.push_back(bytes);
+        }
         if let Some(s) = r.stats.as_mut() {
             s.published += 1;
         }
     }
     Ok(true)
+}
+
+/// Puts the route's last messages on the wire again, in their order, marked resent (counted
+/// as `duplicates` on both sides of the hop).
+fn resend(r: &mut Route, routes: &Routes, links: &mut LinkSeqs) -> Result<()> {
+    let topic = r.port.topic();
+    for bytes in r.sent.clone() {
+        let seq = links.stamp(topic, routes.host_index);
+        let envelope = Envelope::new(topic, routes.host_index, seq, r.port.digest()).resent();
+        put(r, bytes, envelope)?;
+        if let Some(s) = r.stats.as_mut() {
+            s.duplicates += 1;
+        }
+    }
+    if !r.sent.is_empty() {
+        tracing::info!(
+            topic = topic.name(),
+            n = r.sent.len(),
+            "put again: a host came back"
+        );
+    }
+    Ok(())
+}
+
+fn put(r: &Route, bytes: ZBytes, envelope: Envelope) -> Result<()> {
+    (r.publisher.put(bytes))
+        .attachment(envelope.to_bytes().to_vec())
+        .wait()
+        .map_err(|e| anyhow!("zenoh put on {}: {e}", r.port.topic().name()))
 }

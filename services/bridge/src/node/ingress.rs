@@ -121,13 +121,20 @@ pub fn run(
                 }
                 if let Some(s) = route.stats.as_mut() {
                     s.dropped[DropReason::Link as usize] += lost;
-                    s.accept();
                 }
             }
         }
+        // Put again after a bridge came back: passed on (its consumers skip what they have),
+        // counted as a duplicate of the hop, not as a message.
+        let resent = envelope.is_resent();
         route.port.put(&mut payload.slices())?;
         if let Some(s) = route.stats.as_mut() {
-            s.published += 1;
+            if resent {
+                s.duplicates += 1;
+            } else {
+                s.accept();
+                s.published += 1;
+            }
             s.next_seq = envelope.link_seq + 1;
             shared.set(s);
         }

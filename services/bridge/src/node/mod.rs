@@ -8,9 +8,9 @@ mod egress;
 mod ingress;
 mod ports;
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{mpsc, Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use glint_runtime::{run_loop, Housekeeping, Step, TopicStats};
@@ -24,12 +24,35 @@ pub fn key(deployment: &str, topic: TopicId) -> String {
     format!("glint/{deployment}/{}", topic.name())
 }
 
+/// Exit status of `glint service bridge` when it ended for [`OrchestratorLost`]: its host's
+/// part does not restart it, but ends.
+pub const EXIT_ORCHESTRATOR_LOST: u8 = 3;
+
+/// The orchestrator's host was away past the heartbeat deadline: the run is over for this
+/// host (nothing of glint outlives its orchestrator).
+#[derive(Debug)]
+pub struct OrchestratorLost(pub String);
+
+impl std::fmt::Display for OrchestratorLost {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for OrchestratorLost {}
+
 /// The per-hop counters the threads keep and the heartbeat carries.
 #[derive(Default)]
 pub struct Shared {
     stats: Mutex<Vec<TopicStats>>,
     /// A thread's error: the bridge stops with it.
     failed: Mutex<Option<String>>,
+    /// Other hosts whose bridge is away: the egress holds (what it has not put stays queued
+    /// in shared memory, where sim-clock credit holds the producers).
+    away: AtomicUsize,
+    /// Hosts come back so far: the egress puts again what it last sent, which may have been
+    /// in flight to the dead bridge (its consumers skip what they already have).
+    rejoins: AtomicU64,
 }
 
 impl Shared {
@@ -139,18 +162,29 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
             .context("opening the bridge's ports")?;
     }
     // Presence: every bridge holds a liveliness token; a host whose token goes (its bridge
-    // ended, or its link was silent for Zenoh's lease) is gone.
+    // ended, or its link was silent for Zenoh's lease) is away until it comes back.
     let deployment = scenario.deployment_key();
     let _token = (session.liveliness())
         .declare_token(format!("glint/{deployment}/@bridge/{host}"))
         .wait()
         .map_err(|e| anyhow!("zenoh liveliness token: {e}"))?;
-    let presence = (session.liveliness())
-        .declare_subscriber(format!("glint/{deployment}/@bridge/*"))
-        .history(true)
-        .wait()
-        .map_err(|e| anyhow!("zenoh liveliness subscriber: {e}"))?;
-    let mut peers = Peers::default();
+    let peers = Arc::new(Mutex::new(Peers::default()));
+    let _presence = {
+        let (peers, shared, host) = (peers.clone(), shared.clone(), host.to_string());
+        (session.liveliness())
+            .declare_subscriber(format!("glint/{deployment}/@bridge/*"))
+            .history(true)
+            .callback(move |s| {
+                let peer = s.key_expr().as_str().rsplit('/').next().unwrap_or("");
+                let here = s.kind() == zenoh::sample::SampleKind::Put;
+                let mut p = peers.lock().unwrap_or_else(|p| p.into_inner());
+                p.saw(&host, peer, here, &shared);
+            })
+            .wait()
+            .map_err(|e| anyhow!("zenoh liveliness subscriber: {e}"))?
+    };
+    // The orchestrator's host away this long is lost (its bridge is not coming back).
+    let lost_after = Duration::from_millis(scenario.run.heartbeat_deadline_ms);
     hk.state = Heartbeat::READY;
     tracing::info!(host, "bridge ready");
     let beat = |hk: &mut Housekeeping| -> Result<()> {
@@ -161,6 +195,7 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
     // The bridge stops on a `Shutdown` addressed to it, which the orchestrator sends once the
     // services it carries for have stopped and their last heartbeats crossed (a `Shutdown` to
     // all is theirs), or on SIGTERM.
+    let mut orchestrator_lost = None;
     let exit = run_loop(&[(&control, None)], period, |_| {
         if hk.poll_control()?.contains(&shared_types::Command::Start) {
             hk.state = Heartbeat::RUNNING;
@@ -168,22 +203,20 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
         if stop.load(Ordering::SeqCst) || hk.shutdown_addressed {
             return Ok(Step::Stop);
         }
-        while let Ok(Some(s)) = presence.try_recv() {
-            let peer = s
-                .key_expr()
-                .as_str()
-                .rsplit('/')
-                .next()
-                .unwrap_or("")
-                .to_string();
-            let here = s.kind() == zenoh::sample::SampleKind::Put;
-            if let Some(why) = peers.saw(scenario, host, &peer, here) {
-                // After the run's Shutdown, the orchestrator's host leaving is the run's end.
-                if !hk.shutdown_requested {
-                    shared.fail(why);
-                }
-                return Ok(Step::Stop);
+        let orchestrator = scenario.orchestrator_host().unwrap_or_default();
+        let lost = (peers.lock().unwrap_or_else(|p| p.into_inner())).away_for(orchestrator);
+        if let Some(t) = lost.filter(|t| *t >= lost_after) {
+            // After the run's Shutdown, the orchestrator's host leaving is the run's end.
+            if !hk.shutdown_requested {
+                orchestrator_lost = Some(format!(
+                    "lost the orchestrator's host `{orchestrator}`: its bridge was away for \
+                     {} ms (run.heartbeat_deadline_ms = {}; it ended, or the link was silent \
+                     past Zenoh's lease)",
+                    t.as_millis(),
+                    lost_after.as_millis()
+                ));
             }
+            return Ok(Step::Stop);
         }
         beat(&mut hk)?;
         Ok(Step::Wait)
@@ -194,6 +227,9 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
     }
     hk.state = Heartbeat::STOPPING;
     beat(&mut hk)?;
+    if let Some(why) = orchestrator_lost {
+        return Err(OrchestratorLost(format!("bridge of host {host}: {why}")).into());
+    }
     if let Some(f) = shared.failure() {
         return Err(anyhow!("bridge of host {host}: {f}"));
     }
@@ -206,29 +242,38 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
 #[derive(Default)]
 struct Peers {
     present: Vec<String>,
+    /// Hosts whose bridge left, and since when.
+    away: Vec<(String, Instant)>,
 }
 
 impl Peers {
-    /// A peer's token appeared (`here`) or went. The orchestrator's host gone ends the bridge
-    /// of every other host (nothing of glint outlives its orchestrator): the reason returned.
-    fn saw(&mut self, scenario: &Scenario, host: &str, peer: &str, here: bool) -> Option<String> {
+    /// A peer's token appeared (`here`) or went: the egress holds while any host is away, and
+    /// puts again what it last sent when one comes back ([`Shared::rejoins`]).
+    fn saw(&mut self, host: &str, peer: &str, here: bool, shared: &Shared) {
         if peer == host {
-            return None;
+            return;
         }
-        if here {
+        if !here {
+            tracing::warn!(peer, "host away: its bridge left");
+            self.present.retain(|p| p != peer);
+            if !self.away.iter().any(|(p, _)| p == peer) {
+                self.away.push((peer.to_string(), Instant::now()));
+            }
+        } else if self.away.iter().any(|(p, _)| p == peer) {
+            tracing::info!(peer, "host back: its bridge rejoined");
+            self.away.retain(|(p, _)| p != peer);
+            self.present.push(peer.to_string());
+            shared.rejoins.fetch_add(1, Ordering::SeqCst);
+        } else {
             tracing::info!(peer, "host joined");
             self.present.push(peer.to_string());
-            return None;
         }
-        tracing::warn!(peer, "host gone");
-        self.present.retain(|p| p != peer);
-        let orchestrator = scenario.orchestrator_host();
-        (orchestrator == Some(peer)).then(|| {
-            format!(
-                "lost the orchestrator's host `{peer}` (its bridge ended, or the link was \
-                     silent past Zenoh's lease)"
-            )
-        })
+        shared.away.store(self.away.len(), Ordering::SeqCst);
+    }
+
+    /// How long `peer` has been away, if it is.
+    fn away_for(&self, peer: &str) -> Option<Duration> {
+        (self.away.iter().find(|(p, _)| p == peer)).map(|(_, t)| t.elapsed())
     }
 }
 
