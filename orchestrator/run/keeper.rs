@@ -31,10 +31,11 @@ pub struct Keeper {
     beat: Option<(Instant, Heartbeat)>,
     /// The run's `Start`, as heard over control: fault times count from it.
     started: Option<Instant>,
-    /// The topic a fault's `at_seq` counts, and the most of it the bridge passed on so far
-    /// (over its incarnations).
+    /// The topic a fault's `at_seq` counts, and how many of it the bridge passed on: its
+    /// earlier incarnations' (each one's counters start from zero) and the current one's.
     trigger: Option<TopicId>,
-    carried: u64,
+    carried_before: u64,
+    carried_now: (u32, u64),
 }
 
 impl Keeper {
@@ -52,7 +53,8 @@ impl Keeper {
             beat: None,
             started: None,
             trigger: deployment::trigger_topic(scenario, ServiceId::Bridge),
-            carried: 0,
+            carried_before: 0,
+            carried_now: (0, 0),
         }
     }
 
@@ -61,18 +63,32 @@ impl Keeper {
         let now = Instant::now();
         self.beat = Some((now, hb));
         let counters = (self.trigger).and_then(|t| hb.topics.iter().find(|c| c.topic == t as u32));
-        self.carried = self.carried.max(counters.map_or(0, |c| c.published));
+        let passed_on = counters.map_or(0, |c| c.published);
+        match self.carried_now {
+            (pid, n) if pid == hb.pid => self.carried_now = (pid, n.max(passed_on)),
+            (_, n) => {
+                self.carried_before += n;
+                self.carried_now = (hb.pid, passed_on);
+            }
+        }
         if let Some(at_s) = self.since_start(now) {
+            // Its progress: what it passed on, over its incarnations (a restarted bridge has
+            // recovered once it carries again).
+            let carried = self.carried();
             let heard = Heard {
                 at_s,
                 faults_obeyed: 0,
                 delaying: false,
-                progress: counters.map_or(0, |c| c.next_seq),
-                carried: self.carried,
+                progress: carried,
+                carried,
                 done: 0,
             };
             self.injector.heard_from(ServiceId::Bridge, heard);
         }
+    }
+
+    fn carried(&self) -> u64 {
+        self.carried_before + self.carried_now.1
     }
 
     /// The run's `Start` arrived.
@@ -84,8 +100,10 @@ impl Keeper {
         (self.started).map(|s| t.saturating_duration_since(s).as_secs_f64())
     }
 
-    /// One tick: the faults due, supervision's actions on `bridge` (`respawn(n)` starts its
-    /// n-th restart). `Some(why)` when the bridge failed past what `[supervision]` allows.
+    /// One tick: the faults due (once the run started), supervision's actions on `bridge`
+    /// (once it was first ready; `respawn(n)` starts its n-th restart). `Some(why)` when this
+    /// host's part must end: the bridge failed past what `[supervision]` allows, or ended
+    /// because the orchestrator's host is gone.
     pub fn step(
         &mut self,
         bridge: &mut ServiceProcess,
@@ -100,20 +118,21 @@ impl Keeper {
             self.supervisor.started(now);
             self.supervised = true;
         }
-        let Some(now_s) = self.since_start(now) else {
-            return Ok(None);
-        };
-        let carried = self.carried;
-        for a in self.injector.step(now_s, |_| carried, |_, _| (0, 0)) {
-            match a.act {
-                Act::Signal(sig) => bridge.signal(sig),
-                // Validation gives the bridge signals only.
-                Act::Order(_) => {}
+        let now_s = self.since_start(now);
+        if let Some(now_s) = now_s {
+            let carried = self.carried();
+            for a in self.injector.step(now_s, |_| carried, |_, _| (0, 0)) {
+                match a.act {
+                    Act::Signal(sig) => bridge.signal(sig),
+                    // Validation gives the bridge signals only.
+                    Act::Order(_) => {}
+                }
             }
         }
         if !self.supervised {
             return Ok(None);
         }
+        let now_s = now_s.unwrap_or(0.0);
         bridge.poll_exit();
         if let Some(code) = bridge.exit_code.filter(|c| Some(*c) == lost_orchestrator()) {
             return Ok(Some(format!(
@@ -141,13 +160,7 @@ impl Keeper {
                 }
                 Action::Resume(id) => {
                     tracing::info!("the restarted bridge is ready");
-                    let progress = (self.beat.map(|(_, hb)| hb))
-                        .and_then(|hb| {
-                            let t = self.trigger?;
-                            hb.topics.iter().find(|c| c.topic == t as u32).copied()
-                        })
-                        .map_or(0, |c| c.next_seq);
-                    self.injector.restarted(id, now_s, progress);
+                    self.injector.restarted(id, now_s, self.carried());
                 }
                 Action::GiveUp { why, .. } => {
                     return Ok(Some(format!(

@@ -67,6 +67,8 @@ struct Watched {
     services: Vec<ServiceId>,
     open: Option<Outage>,
     outages: Vec<Outage>,
+    /// When it was last heard again after an outage.
+    back: Option<Instant>,
 }
 
 /// Outages of every other host, noticed as the run goes.
@@ -99,10 +101,18 @@ impl Links {
                     services,
                     open: None,
                     outages: vec![],
+                    back: None,
                 })
                 .collect(),
             silence: period * SILENT_PERIODS,
         }
+    }
+
+    /// When `host` was last heard again after an outage (`None`: never cut off).
+    pub fn back_since(&self, host: Option<&str>) -> Option<Instant> {
+        (self.hosts.iter())
+            .find(|h| Some(h.host.as_str()) == host)
+            .and_then(|h| h.back)
     }
 
     /// Opens and closes outages from the services' latest heartbeats; `since_start` turns an
@@ -138,6 +148,7 @@ impl Links {
                     o.recovered_s = Some(since_start(last));
                     o.recovered_unix_ms = Some(unix_ms(last));
                     tracing::info!(host = h.host, "host heard again");
+                    h.back = Some(last);
                     h.outages.extend(h.open.take());
                 }
                 _ => {}

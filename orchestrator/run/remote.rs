@@ -13,18 +13,6 @@ use crate::run::consume::Consumer;
 use crate::run::deploy::Ending;
 use crate::run::links::Links;
 
-/// How long another host's services may go unheard before the run fails: the heartbeat
-/// deadline, then what that host's own supervision may take to notice a failed bridge and bring
-/// a new one up (its backoff and startup limits). A bridge killed or stopped on that host, or a
-/// partition, shorter than this is an outage the run rides out.
-pub fn silence_limit(scenario: &Scenario) -> Duration {
-    Duration::from_millis(
-        scenario.run.heartbeat_deadline_ms
-            + scenario.supervision.backoff_max_ms
-            + scenario.run.startup_timeout_ms,
-    )
-}
-
 pub struct Remote {
     /// Services of the deployment on other hosts than this one.
     pub services: Vec<ServiceId>,
@@ -55,10 +43,13 @@ impl Remote {
         })
     }
 
-    /// Notes outages, and the failure of a service whose heartbeats stopped crossing for
-    /// longer than [`silence_limit`] (it cannot be signalled or restarted from here). `bridge`:
-    /// since when this host's bridge has been up (`None`: it is being restarted, which
-    /// explains any silence; the limit counts from its return).
+    /// Notes outages, and the failure of a service whose heartbeats stopped crossing (it
+    /// cannot be signalled or restarted from here): for `run.heartbeat_deadline_ms` while
+    /// another service of its host is heard (it hung), or for the host's silence limit
+    /// ([`Scenario::host_silence_limit`]) when the whole host is silent (its bridge may be
+    /// restarting there, or the link cut). `bridge`: since when this host's bridge has been
+    /// up (`None`: it is being restarted, which explains any silence; limits count from its
+    /// return).
     pub fn check(
         &mut self,
         scenario: &Scenario,
@@ -69,17 +60,48 @@ impl Remote {
     ) -> Option<String> {
         self.links.step(now, &consumer.seen, since_start);
         let bridge = bridge?;
-        let limit = silence_limit(scenario);
-        let silent = (self.services.iter()).find(|id| {
-            let heard = (consumer.seen.get(id)).map_or(bridge, |s| s.at.max(bridge));
-            now.saturating_duration_since(heard) > limit
+        let deadline = Duration::from_millis(scenario.run.heartbeat_deadline_ms);
+        let period = Duration::from_millis(scenario.run.heartbeat_period_ms);
+        // Silence counts from its last heartbeat, or from when this host's bridge or its own
+        // host (after an outage) was back, whichever came last.
+        let heard = |id: &ServiceId| {
+            let back = self
+                .links
+                .back_since(scenario.host_of(*id))
+                .max(Some(bridge));
+            (consumer.seen.get(id))
+                .map(|s| s.at)
+                .max(back)
+                .unwrap_or(bridge)
+        };
+        // Its host went on talking after it fell silent: another service of the host was heard
+        // well after it (two heartbeat periods: not the same last round) and lately.
+        let alone = |id: &ServiceId| {
+            (self.services.iter()).any(|s| {
+                scenario.host_of(*s) == scenario.host_of(*id)
+                    && heard(s) > heard(id) + 2 * period
+                    && now.saturating_duration_since(heard(s)) <= deadline
+            })
+        };
+        let (silent, limit, why) = (self.services.iter()).find_map(|id| {
+            let (limit, why) = match alone(id) {
+                true => (
+                    deadline,
+                    "run.heartbeat_deadline_ms, while its host was heard",
+                ),
+                false => (
+                    scenario.host_silence_limit(),
+                    "run.heartbeat_deadline_ms + supervision.backoff_max_ms + \
+                     run.startup_timeout_ms: its host was silent, and had that long to bring \
+                     its bridge back",
+                ),
+            };
+            (now.saturating_duration_since(heard(id)) > limit).then_some((*id, limit, why))
         })?;
         Some(format!(
-            "service {} on host {} sent no heartbeat across the bridge for {} ms \
-             (run.heartbeat_deadline_ms, then supervision.backoff_max_ms and \
-             run.startup_timeout_ms for that host to bring its bridge back)",
+            "service {} on host {} sent no heartbeat across the bridge for {} ms ({why})",
             silent.name(),
-            scenario.host_of(*silent).unwrap_or("?"),
+            scenario.host_of(silent).unwrap_or("?"),
             limit.as_millis()
         ))
     }

@@ -5,8 +5,10 @@
 
 use shared_types::{TopicId, CONTRACT_VERSION};
 
-/// `GLNT` in ASCII, little-endian: the first four bytes of every envelope.
-pub const MAGIC: u32 = u32::from_le_bytes(*b"GLNT");
+/// `GLN2` in ASCII, little-endian: the first four bytes of every envelope; its last byte is
+/// the envelope's own layout (2: `origin_host` u16 and `flags`), so a bridge of another layout
+/// is refused (`Magic`) rather than misread.
+pub const MAGIC: u32 = u32::from_le_bytes(*b"GLN2");
 
 /// The 32 bytes of a Zenoh attachment.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -35,7 +37,7 @@ pub const ENVELOPE_BYTES: usize = std::mem::size_of::<Envelope>();
 pub enum Refusal {
     /// No attachment, or not 32 bytes.
     NoEnvelope,
-    /// The first four bytes are not `GLNT`.
+    /// The first four bytes are not [`MAGIC`].
     Magic,
     /// Another contract version (the sender is another glint).
     Contract(u32),

@@ -51,17 +51,18 @@ pub struct Outbox<T: Message> {
     pub stats: TopicStats,
 }
 
+/// A publisher's [`UpdateConnections`]: new subscribers connected, and handed the history.
+fn connect(publisher: &impl UpdateConnections, topic: TopicId) -> Result<()> {
+    (publisher.update_connections())
+        .map_err(|e| anyhow!("connecting {}'s subscribers: {e:?}", topic.name()))
+}
+
 impl<T: Message> Outbox<T> {
     /// Connects subscribers that joined since the last send and hands them the topic's
     /// history now, not at the next send (which a held producer may never make: a restarted
     /// bridge's subscriber waits for what was in flight).
     pub fn connect(&self) -> Result<()> {
-        (self.publisher.update_connections()).map_err(|e| {
-            anyhow!(
-                "connecting {}'s subscribers: {e:?}",
-                self.stats.topic.name()
-            )
-        })
+        connect(&self.publisher, self.stats.topic)
     }
 
     /// A publisher on message topic `topic`, from `producer`. A topic the table replays from a
@@ -358,12 +359,7 @@ pub struct FrameOutbox {
 impl FrameOutbox {
     /// As [`Outbox::connect`].
     pub fn connect(&self) -> Result<()> {
-        (self.publisher.update_connections()).map_err(|e| {
-            anyhow!(
-                "connecting {}'s subscribers: {e:?}",
-                self.stats.topic.name()
-            )
-        })
+        connect(&self.publisher, self.stats.topic)
     }
 
     /// A frame publisher on `topic`, frames of the size `scenario` gives it.

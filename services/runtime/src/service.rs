@@ -632,13 +632,15 @@ pub fn run_service_with<S: Service>(args: ServiceArgs<'_>, clock: &dyn Clock) ->
             hk.beat(last_t_ns, &all_stats(&input, &svc))?;
         }
         // Asleep next with an output's credit used up: held back by a consumer. A subscriber
-        // that joined meanwhile (a restarted bridge) gets the history now: what it waits for.
+        // that joined meanwhile (a restarted bridge) is handed the history now, and on every
+        // tick (a producer done, or idle, sends nothing that would hand it over).
         let mut held = false;
         for o in svc.outputs() {
             let topic = o.stats().topic;
             let credit = credits.iter().find(|(t, _)| *t == topic);
-            if credit.is_some_and(|(_, c)| c.available(o.next_seq()) == 0) {
-                held = true;
+            let out_of_credit = credit.is_some_and(|(_, c)| c.available(o.next_seq()) == 0);
+            held |= out_of_credit;
+            if out_of_credit || wakes.contains(&Wake::Tick) {
                 o.connect()?;
             }
         }

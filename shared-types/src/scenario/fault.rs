@@ -366,31 +366,21 @@ pub(super) fn check_faults(c: &mut Checker, scenario: &super::Scenario) {
         if let Some(k) = f.every {
             c.range_u(&at("every"), u64::from(k), 1, 1000);
         }
-        let hosts = || {
-            scenario
-                .hosts
-                .keys()
-                .map(|k| k.as_str())
-                .collect::<Vec<_>>()
-        };
-        match (&f.host, f.service_id()) {
-            (Some(h), _) if !scenario.hosts.contains_key(h) => c.fail(
-                &at("host"),
-                match scenario.split() {
-                    true => format!(
-                        "`{h}` is not a host of [hosts]; allowed: {}",
-                        hosts().join(", ")
-                    ),
-                    false => {
-                        format!("`{h}`: the scenario has no [hosts.<name>] (it runs on one host)")
-                    }
-                },
-            ),
-            (Some(_), s) if s != Some(ServiceId::Bridge) => c.fail(
+        if let Some(h) = f.host.as_ref().filter(|h| !scenario.hosts.contains_key(*h)) {
+            let hosts: Vec<&str> = scenario.hosts.keys().map(|k| k.as_str()).collect();
+            let why = match scenario.split() {
+                true => format!(
+                    "`{h}` is not a host of [hosts]; allowed: {}",
+                    hosts.join(", ")
+                ),
+                false => format!("`{h}`: the scenario has no [hosts.<name>] (it runs on one host)"),
+            };
+            c.fail(&at("host"), why);
+        } else if f.host.is_some() && f.service_id() != Some(ServiceId::Bridge) {
+            c.fail(
                 &at("host"),
                 "only a bridge fault names its host (a service runs where it is placed)".into(),
-            ),
-            _ => {}
+            );
         }
         if f.kind.in_band() && !scenario.faults.enabled {
             c.fail(

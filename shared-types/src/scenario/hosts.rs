@@ -72,6 +72,19 @@ impl super::Scenario {
         }
     }
 
+    /// How long a host of a split deployment may go unheard before it is lost: the heartbeat
+    /// deadline, then what that host's own supervision may take to notice a failed bridge and
+    /// bring a new one up (its backoff and startup limits). The orchestrator fails the run
+    /// when another host's services are silent this long; another host's part ends when the
+    /// orchestrator's host has been away this long.
+    pub fn host_silence_limit(&self) -> std::time::Duration {
+        std::time::Duration::from_millis(
+            self.run.heartbeat_deadline_ms
+                + self.supervision.backoff_max_ms
+                + self.run.startup_timeout_ms,
+        )
+    }
+
     /// The key under which this deployment's hosts meet on Zenoh (`glint/<key>/…`): 16 hex
     /// digits of the xxh3 of the scenario as glint reads it, so every host that runs the same
     /// scenario agrees without talking first, and different scenarios never meet.
@@ -242,6 +255,25 @@ fn check_what_crosses(c: &mut Checker, scenario: &super::Scenario) {
         let service = ServiceId::from_name(&f.service);
         let at = |field: &str| format!("fault[{i}].{field}");
         if service == Some(ServiceId::Bridge) {
+            // `at_seq` counts the first data topic that crosses hosts: it must pass this bridge.
+            let trigger = crate::deployment::trigger_topic(scenario, ServiceId::Bridge);
+            let on = f.on_host(scenario);
+            let passes = trigger.is_some_and(|t| {
+                let producer = crate::deployment::producer(t).and_then(|p| scenario.host_of(p));
+                let consumers = crate::deployment::consumers(scenario, t);
+                producer == on || consumers.iter().any(|c| scenario.host_of(*c) == on)
+            });
+            if f.at_seq.is_some() && !passes {
+                c.fail(
+                    &at("at_seq"),
+                    format!(
+                        "at_seq counts the first data topic that crosses hosts ({}), which does \
+                         not pass through host {}'s bridge: give at_s",
+                        trigger.map_or("none", |t| t.name()),
+                        on.unwrap_or("?")
+                    ),
+                );
+            }
             if f.kind.in_band() {
                 c.fail(
                     &at("kind"),

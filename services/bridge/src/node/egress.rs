@@ -5,7 +5,7 @@
 //!
 //! A host whose bridge left (killed, restarted) misses what was put while it was dying. The
 //! egress holds while any host is away, and when one comes back puts again the last messages
-//! of each topic, as many as the topic's credit window: in sim clock no producer is further
+//! of each data topic, as many as the topic's credit window: in sim clock no producer is further
 //! ahead of its slowest consumer than that, so whatever the dead bridge lost is among them.
 //! They go marked [`Envelope::RESENT`]; consumers skip those they already had (`duplicates`).
 
@@ -84,7 +84,13 @@ pub fn run(
             publisher,
             stats: data.then(|| TopicStats::new(t)),
             sent: VecDeque::new(),
-            keep: shared_types::topics::credit_window(t, scenario),
+            // Data only: heartbeats are periodic, acks go again with every heartbeat, and a
+            // control order obeyed twice would act twice (its readers take a seq that goes
+            // back as a new incarnation of the orchestrator, not as a duplicate).
+            keep: match data {
+                true => shared_types::topics::credit_window(t, scenario),
+                false => 0,
+            },
         });
     }
     // Ready once the other hosts' bridges take every exported topic: nothing put before that
@@ -128,7 +134,10 @@ pub fn run(
             if stop.load(Ordering::SeqCst) {
                 return Ok(Step::Stop);
             }
-            more |= forward(r, scenario, routes, &mut links)?;
+            more |= forward(r, scenario, routes, &mut links, || {
+                shared.away.load(Ordering::SeqCst) > 0
+                    || shared.rejoins.load(Ordering::SeqCst) != rejoins
+            })?;
             if let Some(s) = &r.stats {
                 shared.set(s);
             }
@@ -144,15 +153,21 @@ pub fn run(
 }
 
 /// Puts up to [`BATCH`] queued messages of one route on the wire (one copy, from shared
-/// memory into the buffer Zenoh sends); whether it stopped at the batch's end.
+/// memory into the buffer Zenoh sends); whether it stopped before the queue was empty. It
+/// stops as soon as `changed()` says a host left or came back (a put can block on a stopped
+/// peer until its link closes): the round starts again, holding or putting again first.
 fn forward(
     r: &mut Route,
     scenario: &Scenario,
     routes: &Routes,
     links: &mut LinkSeqs,
+    changed: impl Fn() -> bool,
 ) -> Result<bool> {
     let topic = r.port.topic();
     for _ in 0..BATCH {
+        if changed() {
+            return Ok(true);
+        }
         let mut bytes = Vec::new();
         let Some(taken) = r.port.take(&mut bytes)? else {
             return Ok(false);

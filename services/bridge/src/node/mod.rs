@@ -164,27 +164,32 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
     // Presence: every bridge holds a liveliness token; a host whose token goes (its bridge
     // ended, or its link was silent for Zenoh's lease) is away until it comes back.
     let deployment = scenario.deployment_key();
+    // One token per incarnation (`…/@bridge/<host>/<pid>`): a restarted bridge's token may be
+    // seen before its dead predecessor's goes.
+    let incarnation = std::process::id();
     let _token = (session.liveliness())
-        .declare_token(format!("glint/{deployment}/@bridge/{host}"))
+        .declare_token(format!("glint/{deployment}/@bridge/{host}/{incarnation}"))
         .wait()
         .map_err(|e| anyhow!("zenoh liveliness token: {e}"))?;
     let peers = Arc::new(Mutex::new(Peers::default()));
     let _presence = {
         let (peers, shared, host) = (peers.clone(), shared.clone(), host.to_string());
         (session.liveliness())
-            .declare_subscriber(format!("glint/{deployment}/@bridge/*"))
+            .declare_subscriber(format!("glint/{deployment}/@bridge/*/*"))
             .history(true)
             .callback(move |s| {
-                let peer = s.key_expr().as_str().rsplit('/').next().unwrap_or("");
+                let mut key = s.key_expr().as_str().rsplit('/');
+                let (id, peer) = (key.next().unwrap_or(""), key.next().unwrap_or(""));
                 let here = s.kind() == zenoh::sample::SampleKind::Put;
                 let mut p = peers.lock().unwrap_or_else(|p| p.into_inner());
-                p.saw(&host, peer, here, &shared);
+                p.saw(&host, peer, id, here, &shared);
             })
             .wait()
             .map_err(|e| anyhow!("zenoh liveliness subscriber: {e}"))?
     };
-    // The orchestrator's host away this long is lost (its bridge is not coming back).
-    let lost_after = Duration::from_millis(scenario.run.heartbeat_deadline_ms);
+    // The orchestrator's host away this long is lost: its supervision had the time to bring
+    // its bridge back (the limit the orchestrator gives every other host).
+    let lost_after = scenario.host_silence_limit();
     hk.state = Heartbeat::READY;
     tracing::info!(host, "bridge ready");
     let beat = |hk: &mut Housekeeping| -> Result<()> {
@@ -210,8 +215,9 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
             if !hk.shutdown_requested {
                 orchestrator_lost = Some(format!(
                     "lost the orchestrator's host `{orchestrator}`: its bridge was away for \
-                     {} ms (run.heartbeat_deadline_ms = {}; it ended, or the link was silent \
-                     past Zenoh's lease)",
+                     {} ms (run.heartbeat_deadline_ms + supervision.backoff_max_ms + \
+                     run.startup_timeout_ms = {} ms; it ended, or the link was silent past \
+                     Zenoh's lease)",
                     t.as_millis(),
                     lost_after.as_millis()
                 ));
@@ -238,35 +244,47 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
     Ok(())
 }
 
-/// The other hosts' bridges this one has seen come and go.
+/// The other hosts' bridges this one has seen come and go, by incarnation.
 #[derive(Default)]
 struct Peers {
-    present: Vec<String>,
-    /// Hosts whose bridge left, and since when.
+    /// Each incarnation's token present: (host, incarnation).
+    tokens: Vec<(String, String)>,
+    /// Hosts with no token, and since when.
     away: Vec<(String, Instant)>,
 }
 
 impl Peers {
-    /// A peer's token appeared (`here`) or went: the egress holds while any host is away, and
-    /// puts again what it last sent when one comes back ([`Shared::rejoins`]).
-    fn saw(&mut self, host: &str, peer: &str, here: bool, shared: &Shared) {
+    /// Incarnation `id` of `peer`'s bridge appeared (`here`) or went. A host with no token is
+    /// away: the egress holds. A new incarnation of a host seen before (it rejoined, or its
+    /// restarted bridge is seen before its dead one goes) makes the egress put again what it
+    /// last sent ([`Shared::rejoins`]).
+    fn saw(&mut self, host: &str, peer: &str, id: &str, here: bool, shared: &Shared) {
         if peer == host {
             return;
         }
-        if !here {
-            tracing::warn!(peer, "host away: its bridge left");
-            self.present.retain(|p| p != peer);
-            if !self.away.iter().any(|(p, _)| p == peer) {
+        let token = (peer.to_string(), id.to_string());
+        let known =
+            self.tokens.iter().any(|(p, _)| p == peer) || self.away.iter().any(|(p, _)| p == peer);
+        if here {
+            if known {
+                tracing::info!(
+                    peer,
+                    incarnation = id,
+                    "host's bridge back, a new incarnation"
+                );
+                shared.rejoins.fetch_add(1, Ordering::SeqCst);
+            } else {
+                tracing::info!(peer, "host joined");
+            }
+            self.away.retain(|(p, _)| p != peer);
+            self.tokens.push(token);
+        } else {
+            self.tokens.retain(|t| *t != token);
+            let gone = !self.tokens.iter().any(|(p, _)| p == peer);
+            if gone && !self.away.iter().any(|(p, _)| p == peer) {
+                tracing::warn!(peer, "host away: its bridge left");
                 self.away.push((peer.to_string(), Instant::now()));
             }
-        } else if self.away.iter().any(|(p, _)| p == peer) {
-            tracing::info!(peer, "host back: its bridge rejoined");
-            self.away.retain(|(p, _)| p != peer);
-            self.present.push(peer.to_string());
-            shared.rejoins.fetch_add(1, Ordering::SeqCst);
-        } else {
-            tracing::info!(peer, "host joined");
-            self.present.push(peer.to_string());
         }
         shared.away.store(self.away.len(), Ordering::SeqCst);
     }
@@ -274,6 +292,37 @@ impl Peers {
     /// How long `peer` has been away, if it is.
     fn away_for(&self, peer: &str) -> Option<Duration> {
         (self.away.iter().find(|(p, _)| p == peer)).map(|(_, t)| t.elapsed())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_host_is_away_without_a_token_and_a_new_incarnation_is_a_rejoin() {
+        let shared = Shared::default();
+        let mut p = Peers::default();
+        let state = |s: &Shared| {
+            (
+                s.away.load(Ordering::SeqCst),
+                s.rejoins.load(Ordering::SeqCst),
+            )
+        };
+        p.saw("a", "a", "1", true, &shared); // itself: ignored
+        p.saw("a", "b", "10", true, &shared);
+        assert_eq!(state(&shared), (0, 0), "a first join is no rejoin");
+        p.saw("a", "b", "10", false, &shared);
+        assert_eq!(state(&shared), (1, 0));
+        assert!(p.away_for("b").is_some());
+        p.saw("a", "b", "11", true, &shared);
+        assert_eq!(state(&shared), (0, 1), "back: put again");
+        // the restarted bridge seen before its dead predecessor goes
+        p.saw("a", "b", "12", true, &shared);
+        assert_eq!(state(&shared), (0, 2));
+        p.saw("a", "b", "11", false, &shared);
+        assert_eq!(state(&shared), (0, 2), "still one incarnation present");
+        assert!(p.away_for("b").is_none());
     }
 }
 
