@@ -82,7 +82,8 @@ impl Shared {
 }
 
 /// The Zenoh session of `host`: a peer that listens on its own endpoint and connects to every
-/// other host's, with no multicast scouting (it meets only the hosts the scenario names).
+/// other host's, with no multicast scouting (it meets only the hosts the scenario names), its
+/// lease and blocking limit the scenario's host silence limit.
 fn session(scenario: &Scenario, host: &str) -> Result<zenoh::Session> {
     let own = (scenario.hosts.get(host))
         .ok_or_else(|| anyhow!("`{host}` is not a host of the scenario's [hosts]"))?;
@@ -91,6 +92,10 @@ fn session(scenario: &Scenario, host: &str) -> Result<zenoh::Session> {
         .map(|(_, h)| h.endpoint.as_str())
         .collect();
     let json = |v: serde_json::Value| v.to_string();
+    // Zenoh keeps a silent link (its lease) and a put blocked on it (before closing the
+    // session) as long as glint waits for a silent host: a partition or a stopped bridge
+    // shorter than that loses nothing in Zenoh either.
+    let limit = scenario.host_silence_limit();
     let mut config = zenoh::Config::default();
     for (k, v) in [
         ("mode", json("peer".into())),
@@ -98,6 +103,11 @@ fn session(scenario: &Scenario, host: &str) -> Result<zenoh::Session> {
         ("connect/endpoints", json(others.into())),
         ("scouting/multicast/enabled", "false".to_string()),
         ("scouting/gossip/enabled", "false".to_string()),
+        ("transport/link/tx/lease", limit.as_millis().to_string()),
+        (
+            "transport/link/tx/queue/congestion_control/block/wait_before_close",
+            limit.as_micros().to_string(),
+        ),
     ] {
         (config.insert_json5(k, &v)).map_err(|e| anyhow!("zenoh config {k} = {v}: {e}"))?;
     }
