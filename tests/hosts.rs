@@ -139,7 +139,7 @@ fn small_frames(file: &Path) {
 
 /// Each host's bridge fails mid-run, by faults the scenario names: the orchestrator's host's
 /// bridge is SIGKILLed at frame 800 (noticed by its exit), ground's is SIGSTOPped at frame 1600
-/// for 2 s (noticed at the 1 s heartbeat deadline, then killed). Each host's supervision
+/// for 2 s (noticed silent after three heartbeat periods, killed at the 1 s deadline). Each host's supervision
 /// restarts its own bridge, the other bridge puts again what was in flight, and nothing is
 /// lost: every frame reaches the detector, the science equals the single-host run's.
 #[test]
@@ -163,14 +163,15 @@ fn bridges_killed_or_stopped_on_either_host_are_restarted_and_nothing_is_lost() 
     assert_eq!((f.restarts, f.lost), (1, Some(0)));
     assert!(f.recovered_s.is_some(), "{f:?}");
     assert_eq!(ending(&report, "bridge"), "shutdown");
-    // ground's bridge: stopped, noticed at the deadline, killed and restarted by ground's part
+    // ground's bridge: stopped, noticed silent (three heartbeat periods), killed at the 1 s
+    // deadline and restarted by ground's part
     let summary = std::fs::read_to_string(dir.join("ground/summary.md")).unwrap();
     let row = (summary.lines())
         .find(|l| l.starts_with("| bridge:stop@1600,duration_s=2,host=ground |"))
         .unwrap_or_else(|| panic!("ground's fault row in\n{summary}"));
     let cells: Vec<&str> = row.split('|').map(str::trim).collect();
     // | fault | injected | detected (by) | recovered | restarts |
-    assert!(cells[3].ends_with("(heartbeat deadline)"), "{row}");
+    assert!(cells[3].ends_with("(heartbeat silent)"), "{row}");
     assert!(cells[4].parse::<f64>().is_ok(), "recovered: {row}");
     assert_eq!(cells[5], "1", "{row}");
     // the orchestrator saw ground cut off for about the 1 s it took to notice the stop
@@ -185,6 +186,42 @@ fn bridges_killed_or_stopped_on_either_host_are_restarted_and_nothing_is_lost() 
         let log = std::fs::read_to_string(dir.join(part).join("logs/bridge.log")).unwrap();
         assert!(log.contains("put again"), "{part}'s bridge log:\n{log}");
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A bridge stopped (SIGSTOP) for 2 s, shorter than the heartbeat deadline: the link is cut,
+/// as by a partition, on any machine (no network namespaces needed). Board's bridge at frame
+/// 800: the orchestrator finds ground cut off; ground's at frame 1600: ground's part finds its
+/// bridge silent. Neither is restarted; each is heard again once resumed; nothing is lost and
+/// the science equals the single-host run's.
+#[test]
+fn a_bridge_stopped_for_two_seconds_cuts_the_link_and_nothing_is_lost() {
+    let dir = temp_dir("hosts-bridge-stop");
+    let faults = "[[fault]]\nservice = \"bridge\"\nkind = \"stop\"\nat_seq = 800\nduration_s = 2.0\n\
+        [[fault]]\nservice = \"bridge\"\nhost = \"ground\"\nkind = \"stop\"\nat_seq = 1600\nduration_s = 2.0\n";
+    let frames = 3000;
+    let file = split(&dir, frames, faults);
+    small_frames(&file);
+    let mut ground = start_ground(&file, &dir.join("ground"));
+    let mut board = start_run(&file, &dir.join("board"), &[]);
+    let (report, _) = ended_whole(&mut board, &mut ground, &file, &dir, frames);
+    let [f] = report.faults.as_slice() else {
+        panic!("one fault on board: {:?}", report.faults);
+    };
+    assert_eq!(f.detected_by.as_deref(), Some("host cut off"), "{f:?}");
+    let (injected, detected) = (f.injected_s.unwrap(), f.detected_s.unwrap());
+    // three heartbeat periods of silence (0.3 s), not supervision's 5 s deadline
+    assert!(detected - injected < 1.0, "{f:?}");
+    assert!(f.recovered_s.is_some_and(|r| r >= injected + 2.0), "{f:?}");
+    assert_eq!(f.restarts, 0);
+    let summary = std::fs::read_to_string(dir.join("ground/summary.md")).unwrap();
+    let row = (summary.lines())
+        .find(|l| l.starts_with("| bridge:stop@1600,duration_s=2,host=ground |"))
+        .unwrap_or_else(|| panic!("ground's fault row in\n{summary}"));
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    assert!(cells[3].ends_with("(heartbeat silent)"), "{row}");
+    assert!(cells[4].parse::<f64>().is_ok(), "recovered: {row}");
+    assert_eq!(cells[5], "0", "{row}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -31,6 +31,7 @@ pub struct Keeper {
     beat: Option<(Instant, Heartbeat)>,
     /// The run's `Start`, as heard over control: fault times count from it.
     started: Option<Instant>,
+    period: std::time::Duration,
     /// The topic a fault's `at_seq` counts, and how many of it the bridge passed on: its
     /// earlier incarnations' (each one's counters start from zero) and the current one's.
     trigger: Option<TopicId>,
@@ -52,6 +53,7 @@ impl Keeper {
             supervised: false,
             beat: None,
             started: None,
+            period: std::time::Duration::from_millis(limits.heartbeat_period_ms),
             trigger: deployment::trigger_topic(scenario, ServiceId::Bridge),
             carried_before: 0,
             carried_now: (0, 0),
@@ -133,6 +135,15 @@ impl Keeper {
             return Ok(None);
         }
         let now_s = now_s.unwrap_or(0.0);
+        // A stopped bridge cuts the link: silent for three heartbeat periods, it is noticed
+        // (before supervision's deadline, which a short stop never reaches).
+        if self
+            .beat
+            .is_some_and(|(at, _)| now.saturating_duration_since(at) > 3 * self.period)
+        {
+            self.injector
+                .detected(ServiceId::Bridge, "heartbeat silent", now_s);
+        }
         bridge.poll_exit();
         if let Some(code) = bridge.exit_code.filter(|c| Some(*c) == lost_orchestrator()) {
             return Ok(Some(format!(

@@ -116,13 +116,14 @@ impl Links {
     }
 
     /// Opens and closes outages from the services' latest heartbeats; `since_start` turns an
-    /// instant into seconds after the start.
+    /// instant into seconds after the start. Whether a host was found cut off just now.
     pub fn step(
         &mut self,
         now: Instant,
         seen: &BTreeMap<ServiceId, Seen>,
         since_start: impl Fn(Instant) -> f64,
-    ) {
+    ) -> bool {
+        let mut cut = false;
         for h in &mut self.hosts {
             let Some(last) = (h.services.iter())
                 .filter_map(|s| seen.get(s).map(|x| x.at))
@@ -136,6 +137,7 @@ impl Links {
                         host = h.host,
                         "host cut off: no heartbeat across the bridge"
                     );
+                    cut = true;
                     h.open = Some(Outage {
                         last_heard_s: since_start(last),
                         detected_s: since_start(now),
@@ -154,6 +156,7 @@ impl Links {
                 _ => {}
             }
         }
+        cut
     }
 
     /// Each host's report; `bridge`: the local bridge's last heartbeat.

@@ -380,6 +380,11 @@ impl<'a> Live<'a> {
                 if let Some(why) = silent {
                     return Ok(Some(self.fail(why)));
                 }
+                // A stopped bridge cuts the link: the other hosts fall silent.
+                if self.remote.take_cut_off() {
+                    self.injector
+                        .detected(ServiceId::Bridge, "host cut off", now_s);
+                }
             }
             Phase::Done => {}
         }

@@ -18,6 +18,8 @@ pub struct Remote {
     pub services: Vec<ServiceId>,
     /// When each other host was cut off.
     links: Links,
+    /// A host was found cut off since [`Remote::take_cut_off`] was last asked.
+    cut_off: bool,
 }
 
 impl Remote {
@@ -25,7 +27,11 @@ impl Remote {
     pub fn new(scenario: &Scenario, host: Option<&str>) -> Self {
         let services = crate::run::hosts::remote_services(scenario, host);
         let links = Links::new(scenario, host, &services);
-        Remote { services, links }
+        Remote {
+            services,
+            links,
+            cut_off: false,
+        }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -58,7 +64,7 @@ impl Remote {
         bridge: Option<Instant>,
         since_start: impl Fn(Instant) -> f64,
     ) -> Option<String> {
-        self.links.step(now, &consumer.seen, since_start);
+        self.cut_off |= self.links.step(now, &consumer.seen, since_start);
         let bridge = bridge?;
         let deadline = Duration::from_millis(scenario.run.heartbeat_deadline_ms);
         let period = Duration::from_millis(scenario.run.heartbeat_period_ms);
@@ -104,6 +110,12 @@ impl Remote {
             scenario.host_of(silent).unwrap_or("?"),
             limit.as_millis()
         ))
+    }
+
+    /// Whether a host was found cut off since the last call (a bridge fault's detection: the
+    /// link it carries went silent).
+    pub fn take_cut_off(&mut self) -> bool {
+        std::mem::take(&mut self.cut_off)
     }
 
     /// Waits up to `grace` for every one to say in a heartbeat that it is stopping (its
