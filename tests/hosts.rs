@@ -239,6 +239,50 @@ fn a_bridge_stopped_for_two_seconds_cuts_the_link_and_nothing_is_lost() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A slow link, injected: each host's bridge waits 20 ms before each of 50 data messages it
+/// puts on the wire (`delay` faults on the bridge, board's at frame 800, ground's at frame
+/// 1600). Each delay took effect (over no sooner than 50 × 20 ms after it began: a lower bound
+/// on any host), the chain caught up, nothing was lost, the science equals one host's.
+#[test]
+fn a_slow_link_injected_on_either_host_loses_nothing() {
+    let dir = temp_dir("hosts-bridge-delay");
+    let delay = |host: &str, at: u32| {
+        format!(
+            "[[fault]]\nservice = \"bridge\"\n{host}kind = \"delay\"\nat_seq = {at}\n\
+             delay_ms = 20\ncount = 50\n"
+        )
+    };
+    let faults = format!(
+        "[faults]\nenabled = true\n{}{}",
+        delay("", 800),
+        delay("host = \"ground\"\n", 1600)
+    );
+    let (_, f) = bridge_faults_run(&dir, &faults);
+    let (injected, ended) = (f.injected_s.unwrap(), f.ended_s.expect("the delay ended"));
+    assert!(ended - injected >= 1.0, "{f:?}");
+    assert!(f.recovered_s.is_some(), "{f:?}");
+    let summary = std::fs::read_to_string(dir.join("ground/summary.md")).unwrap();
+    let row = (summary.lines())
+        .find(|l| l.starts_with("| bridge:delay@1600,host=ground |"))
+        .unwrap_or_else(|| panic!("ground's fault row in\n{summary}"));
+    let cells: Vec<f64> = (row.split('|').map(str::trim))
+        .filter_map(|c| c.parse().ok())
+        .collect();
+    // injected, recovered (after the delay ended), restarts
+    let [injected, recovered, restarts] = cells.as_slice() else {
+        panic!("{row}");
+    };
+    assert!(recovered - injected >= 1.0 && *restarts == 0.0, "{row}");
+    for part in ["board", "ground"] {
+        let log = std::fs::read_to_string(dir.join(part).join("logs/bridge.log")).unwrap();
+        assert!(
+            log.contains("50 messages slowed"),
+            "{part}'s bridge log:\n{log}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Ground's bridge SIGKILLed mid-run where its supervision may not restart it: ground's part
 /// ends, naming why; the orchestrator of record, hearing nothing more from the services
 /// there, fails the run naming the host once that host could have brought a bridge back

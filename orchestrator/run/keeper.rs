@@ -79,8 +79,8 @@ impl Keeper {
             let carried = self.carried();
             let heard = Heard {
                 at_s,
-                faults_obeyed: 0,
-                delaying: false,
+                faults_obeyed: hb.faults_obeyed,
+                delaying: hb.delaying != 0,
                 progress: carried,
                 carried,
                 done: 0,
@@ -126,7 +126,7 @@ impl Keeper {
             for a in self.injector.step(now_s, |_| carried, |_, _| (0, 0)) {
                 match a.act {
                     Act::Signal(sig) => bridge.signal(sig),
-                    // Validation gives the bridge signals only.
+                    // The bridge fires its own delays from the scenario.
                     Act::Order(_) => {}
                 }
             }

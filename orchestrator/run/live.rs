@@ -227,6 +227,9 @@ impl<'a> Live<'a> {
                         c.signal(sig);
                     }
                 }
+                // A bridge fires its own delays from the scenario (an order to `bridge` over
+                // control would reach every host's bridge).
+                Act::Order(_) if a.service == ServiceId::Bridge => {}
                 Act::Order(f) => self.consumer.order_fault(a.service, f)?,
             }
         }

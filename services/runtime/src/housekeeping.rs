@@ -52,6 +52,9 @@ pub struct Housekeeping {
     pub last_latency_ns: u64,
     /// Where the service's time went, as of its last heartbeat.
     pub time: ServiceTime,
+    /// A delay applied outside [`Housekeeping::pace`] (the bridge's egress thread paces its
+    /// puts): the heartbeat says `delaying` while it is on.
+    pub delaying_elsewhere: bool,
 }
 
 /// When an injected delay ends.
@@ -94,6 +97,7 @@ impl Housekeeping {
                 state: Heartbeat::STARTING,
                 last_latency_ns: 0,
                 time: ServiceTime::default(),
+                delaying_elsewhere: false,
             },
             listener,
         ))
@@ -290,7 +294,7 @@ impl Housekeeping {
             time: self.time,
             faults_obeyed: self.faults_obeyed,
             faults_refused: self.faults_refused,
-            delaying: u32::from(self.delay.is_some()),
+            delaying: u32::from(self.delay.is_some() || self.delaying_elsewhere),
             ..Default::default()
         };
         self.heartbeat.send(hb, t_ns)?;

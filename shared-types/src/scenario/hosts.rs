@@ -210,6 +210,7 @@ pub(super) fn check_hosts(c: &mut Checker, scenario: &super::Scenario) {
 
 /// What a bridge cannot carry yet is refused here, with the placement that would work.
 fn check_what_crosses(c: &mut Checker, scenario: &super::Scenario) {
+    use super::FaultKind;
     let orchestrator = scenario.orchestrator_host().unwrap_or_default();
     // Calls (request/response) do not cross hosts yet: a call's client and server share one.
     for service in crate::deployment::services(scenario) {
@@ -250,7 +251,8 @@ fn check_what_crosses(c: &mut Checker, scenario: &super::Scenario) {
         }
     }
     // Faults act on the processes of the orchestrator's host, and on any host's bridge (that
-    // host's part fires it): signals (`kill`; `stop`, the link cut while it is stopped).
+    // host's part fires it): `kill`; `stop`, the link cut while it is stopped; `delay`, a slow
+    // link (the bridge paces its puts).
     for (i, f) in scenario.fault.iter().enumerate() {
         let service = ServiceId::from_name(&f.service);
         let at = |field: &str| format!("fault[{i}].{field}");
@@ -274,11 +276,12 @@ fn check_what_crosses(c: &mut Checker, scenario: &super::Scenario) {
                     ),
                 );
             }
-            if f.kind.in_band() {
+            if f.kind.in_band() && f.kind != FaultKind::Delay {
                 c.fail(
                     &at("kind"),
                     format!(
-                        "the bridge takes kill and stop (a signal), not {}",
+                        "the bridge takes kill, stop (the link cut) and delay (a slow link), \
+                         not {}",
                         f.kind.name()
                     ),
                 );
@@ -463,6 +466,21 @@ host = "b"
         assert_eq!(
             fault("service = \"sensor\"\nhost = \"a\"\nkind = \"kill\"\nat_seq = 1"),
             ["fault[0].host"]
+        );
+        // a slow link (delay) yes, an in-band panic or drop no
+        let enabled = |f: &str| {
+            let faulted = format!(
+                "[services.detector]\nhost = \"b\"\n[faults]\nenabled = true\n[[fault]]\n{f}"
+            );
+            errors("[services.detector]\nhost = \"b\"", &faulted)
+        };
+        assert_eq!(
+            enabled("service = \"bridge\"\nkind = \"delay\"\nat_seq = 1\ndelay_ms = 5\ncount = 3"),
+            Vec::<String>::new()
+        );
+        assert_eq!(
+            enabled("service = \"bridge\"\nkind = \"panic\"\nat_seq = 1"),
+            ["fault[0].kind"]
         );
         assert_eq!(
             fault("service = \"detector\"\nkind = \"kill\"\nat_seq = 1"),

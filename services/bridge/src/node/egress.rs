@@ -134,7 +134,7 @@ pub fn run(
             if stop.load(Ordering::SeqCst) {
                 return Ok(Step::Stop);
             }
-            more |= forward(r, scenario, routes, &mut links, || {
+            more |= forward(r, scenario, routes, &mut links, &shared.pace, || {
                 shared.away.load(Ordering::SeqCst) > 0
                     || shared.rejoins.load(Ordering::SeqCst) != rejoins
             })?;
@@ -161,6 +161,7 @@ fn forward(
     scenario: &Scenario,
     routes: &Routes,
     links: &mut LinkSeqs,
+    pace: &super::pace::Pace,
     changed: impl Fn() -> bool,
 ) -> Result<bool> {
     let topic = r.port.topic();
@@ -181,6 +182,10 @@ fn forward(
             if s.observe(taken.producer, taken.seq) == SeqVerdict::Accept {
                 s.accept();
             }
+        }
+        // An injected slow link paces the data (housekeeping is never slowed).
+        if r.stats.is_some() {
+            pace.keep();
         }
         let seq = links.stamp(topic, routes.host_index);
         let envelope = Envelope::new(topic, routes.host_index, seq, r.port.digest());

@@ -6,6 +6,7 @@
 
 mod egress;
 mod ingress;
+mod pace;
 mod ports;
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -53,6 +54,8 @@ pub struct Shared {
     /// Hosts come back so far: the egress puts again what it last sent, which may have been
     /// in flight to the dead bridge (its consumers skip what they already have).
     rejoins: AtomicU64,
+    /// An injected slow link, kept by the egress.
+    pace: pace::Pace,
 }
 
 impl Shared {
@@ -211,10 +214,20 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
     // services it carries for have stopped and their last heartbeats crossed (a `Shutdown` to
     // all is theirs), or on SIGTERM.
     let mut orchestrator_lost = None;
+    let mut delays = pace::Delays::new(scenario, host);
     let exit = run_loop(&[(&control, None)], period, |_| {
         if hk.poll_control()?.contains(&shared_types::Command::Start) {
             hk.state = Heartbeat::RUNNING;
+            delays.start();
         }
+        let trigger = delays.trigger().map(|t| t as u32);
+        let passed_on = (shared.snapshot().iter())
+            .find(|s| Some(s.topic as u32) == trigger)
+            .map_or(0, |s| s.published);
+        if delays.step(passed_on, &shared.pace) {
+            hk.faults_obeyed += 1;
+        }
+        hk.delaying_elsewhere = shared.pace.on();
         if stop.load(Ordering::SeqCst) || hk.shutdown_addressed {
             return Ok(Step::Stop);
         }
