@@ -9,6 +9,8 @@
 #![cfg(feature = "hosts")]
 
 mod common;
+#[path = "hosts/matrix.rs"]
+mod matrix;
 #[path = "hosts/netns.rs"]
 mod netns;
 

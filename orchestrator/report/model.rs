@@ -171,6 +171,9 @@ pub struct FaultReport {
     /// A delay: added before each message [ms].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub delay_ms: Option<u64>,
+    /// A bridge's delay (a slow link): the link's bandwidth while it lasted [Mbit/s].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bandwidth_mbit_s: Option<f64>,
     pub injected_s: Option<f64>,
     pub ended_s: Option<f64>,
     pub detected_s: Option<f64>,

@@ -421,8 +421,10 @@ impl Fault {
             .duration_s
             .map_or(String::new(), |d| format!(",duration_s={d}"));
         let host = (self.spec.host.as_ref()).map_or(String::new(), |h| format!(",host={h}"));
+        let bandwidth = (self.spec.bandwidth_mbit_s)
+            .map_or(String::new(), |r| format!(",bandwidth_mbit_s={r}"));
         format!(
-            "{}:{}@{at}{d}{host}",
+            "{}:{}@{at}{d}{bandwidth}{host}",
             self.service.name(),
             self.spec.kind.name()
         )
@@ -439,6 +441,7 @@ impl Fault {
             duration_s: self.spec.duration_s,
             count: self.spec.count,
             delay_ms: self.spec.delay_ms,
+            bandwidth_mbit_s: self.spec.bandwidth_mbit_s,
             injected_s: self.injected_s,
             ended_s: self.ended_s,
             detected_s: self.detected_s,

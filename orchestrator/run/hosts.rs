@@ -15,6 +15,7 @@ use glint_runtime::ports::Inbox;
 use glint_runtime::{open_node, remove_shm, run_loop, Step};
 use shared_types::{deployment, Command, Control, Heartbeat, Scenario, ServiceId, TopicId};
 
+use crate::report::FaultReport;
 use crate::run::deploy::{stop_ladder, Ending, ServiceProcess};
 use crate::run::keeper::Keeper;
 
@@ -67,6 +68,18 @@ pub fn remote_services(scenario: &Scenario, host: Option<&str>) -> Vec<ServiceId
 /// Runs the part of `host` (not the orchestrator's) until the orchestrator of record ends the
 /// run. Returns the host's directory and whether every process of it ended well.
 pub fn run_host(opts: &super::RunOptions, host: &str) -> Result<(PathBuf, bool)> {
+    let (dir, ok, _) = part(opts, host)?;
+    Ok((dir, ok))
+}
+
+/// [`run_host`] for a matrix: whether every process ended well, and the faults this host fired
+/// (their timelines; what they lost is the orchestrator's to count).
+pub fn run_part(opts: &super::RunOptions, host: &str) -> Result<(bool, Vec<FaultReport>)> {
+    let (_, ok, fired) = part(opts, host)?;
+    Ok((ok, fired))
+}
+
+fn part(opts: &super::RunOptions, host: &str) -> Result<(PathBuf, bool, Vec<FaultReport>)> {
     let scenario = &opts.scenario;
     let prefix = super::run_prefix();
     let id = prefix.trim_start_matches("glint_").trim_end_matches('_');
@@ -85,7 +98,7 @@ pub fn run_host(opts: &super::RunOptions, host: &str) -> Result<(PathBuf, bool)>
     std::fs::write(out_dir.join("summary.md"), &text)?;
     eprint!("{text}");
     drop(dir);
-    Ok((out_dir, summary.ok))
+    Ok((out_dir, summary.ok, summary.fired))
 }
 
 /// How a host's part ended.
@@ -98,8 +111,9 @@ struct HostSummary {
     bridge: Option<Heartbeat>,
     /// Times the bridge was restarted.
     bridge_restarts: u32,
-    /// The faults this host fired, as a table (empty: none).
+    /// The faults this host fired, as a table (empty: none), and their entries.
     faults: String,
+    fired: Vec<FaultReport>,
 }
 
 impl HostSummary {
@@ -273,5 +287,6 @@ fn serve(
         bridge: keeper.last_beat(),
         bridge_restarts: keeper.restarts(),
         faults: keeper.faults_table(),
+        fired: keeper.fault_reports(),
     })
 }

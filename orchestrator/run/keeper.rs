@@ -203,6 +203,14 @@ impl Keeper {
         self.supervisor.restarts(ServiceId::Bridge)
     }
 
+    /// The faults this host fired, as report entries: their timelines (what they lost is
+    /// counted end to end by the orchestrator of record: `lost` none here).
+    pub fn fault_reports(&self) -> Vec<crate::report::FaultReport> {
+        (self.injector.faults.iter())
+            .map(|f| f.report(None, false))
+            .collect()
+    }
+
     /// The summary's table of the faults this host fired, times after the run's `Start`.
     pub fn faults_table(&self) -> String {
         if self.injector.faults.is_empty() {

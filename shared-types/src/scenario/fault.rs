@@ -163,6 +163,11 @@ pub struct FaultSpec {
     /// `corrupt`: `nan`, `count` or `version` (default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub how: Option<Corruption>,
+    /// A bridge's `delay` (a slow link): the link's bandwidth while it lasts [Mbit/s],
+    /// 0.001–100000: each data message waits the time its bytes take at that rate (and
+    /// `delay_ms`, if given, on top).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bandwidth_mbit_s: Option<f64>,
     /// A split deployment: which host's `bridge` (default: the orchestrator's host); that
     /// host's part fires the fault. Only for the bridge.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -224,6 +229,7 @@ impl FaultSpec {
             count: None,
             every: None,
             how: None,
+            bandwidth_mbit_s: None,
             host: None,
         };
         let int = |name: &str, v: &str| {
@@ -242,6 +248,12 @@ impl FaultSpec {
                 Some(("count", v)) => f.count = Some(int("count", v)?),
                 Some(("every", v)) => f.every = Some(int("every", v)?),
                 Some(("host", v)) => f.host = Some(v.to_string()),
+                Some(("bandwidth_mbit_s", v)) => {
+                    f.bandwidth_mbit_s = Some(
+                        v.parse::<f64>()
+                            .map_err(|_| format!("bandwidth_mbit_s `{v}` is not a number"))?,
+                    )
+                }
                 Some(("how", v)) => {
                     f.how = Some(Corruption::from_name(v).ok_or(format!(
                         "how `{v}` is not one of {}",
@@ -251,7 +263,7 @@ impl FaultSpec {
                 _ => {
                     return Err(format!(
                         "unknown option `{opt}`; allowed: duration_s=S, delay_ms=N, count=N, \
-                         every=N, how=nan|count|version, host=NAME"
+                         every=N, how=nan|count|version, host=NAME, bandwidth_mbit_s=X"
                     ))
                 }
             }
@@ -333,13 +345,30 @@ pub(super) fn check_faults(c: &mut Checker, scenario: &super::Scenario) {
         );
         only(c, "every", f.every.is_some(), &[FaultKind::Drop]);
         only(c, "how", f.how.is_some(), &[FaultKind::Corrupt]);
-        match (f.kind, f.delay_ms) {
-            (FaultKind::Delay, Some(ms)) => c.range_u(&at("delay_ms"), ms, 1, 10_000),
-            (FaultKind::Delay, None) => c.fail(
+        let bridge = f.service_id() == Some(ServiceId::Bridge);
+        match (f.kind, f.delay_ms, f.bandwidth_mbit_s) {
+            (FaultKind::Delay, Some(ms), _) => c.range_u(&at("delay_ms"), ms, 1, 10_000),
+            (FaultKind::Delay, None, Some(_)) if bridge => {}
+            (FaultKind::Delay, None, _) => c.fail(
                 &at("delay_ms"),
-                "a delay needs delay_ms; allowed 1..=10000".into(),
+                match bridge {
+                    true => "a bridge's delay needs delay_ms (1..=10000) or bandwidth_mbit_s \
+                             (0.001..=100000)"
+                        .into(),
+                    false => "a delay needs delay_ms; allowed 1..=10000".into(),
+                },
             ),
             _ => {}
+        }
+        match f.bandwidth_mbit_s {
+            Some(r) if bridge && f.kind == FaultKind::Delay => {
+                c.range(&at("bandwidth_mbit_s"), r, 0.001, 100_000.0)
+            }
+            Some(_) => c.fail(
+                &at("bandwidth_mbit_s"),
+                "a bandwidth limit is a slow link: only for the bridge's delay".into(),
+            ),
+            None => {}
         }
         match (f.kind, f.count) {
             (FaultKind::Delay, Some(n)) => c.range_u(&at("count"), u64::from(n), 1, 1_000_000),

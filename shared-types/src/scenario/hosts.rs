@@ -298,7 +298,6 @@ fn check_what_crosses(c: &mut Checker, scenario: &super::Scenario) {
         }
     }
     for (what, present) in [
-        ("[matrix]", scenario.matrix.is_some()),
         ("[soak]", scenario.soak.is_some()),
         ("[campaign]", scenario.campaign.is_some()),
         ("[replay]", scenario.replay.is_some()),
@@ -485,6 +484,69 @@ host = "b"
         assert_eq!(
             fault("service = \"detector\"\nkind = \"kill\"\nat_seq = 1"),
             ["fault[0].service"]
+        );
+        // a slow link by bandwidth: the bridge's delay only, in range
+        let slow = "service = \"bridge\"\nkind = \"delay\"\nat_seq = 1\ncount = 3\n";
+        assert_eq!(
+            enabled(&format!("{slow}bandwidth_mbit_s = 20.0")),
+            Vec::<String>::new()
+        );
+        assert_eq!(
+            enabled(&format!("{slow}bandwidth_mbit_s = 0.0")),
+            ["fault[0].bandwidth_mbit_s"]
+        );
+        assert_eq!(enabled(slow), ["fault[0].delay_ms"]);
+        assert_eq!(
+            enabled(
+                "service = \"sensor\"\nkind = \"delay\"\nat_seq = 1\ncount = 3\n\
+                     delay_ms = 5\nbandwidth_mbit_s = 20.0"
+            ),
+            ["fault[0].bandwidth_mbit_s"]
+        );
+    }
+
+    /// A matrix of a split deployment faults the orchestrator's host's services and each
+    /// host's bridge (kill, stop, delay); every host computes the same cases.
+    #[test]
+    fn a_split_matrix_faults_every_bridge_and_the_orchestrators_host() {
+        let matrix = |m: &str| {
+            let text = SPLIT.replace("[hosts.a]", &format!("[matrix]\n{m}\n[hosts.a]"));
+            Scenario::from_toml_str(&text, "split.toml")
+        };
+        let sc =
+            matrix("kinds = [\"kill\", \"panic\", \"delay\"]\nbandwidth_mbit_s = 5.0").unwrap();
+        let cases = sc.matrix.as_ref().unwrap().cases(&sc);
+        let names: Vec<&str> = cases.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "sensor-kill",
+                "sensor-panic",
+                "sensor-delay",
+                "tracker-kill",
+                "tracker-panic",
+                "tracker-delay",
+                "bridge-a-kill",
+                "bridge-a-delay",
+                "bridge-b-kill",
+                "bridge-b-delay",
+            ]
+        );
+        let slow = &cases[9].fault;
+        assert_eq!(
+            (slow.host.as_deref(), slow.bandwidth_mbit_s, slow.delay_ms),
+            (Some("b"), Some(5.0), None)
+        );
+        // the sensor's delay stays a delay per message
+        assert_eq!(cases[2].fault.bandwidth_mbit_s, None);
+        // the frame (the bridge's trigger) has 2 messages: a fault at the first
+        assert_eq!(cases[6].fault.at_seq, Some(0));
+        assert_eq!(
+            errors_of(&[(
+                "[hosts.a]",
+                "[matrix]\nservices = [\"detector\"]\n[hosts.a]"
+            )]),
+            ["matrix.services[0]"]
         );
     }
 }

@@ -8,6 +8,10 @@
 //! services = ["sensor", "detector", "tracker", "inversion"]   # default: every deployed one
 //! kinds = ["kill", "stop", "panic", "delay", "drop", "corrupt"] # default: all
 //! ```
+//!
+//! In a deployment split across hosts (`[hosts]`) the matrix faults the orchestrator's host's
+//! services and every host's bridge (`"bridge"`: kill, stop — the link cut — and delay — a
+//! slow link); every host runs `glint run` on the same file and runs its part of each case.
 
 use serde::{Deserialize, Serialize};
 
@@ -29,6 +33,9 @@ pub struct FaultMatrix {
     pub delay_ms: Option<u64>,
     pub delay_count: Option<u32>,
     pub delay_s: Option<f64>,
+    /// A bridge's delay (a slow link) as a link of this bandwidth [Mbit/s] instead of
+    /// `delay_ms` per message (split deployments).
+    pub bandwidth_mbit_s: Option<f64>,
     /// Outputs dropped, and every how many (default 2, every 3rd).
     pub drop_count: Option<u32>,
     pub drop_every: Option<u32>,
@@ -36,7 +43,79 @@ pub struct FaultMatrix {
     pub corrupt_count: Option<u32>,
 }
 
+/// One case of a matrix: one fault, on one service (the bridge: of one host).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MatrixCase {
+    /// `<service>-<kind>`, or `bridge-<host>-<kind>` in a deployment split across hosts.
+    pub name: String,
+    pub service: ServiceId,
+    /// The host whose part fires the fault (`None`: not split).
+    pub host: Option<String>,
+    pub kind: FaultKind,
+    pub fault: FaultSpec,
+}
+
+/// The kinds of fault a bridge takes: killed, stopped (the link cut), delayed (a slow link).
+const BRIDGE_KINDS: [FaultKind; 3] = [FaultKind::Kill, FaultKind::Stop, FaultKind::Delay];
+
 impl FaultMatrix {
+    /// Every case, in order: each service of the matrix (in deployment order) with each kind.
+    /// In a deployment split across hosts the orchestrator's host's services, and each host's
+    /// bridge (kill, stop, delay) where the first data topic that crosses hosts passes it (a
+    /// bridge's `at_seq` counts that topic). Every host computes the same list from the same
+    /// scenario: each runs its part of each case in this order.
+    pub fn cases(&self, scenario: &super::Scenario) -> Vec<MatrixCase> {
+        let mut cases = vec![];
+        for (index, service) in self.services_of(scenario).into_iter().enumerate() {
+            let trigger = deployment::trigger_topic(scenario, service);
+            let at_seq = trigger.map_or(0, |t| deployment::expected_messages(scenario, t)) * 3 / 10;
+            let hosts: Vec<Option<String>> = match service {
+                ServiceId::Bridge => (scenario.hosts.keys())
+                    .filter(|h| bridge_passes(scenario, trigger, h))
+                    .map(|h| Some(h.clone()))
+                    .collect(),
+                _ if scenario.host_of(service) != scenario.orchestrator_host() => vec![],
+                _ => vec![None],
+            };
+            for host in hosts {
+                for kind in self.kinds_of() {
+                    if service == ServiceId::Bridge && !BRIDGE_KINDS.contains(&kind) {
+                        continue;
+                    }
+                    let mut fault = self.fault(service, index, kind, at_seq);
+                    fault.host = host.clone();
+                    let slow_link = service == ServiceId::Bridge && kind == FaultKind::Delay;
+                    if let Some(r) = self.bandwidth_mbit_s.filter(|_| slow_link) {
+                        fault.bandwidth_mbit_s = Some(r);
+                        fault.delay_ms = self.delay_ms;
+                    }
+                    let name = match &host {
+                        Some(h) => format!("{}-{h}-{}", service.name(), kind.name()),
+                        None => format!("{}-{}", service.name(), kind.name()),
+                    };
+                    cases.push(MatrixCase {
+                        name,
+                        service,
+                        host: host.clone(),
+                        kind,
+                        fault,
+                    });
+                }
+            }
+        }
+        cases
+    }
+
+    /// The scenario of one case: `base` (the matrix's scenario, `[matrix]` removed) with that
+    /// one fault.
+    pub fn case_scenario(base: &super::Scenario, case: &MatrixCase) -> super::Scenario {
+        let mut sc = base.clone();
+        sc.matrix = None;
+        sc.fault = vec![case.fault.clone()];
+        sc.faults.enabled |= case.kind.in_band();
+        sc
+    }
+
     /// The services of the matrix, in deployment order.
     pub fn services_of(&self, scenario: &super::Scenario) -> Vec<ServiceId> {
         deployment::services(scenario)
@@ -71,6 +150,7 @@ impl FaultMatrix {
             count: None,
             every: None,
             how: None,
+            bandwidth_mbit_s: None,
             host: None,
         };
         match kind {
@@ -94,6 +174,17 @@ impl FaultMatrix {
         }
         f
     }
+}
+
+/// Whether `trigger` (the topic a bridge fault's `at_seq` counts) passes `host`'s bridge: its
+/// producer or one of its consumers runs there.
+fn bridge_passes(scenario: &super::Scenario, trigger: Option<crate::TopicId>, host: &str) -> bool {
+    trigger.is_some_and(|t| {
+        let producer = deployment::producer(t).and_then(|p| scenario.host_of(p));
+        producer == Some(host)
+            || (deployment::consumers(scenario, t).iter())
+                .any(|c| scenario.host_of(*c) == Some(host))
+    })
 }
 
 /// Every name in `section.services` is a service the scenario deploys.
@@ -123,11 +214,34 @@ pub(super) fn check_matrix(c: &mut Checker, scenario: &super::Scenario) {
         return;
     };
     check_services(c, "matrix", &m.services, scenario);
+    // Faults act on the orchestrator's host's services and on every host's bridge.
+    for (i, name) in m.services.iter().enumerate() {
+        let service = ServiceId::from_name(name).filter(|s| *s != ServiceId::Bridge);
+        if service.is_some_and(|s| scenario.host_of(s) != scenario.orchestrator_host()) {
+            c.fail(
+                &format!("matrix.services[{i}]"),
+                format!(
+                    "`{name}` runs on another host than the orchestrator's; a matrix faults the \
+                     orchestrator's host's services and every host's bridge"
+                ),
+            );
+        }
+    }
     if let Some(v) = m.stop_s {
         c.range("matrix.stop_s", v, 0.001, 3600.0);
     }
     if let Some(v) = m.delay_ms {
         c.range_u("matrix.delay_ms", v, 1, 10_000);
+    }
+    if let Some(v) = m.bandwidth_mbit_s {
+        c.range("matrix.bandwidth_mbit_s", v, 0.001, 100_000.0);
+        if !scenario.split() {
+            c.fail(
+                "matrix.bandwidth_mbit_s",
+                "a bandwidth limit slows the link between hosts: the scenario has no [hosts]"
+                    .into(),
+            );
+        }
     }
     if let Some(v) = m.delay_s {
         c.range("matrix.delay_s", v, 0.001, 3600.0);

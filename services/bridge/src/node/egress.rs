@@ -185,7 +185,7 @@ fn forward(
         }
         // An injected slow link paces the data (housekeeping is never slowed).
         if r.stats.is_some() {
-            pace.keep();
+            pace.keep(bytes.len());
         }
         let seq = links.stamp(topic, routes.host_index);
         let envelope = Envelope::new(topic, routes.host_index, seq, r.port.digest());

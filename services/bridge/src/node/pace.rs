@@ -2,7 +2,9 @@
 //! (`[[fault]] service = "bridge", kind = "delay"`, `host` this host). The bridge fires them
 //! itself when their trigger is reached (an order to `bridge` over control would reach every
 //! host's bridge): `delay_ms` before each data message its egress puts on the wire, for
-//! `count` messages or `duration_s`. The link then carries at most one message per `delay_ms`.
+//! `count` messages or `duration_s`. The link then carries at most one message per `delay_ms`;
+//! with `bandwidth_mbit_s`, each message also waits the time its bytes take at that rate
+//! (one message on the wire at a time, as through a link of that bandwidth).
 
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -17,55 +19,94 @@ enum End {
     At(Instant),
 }
 
+/// A slow link in force.
+#[derive(Debug, Clone, Copy)]
+struct Slow {
+    /// Waited before each data message.
+    delay: Duration,
+    /// The link's bandwidth [bit/s] (`None`: not limited).
+    bandwidth_bit_s: Option<f64>,
+    end: End,
+    /// When it began, messages and bytes it slowed so far.
+    began: Instant,
+    slowed: u64,
+    bytes: u64,
+}
+
+impl Slow {
+    /// The log line of its end: what it slowed, and the rate its data crossed at.
+    fn over(&self) {
+        let (slowed, bytes) = (self.slowed, self.bytes);
+        let mbit_s = bytes as f64 * 8.0 / self.began.elapsed().as_secs_f64().max(1e-9) / 1e6;
+        tracing::info!(
+            slowed,
+            bytes,
+            "slow link over: {slowed} messages slowed, {bytes} bytes at {mbit_s:.2} Mbit/s"
+        );
+    }
+}
+
 /// The pace in force: shared by the main thread (which starts it) and the egress (which keeps
 /// it before each data put).
 #[derive(Default)]
 pub struct Pace {
-    on: Mutex<Option<(Duration, End, u64)>>,
+    on: Mutex<Option<Slow>>,
 }
 
 impl Pace {
-    /// Starts pacing: `delay` before each data put, until `end`.
+    /// Starts pacing: `delay_ms` and the bytes' time at `bandwidth_mbit_s` before each data
+    /// put, until `count` messages or `duration_s`.
     fn start(&self, f: &FaultSpec) {
-        let delay = Duration::from_millis(f.delay_ms.unwrap_or(0));
+        let now = Instant::now();
         let end = match (f.count, f.duration_s) {
             (Some(n), _) => End::After(n),
-            (None, d) => End::At(Instant::now() + Duration::from_secs_f64(d.unwrap_or(0.0))),
+            (None, d) => End::At(now + Duration::from_secs_f64(d.unwrap_or(0.0))),
         };
-        *self.lock() = Some((delay, end, 0));
+        *self.lock() = Some(Slow {
+            delay: Duration::from_millis(f.delay_ms.unwrap_or(0)),
+            bandwidth_bit_s: f.bandwidth_mbit_s.map(|r| r * 1e6),
+            end,
+            began: now,
+            slowed: 0,
+            bytes: 0,
+        });
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, Option<(Duration, End, u64)>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Option<Slow>> {
         self.on.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    /// Before a data put: waits the delay in force, if any.
-    pub fn keep(&self) {
-        let delay = {
+    /// Before a data put of `bytes`: waits what the slow link in force takes, if any.
+    pub fn keep(&self, bytes: usize) {
+        let wait = {
             let mut on = self.lock();
-            let Some((delay, end, slowed)) = on.as_mut() else {
+            let Some(slow) = on.as_mut() else {
                 return;
             };
-            let over = match end {
-                End::At(t) => Instant::now() >= *t,
-                End::After(n) => *n == 0,
+            let over = match slow.end {
+                End::At(t) => Instant::now() >= t,
+                End::After(n) => n == 0,
             };
             if over {
-                tracing::info!(slowed = *slowed, "slow link over: {slowed} messages slowed");
+                slow.over();
                 *on = None;
                 return;
             }
-            if let End::After(n) = end {
+            if let End::After(n) = &mut slow.end {
                 *n -= 1;
             }
-            *slowed += 1;
-            *delay
+            slow.slowed += 1;
+            slow.bytes += bytes as u64;
+            let on_the_wire = (slow.bandwidth_bit_s).map_or(Duration::ZERO, |r| {
+                Duration::from_secs_f64(bytes as f64 * 8.0 / r)
+            });
+            slow.delay + on_the_wire
         };
-        std::thread::sleep(delay);
+        std::thread::sleep(wait);
         // The last message of a pace by count: over now, not at the next message.
         let mut on = self.lock();
-        if let Some((_, End::After(0), slowed)) = *on {
-            tracing::info!(slowed, "slow link over: {slowed} messages slowed");
+        if let Some(slow) = on.filter(|s| s.end == End::After(0)) {
+            slow.over();
             *on = None;
         }
     }
@@ -74,10 +115,9 @@ impl Pace {
     pub fn on(&self) -> bool {
         let mut on = self.lock();
         // A pace by time ends at its time, messages or not.
-        if let Some((_, End::At(t), _)) = *on {
-            if Instant::now() >= t {
-                *on = None;
-            }
+        if let Some(slow) = on.filter(|s| matches!(s.end, End::At(t) if Instant::now() >= t)) {
+            slow.over();
+            *on = None;
         }
         on.is_some()
     }
@@ -128,6 +168,7 @@ impl Delays {
         if due {
             tracing::warn!(
                 delay_ms = next.delay_ms,
+                bandwidth_mbit_s = next.bandwidth_mbit_s,
                 count = next.count,
                 duration_s = next.duration_s,
                 "injected fault: slow link"
@@ -136,5 +177,31 @@ impl Delays {
             self.due.pop();
         }
         due
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn slow_link(delay_ms: Option<u64>, bandwidth_mbit_s: Option<f64>, count: u32) -> FaultSpec {
+        let mut f = FaultSpec::parse("bridge:delay@0").unwrap();
+        (f.delay_ms, f.bandwidth_mbit_s, f.count) = (delay_ms, bandwidth_mbit_s, Some(count));
+        f
+    }
+
+    /// A link of 80 Mbit/s holds each 100 kB message for the 10 ms its bits take, and `delay_ms`
+    /// on top; after `count` messages it is over (a lower bound on the time: any host).
+    #[test]
+    fn a_bandwidth_limit_holds_each_message_for_its_bits() {
+        let pace = Pace::default();
+        pace.start(&slow_link(Some(2), Some(80.0), 3));
+        assert!(pace.on());
+        let t0 = Instant::now();
+        for _ in 0..3 {
+            pace.keep(100_000);
+        }
+        assert!(t0.elapsed() >= Duration::from_millis(3 * (10 + 2)));
+        assert!(!pace.on());
     }
 }

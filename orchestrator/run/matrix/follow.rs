@@ -1,0 +1,159 @@
+//! The matrix on another host than the orchestrator's: its part of every case.
+
+use anyhow::Result;
+use shared_types::scenario::FaultMatrix;
+use shared_types::Scenario;
+
+use super::judge::timeline;
+use super::{case_options, Case, CaseFault, CaseReport, HostMatrixReport, DETECT_S, STOP_MARGIN_S};
+use crate::report::FaultReport;
+use crate::run::{self, RunOptions};
+use std::path::PathBuf;
+
+/// The matrix on `host`, another host than the orchestrator's: its part of the baseline and
+/// of every case, in the orchestrator's order (each case a deployment of its own: the two
+/// meet on the case's deployment key). Judges the faults this host fired on its own bridge
+/// (detected, recovered, took effect); the orchestrator's report judges every case end to
+/// end. `DIR/summary.md` leads with the verdict; each part's directory is `DIR/<case>/`.
+pub(super) fn follow(
+    opts: RunOptions,
+    matrix: &FaultMatrix,
+    host: &str,
+) -> Result<(PathBuf, bool)> {
+    let scenario = opts.scenario.clone();
+    let id = format!("{:08x}", std::process::id());
+    let name = format!("{}-{host}", scenario.name);
+    let dir = crate::run::run_dir::prepare(opts.out_dir.as_deref(), &name, &id, opts.replace)?;
+    let root = dir.path.clone();
+    std::fs::write(root.join("scenario.toml"), scenario.to_toml())?;
+    let mut base = scenario.clone();
+    base.matrix = None;
+    let deadline_s = scenario.run.heartbeat_deadline_ms as f64 * 1e-3;
+    let part = |sc: Scenario, case: &str| -> Result<(bool, Vec<FaultReport>)> {
+        let part = crate::run::hosts::run_part(&case_options(&opts, sc, root.join(case)), host)?;
+        run::bail_if_interrupted("the fault matrix")?;
+        Ok(part)
+    };
+    eprintln!("fault matrix, host {host}: baseline");
+    let (baseline_ok, _) = part(base.clone(), "baseline")?;
+    let mut rows: Vec<(String, bool, Case)> = vec![];
+    for case in matrix.cases(&scenario) {
+        eprintln!("fault matrix, host {host}: {}", case.name);
+        let (ok, fired) = part(FaultMatrix::case_scenario(&base, &case), &case.name)?;
+        let mine = case.host.as_deref() == Some(host);
+        let fault = fired.into_iter().next();
+        let (mut misses, late) = match mine {
+            true => timeline(case.kind, fault.as_ref(), deadline_s),
+            false => (vec![], vec![]),
+        };
+        if !ok {
+            misses.insert(
+                0,
+                "this host's part did not end well (its summary says why)".into(),
+            );
+        }
+        let c = Case {
+            name: case.name.clone(),
+            service: case.service,
+            host: case.host.clone(),
+            kind: case.kind,
+            success: ok,
+            fault,
+            lost: None,
+            science_equal: None,
+            misses,
+            late,
+        };
+        rows.push((case.name, mine, c));
+    }
+    let passed = baseline_ok && rows.iter().all(|(_, _, c)| c.misses.is_empty());
+    let report = HostMatrixReport {
+        scenario: scenario.name.clone(),
+        host: host.to_string(),
+        success: passed,
+        baseline_success: baseline_ok,
+        cases: (rows.iter())
+            .map(|(_, _, c)| CaseReport {
+                case: c.name.clone(),
+                host: c.host.clone(),
+                success: c.success,
+                science_equal: None,
+                passed: c.misses.is_empty(),
+                misses: c.misses.clone(),
+                within_targets: c.late.is_empty(),
+                late: c.late.clone(),
+            })
+            .collect(),
+        faults: (rows.iter())
+            .filter(|(_, mine, _)| *mine)
+            .filter_map(|(_, _, c)| {
+                Some(CaseFault {
+                    case: c.name.clone(),
+                    fault: c.fault.clone()?,
+                })
+            })
+            .collect(),
+    };
+    std::fs::write(
+        root.join("report.json"),
+        serde_json::to_string_pretty(&report)? + "\n",
+    )?;
+    std::fs::write(
+        root.join("summary.md"),
+        follower_summary(&scenario, host, &rows, baseline_ok, passed),
+    )?;
+    drop(dir);
+    Ok((root, passed))
+}
+
+/// The summary of another host's matrix: its parts, and the faults it fired.
+fn follower_summary(
+    scenario: &Scenario,
+    host: &str,
+    rows: &[(String, bool, Case)],
+    baseline_ok: bool,
+    passed: bool,
+) -> String {
+    let verdict = if passed { "PASS" } else { "FAIL" };
+    let fired = rows.iter().filter(|(_, mine, _)| *mine).count();
+    let mut s = format!(
+        "# {} — fault matrix, host `{host}`: {verdict}\n\nThis host ran its part of the \
+         baseline ({}) and of {} cases; it fired {fired} of them on its own bridge and judged \
+         their detection and recovery here (detected < {DETECT_S} s after injection, a stop < \
+         heartbeat deadline + {STOP_MARGIN_S} s: a time target; detected, recovered: \
+         invariants). The orchestrator's matrix judges every case end to end: what was lost, \
+         the accounting, the science.\n\n\
+         | case | part | detected (by) | recovered | restarts | misses |\n|---|---|---|---|---|---|\n",
+        scenario.name,
+        if baseline_ok { "ok" } else { "FAILED" },
+        rows.len()
+    );
+    for (name, mine, c) in rows {
+        let f = c.fault.as_ref().filter(|_| *mine);
+        let after = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) => format!("{:.3}", a - b),
+            _ => "—".into(),
+        };
+        let detected = match f.and_then(|f| f.detected_by.as_deref()) {
+            Some(by) => format!(
+                "{} ({by})",
+                after(f.and_then(|f| f.detected_s), f.and_then(|f| f.injected_s))
+            ),
+            None => "—".into(),
+        };
+        let notes = [c.misses.clone(), c.late.clone()].concat().join("; ");
+        s += &format!(
+            "| {name} | {} | {detected} | {} | {} | {} |\n",
+            if c.success { "ended well" } else { "FAILED" },
+            after(f.and_then(|f| f.recovered_s), f.and_then(|f| f.ended_s)),
+            f.map_or("—".into(), |f| f.restarts.to_string()),
+            if notes.is_empty() {
+                "—".to_string()
+            } else {
+                notes
+            }
+        );
+    }
+    s += "\nEach part's directory is `<case>/` beside this file (its summary and logs).\n";
+    s
+}
