@@ -5,7 +5,7 @@
 use super::*;
 use glint::matrix::HostMatrixReport;
 
-/// The split chain's matrix over both hosts' bridges: killed, stopped (the link cut), and
+/// scenarios/faults-split.toml: the split chain's matrix over both hosts' bridges: killed, stopped (the link cut), and
 /// slowed to a 20 Mbit/s link for 10 messages. Six cases, each detected (a delay: it ended) and
 /// recovered from on the host that fired it, nothing lost and the science equal to the
 /// baseline's in the orchestrator's report; each fault took effect (a kill restarted the
@@ -13,11 +13,14 @@ use glint::matrix::HostMatrixReport;
 #[test]
 fn a_matrix_across_hosts_faults_each_hosts_bridge_and_loses_nothing() {
     let dir = temp_dir("hosts-matrix");
-    let frames = 1000;
-    let matrix = "[matrix]\nservices = [\"bridge\"]\nkinds = [\"kill\", \"stop\", \"delay\"]\n\
-                  bandwidth_mbit_s = 20.0\n";
-    let file = split(&dir, frames, matrix);
-    small_frames(&file);
+    // scenarios/faults-split.toml on free ports
+    let (a, b) = (free_port(), free_port());
+    let (a, b) = (format!("127.0.0.1:{a}"), format!("127.0.0.1:{b}"));
+    let file = scenario_variant(
+        "faults-split.toml",
+        &[("127.0.0.1:7447", &a), ("127.0.0.1:7448", &b)],
+        &dir,
+    );
     let mut ground = start_ground(&file, &dir.join("ground"));
     let mut board = start_run(&file, &dir.join("board"), &[]);
     let status = wait_for_exit(&mut board, Duration::from_secs(240));
