@@ -68,18 +68,29 @@ pub fn remote_services(scenario: &Scenario, host: Option<&str>) -> Vec<ServiceId
 /// Runs the part of `host` (not the orchestrator's) until the orchestrator of record ends the
 /// run. Returns the host's directory and whether every process of it ended well.
 pub fn run_host(opts: &super::RunOptions, host: &str) -> Result<(PathBuf, bool)> {
-    let (dir, ok, _) = part(opts, host)?;
-    Ok((dir, ok))
+    let (dir, part) = part(opts, host)?;
+    Ok((dir, part.ok))
 }
 
 /// [`run_host`] for a matrix: whether every process ended well, and the faults this host fired
 /// (their timelines; what they lost is the orchestrator's to count).
-pub fn run_part(opts: &super::RunOptions, host: &str) -> Result<(bool, Vec<FaultReport>)> {
-    let (_, ok, fired) = part(opts, host)?;
-    Ok((ok, fired))
+pub fn run_part(opts: &super::RunOptions, host: &str) -> Result<Part> {
+    let (_, part) = part(opts, host)?;
+    Ok(part)
 }
 
-fn part(opts: &super::RunOptions, host: &str) -> Result<(PathBuf, bool, Vec<FaultReport>)> {
+/// How a host's part of a run ended.
+pub struct Part {
+    /// Every process of it ended well.
+    pub ok: bool,
+    /// The orchestrator of record started the run (the two parts met).
+    pub met: bool,
+    /// The faults this host fired (their timelines; what they lost is the orchestrator's to
+    /// count).
+    pub fired: Vec<FaultReport>,
+}
+
+fn part(opts: &super::RunOptions, host: &str) -> Result<(PathBuf, Part)> {
     let scenario = &opts.scenario;
     let prefix = super::run_prefix();
     let id = prefix.trim_start_matches("glint_").trim_end_matches('_');
@@ -98,7 +109,12 @@ fn part(opts: &super::RunOptions, host: &str) -> Result<(PathBuf, bool, Vec<Faul
     std::fs::write(out_dir.join("summary.md"), &text)?;
     eprint!("{text}");
     drop(dir);
-    Ok((out_dir, summary.ok, summary.fired))
+    let part = Part {
+        ok: summary.ok,
+        met: summary.met,
+        fired: summary.fired,
+    };
+    Ok((out_dir, part))
 }
 
 /// How a host's part ended.
@@ -114,6 +130,8 @@ struct HostSummary {
     /// The faults this host fired, as a table (empty: none), and their entries.
     faults: String,
     fired: Vec<FaultReport>,
+    /// The orchestrator of record started the run.
+    met: bool,
 }
 
 impl HostSummary {
@@ -177,9 +195,14 @@ fn serve(
         .collect::<Result<Vec<_>>>()?;
     tracing::info!(prefix, host, services = children.len(), "deployed");
     let limits = &scenario.run;
-    let deadline = Instant::now()
+    let t0 = Instant::now();
+    let deadline = t0
         + Duration::from_secs_f64(limits.timeout_s)
         + Duration::from_millis(limits.startup_timeout_ms);
+    // The orchestrator's host waits this long for this part (its startup limit and the host
+    // silence limit); this part waits as long again before it gives up on ever starting.
+    let unmet =
+        2 * (Duration::from_millis(limits.startup_timeout_ms) + scenario.host_silence_limit());
     let mut keeper = Keeper::new(scenario, host);
     let mut why: Option<String> = None;
     let mut shutdown = false;
@@ -230,6 +253,14 @@ fn serve(
                 c.id.name(),
                 c.ending.label(),
                 c.log_tail(8)
+            ));
+            return Ok(Step::Stop);
+        }
+        if !keeper.met() && t0.elapsed() > unmet {
+            why = Some(format!(
+                "the orchestrator of record never started the run within {} ms (is its \
+                 host's part running, with the same scenario file, --seed and --fault?)",
+                unmet.as_millis()
             ));
             return Ok(Step::Stop);
         }
@@ -288,5 +319,6 @@ fn serve(
         bridge_restarts: keeper.restarts(),
         faults: keeper.faults_table(),
         fired: keeper.fault_reports(),
+        met: keeper.met(),
     })
 }

@@ -93,6 +93,11 @@ impl Keeper {
         self.carried_before + self.carried_now.1
     }
 
+    /// The orchestrator of record started the run.
+    pub fn met(&self) -> bool {
+        self.started.is_some()
+    }
+
     /// The run's `Start` arrived.
     pub fn start(&mut self) {
         self.started.get_or_insert_with(Instant::now);

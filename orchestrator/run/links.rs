@@ -42,6 +42,10 @@ pub struct HostReport {
     pub orchestrator: bool,
     /// The services placed on it (its bridge aside).
     pub services: Vec<String>,
+    /// Any of its services was heard across the bridge (another host; the orchestrator's
+    /// host: true).
+    #[serde(default = "yes")]
+    pub heard: bool,
     /// The times it was cut off (another host only).
     pub outages: Vec<Outage>,
     /// This host's bridge, per data topic that crossed (the orchestrator's host only).
@@ -62,9 +66,15 @@ pub struct HopReport {
     pub refused: u64,
 }
 
+fn yes() -> bool {
+    true
+}
+
 struct Watched {
     host: String,
     services: Vec<ServiceId>,
+    /// One of its services was heard.
+    heard: bool,
     open: Option<Outage>,
     outages: Vec<Outage>,
     /// When it was last heard again after an outage.
@@ -99,6 +109,7 @@ impl Links {
                 .map(|(host, services)| Watched {
                     host,
                     services,
+                    heard: false,
                     open: None,
                     outages: vec![],
                     back: None,
@@ -131,6 +142,7 @@ impl Links {
             else {
                 continue;
             };
+            h.heard = true;
             match &mut h.open {
                 None if now.saturating_duration_since(last) > self.silence => {
                     tracing::warn!(
@@ -182,6 +194,7 @@ impl Links {
                     endpoint: spec.endpoint.clone(),
                     orchestrator: spec.orchestrator,
                     services,
+                    heard: watched.is_none_or(|w| w.heard),
                     outages,
                     hops: bridge.filter(|_| is_here).map_or(vec![], hops),
                 }

@@ -311,7 +311,13 @@ impl<'a> Live<'a> {
             seen.get(&c.id)
                 .is_some_and(|s| s.heartbeat.state >= Heartbeat::READY)
         }) && self.remote.ready(&self.consumer);
-        let timeout_ms = self.scenario.run.startup_timeout_ms;
+        // Another host's part may start later than this one, or still be ending its previous
+        // run (a matrix's case): it has the host silence limit more.
+        let timeout_ms = self.scenario.run.startup_timeout_ms
+            + match self.remote.is_empty() {
+                true => 0,
+                false => self.scenario.host_silence_limit().as_millis() as u64,
+            };
         if ready {
             self.consumer.command(Command::Start, Control::ALL)?;
             let now = Instant::now();
@@ -332,7 +338,8 @@ impl<'a> Live<'a> {
                 }
             };
             return Ok(Some(self.fail(format!(
-                "services not ready within run.startup_timeout_ms = {timeout_ms} ms{hint}"
+                "services not ready within {timeout_ms} ms (run.startup_timeout_ms, and the \
+                 host silence limit when split){hint}"
             ))));
         }
         Ok(None)

@@ -6,7 +6,7 @@ use shared_types::Scenario;
 
 use super::judge::timeline;
 use super::{case_options, Case, CaseFault, CaseReport, HostMatrixReport, DETECT_S, STOP_MARGIN_S};
-use crate::report::FaultReport;
+use crate::run::hosts::Part;
 use crate::run::{self, RunOptions};
 use std::path::PathBuf;
 
@@ -29,17 +29,23 @@ pub(super) fn follow(
     let mut base = scenario.clone();
     base.matrix = None;
     let deadline_s = scenario.run.heartbeat_deadline_ms as f64 * 1e-3;
-    let part = |sc: Scenario, case: &str| -> Result<(bool, Vec<FaultReport>)> {
+    let part = |sc: Scenario, case: &str| -> Result<Part> {
         let part = crate::run::hosts::run_part(&case_options(&opts, sc, root.join(case)), host)?;
         run::bail_if_interrupted("the fault matrix")?;
         Ok(part)
     };
     eprintln!("fault matrix, host {host}: baseline");
-    let (baseline_ok, _) = part(base.clone(), "baseline")?;
-    let mut rows: Vec<(String, bool, Case)> = vec![];
+    let baseline = part(base.clone(), "baseline")?;
+    let baseline_ok = baseline.ok;
+    // A part that never met the orchestrator's stops the matrix: the hosts are out of step.
+    let mut stopped = (!baseline.met).then(|| unmet(host, "the baseline"));
+    let mut rows: Vec<Case> = vec![];
     for case in matrix.cases(&scenario) {
+        if stopped.is_some() {
+            break;
+        }
         eprintln!("fault matrix, host {host}: {}", case.name);
-        let (ok, fired) = part(FaultMatrix::case_scenario(&base, &case), &case.name)?;
+        let Part { ok, met, fired } = part(FaultMatrix::case_scenario(&base, &case), &case.name)?;
         let mine = case.host.as_deref() == Some(host);
         let fault = fired.into_iter().next();
         let (mut misses, late) = match mine {
@@ -52,10 +58,14 @@ pub(super) fn follow(
                 "this host's part did not end well (its summary says why)".into(),
             );
         }
-        let c = Case {
+        if !met {
+            stopped = Some(unmet(host, &case.name));
+        }
+        rows.push(Case {
             name: case.name.clone(),
             service: case.service,
             host: case.host.clone(),
+            judged_here: mine,
             kind: case.kind,
             success: ok,
             fault,
@@ -63,17 +73,16 @@ pub(super) fn follow(
             science_equal: None,
             misses,
             late,
-        };
-        rows.push((case.name, mine, c));
+        });
     }
-    let passed = baseline_ok && rows.iter().all(|(_, _, c)| c.misses.is_empty());
+    let passed = baseline_ok && stopped.is_none() && rows.iter().all(|c| c.misses.is_empty());
     let report = HostMatrixReport {
         scenario: scenario.name.clone(),
         host: host.to_string(),
         success: passed,
         baseline_success: baseline_ok,
         cases: (rows.iter())
-            .map(|(_, _, c)| CaseReport {
+            .map(|c| CaseReport {
                 case: c.name.clone(),
                 host: c.host.clone(),
                 success: c.success,
@@ -85,8 +94,8 @@ pub(super) fn follow(
             })
             .collect(),
         faults: (rows.iter())
-            .filter(|(_, mine, _)| *mine)
-            .filter_map(|(_, _, c)| {
+            .filter(|c| c.judged_here)
+            .filter_map(|c| {
                 Some(CaseFault {
                     case: c.name.clone(),
                     fault: c.fault.clone()?,
@@ -100,22 +109,32 @@ pub(super) fn follow(
     )?;
     std::fs::write(
         root.join("summary.md"),
-        follower_summary(&scenario, host, &rows, baseline_ok, passed),
+        follower_summary(&scenario, host, &rows, baseline_ok, passed)
+            + &stopped.map_or(String::new(), |why| format!("\n{why}\n")),
     )?;
     drop(dir);
     Ok((root, passed))
+}
+
+/// Why the matrix stopped: `host`'s part of `case` never met the orchestrator of record.
+fn unmet(host: &str, case: &str) -> String {
+    format!(
+        "The matrix stopped at {case}: the orchestrator of record never started host {host}'s \
+         part of it (the hosts are out of step: run every host's `glint run FILE --host NAME` \
+         together, with the same file)."
+    )
 }
 
 /// The summary of another host's matrix: its parts, and the faults it fired.
 fn follower_summary(
     scenario: &Scenario,
     host: &str,
-    rows: &[(String, bool, Case)],
+    rows: &[Case],
     baseline_ok: bool,
     passed: bool,
 ) -> String {
     let verdict = if passed { "PASS" } else { "FAIL" };
-    let fired = rows.iter().filter(|(_, mine, _)| *mine).count();
+    let fired = rows.iter().filter(|c| c.judged_here).count();
     let mut s = format!(
         "# {} — fault matrix, host `{host}`: {verdict}\n\nThis host ran its part of the \
          baseline ({}) and of {} cases; it fired {fired} of them on its own bridge and judged \
@@ -128,8 +147,8 @@ fn follower_summary(
         if baseline_ok { "ok" } else { "FAILED" },
         rows.len()
     );
-    for (name, mine, c) in rows {
-        let f = c.fault.as_ref().filter(|_| *mine);
+    for c in rows {
+        let f = c.fault.as_ref().filter(|_| c.judged_here);
         let after = |a: Option<f64>, b: Option<f64>| match (a, b) {
             (Some(a), Some(b)) => format!("{:.3}", a - b),
             _ => "—".into(),
@@ -143,7 +162,8 @@ fn follower_summary(
         };
         let notes = [c.misses.clone(), c.late.clone()].concat().join("; ");
         s += &format!(
-            "| {name} | {} | {detected} | {} | {} | {} |\n",
+            "| {} | {} | {detected} | {} | {} | {} |\n",
+            c.name,
             if c.success { "ended well" } else { "FAILED" },
             after(f.and_then(|f| f.recovered_s), f.and_then(|f| f.ended_s)),
             f.map_or("—".into(), |f| f.restarts.to_string()),

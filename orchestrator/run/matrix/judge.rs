@@ -2,10 +2,12 @@
 //! effect) and, end to end, what it lost and whether the science equals the baseline's.
 
 use shared_types::scenario::{FaultKind, MatrixCase};
-use shared_types::ServiceId;
+use shared_types::{deployment, Scenario, ServiceId, TopicId};
+
+use std::collections::BTreeMap;
 
 use super::{Case, CaseRun, DETECT_S, RECOVER_S, STOP_MARGIN_S};
-use crate::report::{FaultReport, Report};
+use crate::report::{FaultReport, Report, TopicReport};
 
 /// A case against the targets: detected in time, recovered in time, nothing lost and the
 /// science equal (kill, stop, panic, delay), or exact counts (drop, corrupt). A verdict the
@@ -54,6 +56,7 @@ pub(super) fn judge(
         name: name.to_string(),
         service,
         host: None,
+        judged_here: true,
         kind,
         success,
         lost: f.and_then(|f| f.lost),
@@ -146,6 +149,7 @@ pub(super) fn judge_elsewhere(
     host: &str,
     report: &Report,
     science_equal: bool,
+    lost: Option<u64>,
 ) -> Case {
     let r = &report.results;
     let mut misses = vec![];
@@ -158,16 +162,12 @@ pub(super) fn judge_elsewhere(
     if !r.accounting.invariant_held {
         misses.push("accounting invariant broken".into());
     }
-    // What any consumer of any topic did not receive.
-    let lost = (r.topics.values())
-        .flat_map(|t| t.consumers.values().map(move |c| (t.expected, c.received)))
-        .map(|(expected, received)| received.map(|n| expected.saturating_sub(n)))
-        .sum::<Option<u64>>();
     whole(science_equal, lost, &mut misses);
     Case {
         name: case.name.clone(),
         service: case.service,
         host: Some(host.to_string()),
+        judged_here: false,
         kind: case.kind,
         success: r.success,
         fault: None,
@@ -176,6 +176,37 @@ pub(super) fn judge_elsewhere(
         misses,
         late: vec![],
     }
+}
+
+/// What a bridge's fault cost: of every topic that crosses hosts, what its consumers on
+/// another host than its producer's did not receive, beyond what they did not receive in the
+/// fault-free `baseline` (`None`: a consumer reported no count).
+pub(crate) fn crossing_lost(
+    scenario: &Scenario,
+    report: &Report,
+    baseline: &Report,
+) -> Option<u64> {
+    let missing = |r: &Report| crossing_missing(scenario, &r.results.topics);
+    Some(missing(report)?.saturating_sub(missing(baseline)?))
+}
+
+/// Of every topic that crosses hosts, what its consumers on another host than its producer's
+/// did not receive (`None`: one reported no count).
+fn crossing_missing(scenario: &Scenario, topics: &BTreeMap<String, TopicReport>) -> Option<u64> {
+    let mut sum = 0;
+    for (name, t) in topics {
+        let Some(topic) = TopicId::from_name(name) else {
+            continue;
+        };
+        let from = deployment::producer(topic).and_then(|p| scenario.host_of(p));
+        for (consumer, c) in &t.consumers {
+            let on = ServiceId::from_name(consumer).and_then(|s| scenario.host_of(s));
+            if on.is_some() && on != from {
+                sum += t.expected.saturating_sub(c.received?);
+            }
+        }
+    }
+    Some(sum)
 }
 
 #[cfg(test)]
@@ -327,6 +358,48 @@ mod tests {
         };
         let m = misses(FaultKind::Kill, failed);
         assert!(m[0].contains("never fired"), "{m:?}");
+    }
+
+    /// What a bridge's fault cost in the split debris chain: what crossed hosts and did not
+    /// arrive (frames to ground's detector, tracks back to the orchestrator), not what stayed
+    /// on one host (detections, ground to ground).
+    #[test]
+    fn a_bridge_fault_costs_what_did_not_cross() {
+        let text = include_str!("../../../scenarios/debris-split.toml");
+        let sc = Scenario::from_toml_str(text, "debris-split.toml").unwrap();
+        let consumer = |received: Option<u64>| crate::report::ConsumerReport {
+            received,
+            duplicates: None,
+            dropped: Some(0),
+            dropped_by_reason: None,
+            accounted: true,
+        };
+        let topic = |consumers: &[(&str, Option<u64>)]| TopicReport {
+            expected: 50,
+            published: Some(50),
+            digest_xxh3: None,
+            consumers: (consumers.iter())
+                .map(|(n, r)| (n.to_string(), consumer(*r)))
+                .collect(),
+        };
+        let topics = |frame: u64, detections: u64, tracks: Option<u64>| -> BTreeMap<_, _> {
+            [
+                (
+                    "frame",
+                    topic(&[("detector", Some(frame)), ("orchestrator", Some(50))]),
+                ),
+                ("detections", topic(&[("tracker", Some(detections))])),
+                ("tracks", topic(&[("orchestrator", tracks)])),
+            ]
+            .into_iter()
+            .map(|(n, t)| (n.to_string(), t))
+            .collect()
+        };
+        assert_eq!(crossing_missing(&sc, &topics(50, 50, Some(50))), Some(0));
+        // 2 frames and 1 track did not cross; the detections never had to
+        assert_eq!(crossing_missing(&sc, &topics(48, 40, Some(49))), Some(3));
+        // a consumer that reported no count: unknown
+        assert_eq!(crossing_missing(&sc, &topics(50, 50, None)), None);
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! `glint run` of a `[matrix]` scenario: the fault-free baseline, then one deployment per
-//! (service × kind) with that one fault, each in `DIR/<service>-<kind>`. `DIR/report.json`
+//! (service × kind) with that one fault, each in `DIR/<service>-<kind>` (a split deployment:
+//! also every host's bridge, `DIR/bridge-<host>-<kind>`; every host runs its part, follow.rs). `DIR/report.json`
 //! lists every case's `faults[]` entries with its `case` name and whether its science equals
 //! the baseline's; `DIR/summary.md` leads with the verdict and shows the matrix. The verdict
 //! (and `glint run`'s exit code) is the invariants'; the time targets are figures beside it.
@@ -19,7 +20,7 @@ use crate::run::{self, RunOptions};
 mod follow;
 mod judge;
 
-use judge::{judge, judge_elsewhere};
+use judge::{crossing_lost, judge, judge_elsewhere};
 
 /// The matrix's `report.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -95,6 +96,8 @@ struct Case {
     /// The host whose part fired it (`None`: not split, or one of the orchestrator's host's
     /// services).
     host: Option<String>,
+    /// Its fault's detection and recovery were judged here (the host that fired it).
+    judged_here: bool,
     kind: FaultKind,
     success: bool,
     fault: Option<FaultReport>,
@@ -135,21 +138,34 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
     let deadline_s = scenario.run.heartbeat_deadline_ms as f64 * 1e-3;
 
     let mut cases = vec![];
+    // A host that never joined a case stops the matrix: the hosts are out of step.
+    let mut stopped = unheard(&baseline, "the baseline");
     for case in matrix.cases(&scenario) {
+        if stopped.is_some() {
+            break;
+        }
         eprintln!("fault matrix: {}", case.name);
         let report = deploy(FaultMatrix::case_scenario(&base, &case), &case.name)?;
         let science_equal = report.results.science == baseline.results.science;
+        // A bridge's fault costs what the topics that cross hosts did not deliver.
+        let lost = (case.service == ServiceId::Bridge)
+            .then(|| crossing_lost(&base, &report, &baseline))
+            .flatten();
         let elsewhere = (case.host.as_deref()).filter(|h| opts.host.as_deref() != Some(*h));
         cases.push(match elsewhere {
             // Fired by the other host's part: judged here end to end, and there (its
             // summary) on detection and recovery.
-            Some(host) => judge_elsewhere(&case, host, &report, science_equal),
+            Some(host) => judge_elsewhere(&case, host, &report, science_equal, lost),
             None => {
+                let mut fault = report.faults.first().cloned();
+                if let Some(f) = fault.as_mut().filter(|_| case.service == ServiceId::Bridge) {
+                    f.lost = lost;
+                }
                 let run = CaseRun {
                     success: report.results.success,
                     failure: report.results.failure.clone(),
                     science_equal,
-                    fault: report.faults.first().cloned(),
+                    fault,
                 };
                 Case {
                     host: case.host.clone(),
@@ -157,9 +173,10 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
                 }
             }
         });
+        stopped = unheard(&report, &case.name);
     }
     let baseline_ok = baseline.results.success;
-    let passed = baseline_ok && cases.iter().all(|c| c.misses.is_empty());
+    let passed = baseline_ok && stopped.is_none() && cases.iter().all(|c| c.misses.is_empty());
     let report = MatrixReport {
         scenario: scenario.name.clone(),
         success: passed,
@@ -196,7 +213,9 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
     )?;
     std::fs::write(
         root.join("summary.md"),
-        summary(&scenario, &cases, baseline_ok, passed) + &left_out(&scenario, &matrix),
+        summary(&scenario, &cases, baseline_ok, passed)
+            + &left_out(&scenario, &matrix)
+            + &stopped.map_or(String::new(), |why| format!("\n{why}\n")),
     )?;
     drop(dir);
     Ok((root, passed))
@@ -206,10 +225,21 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
 /// than the orchestrator's (only its bridge is faulted there).
 fn left_out(scenario: &Scenario, matrix: &FaultMatrix) -> String {
     let cases = matrix.cases(scenario);
-    let out: Vec<String> = (matrix.services_of(scenario).into_iter())
-        .filter(|s| !cases.iter().any(|c| c.service == *s))
+    let mut out: Vec<String> = (matrix.services_of(scenario).into_iter())
+        .filter(|s| *s != ServiceId::Bridge && !cases.iter().any(|c| c.service == *s))
         .map(|s| format!("{} (on {})", s.name(), scenario.host_of(s).unwrap_or("?")))
         .collect();
+    // A bridge the first topic that crosses hosts does not pass (its `at_seq` would count
+    // nothing there).
+    if matrix.services_of(scenario).contains(&ServiceId::Bridge) {
+        out.extend(
+            (scenario.hosts.keys())
+                .filter(|h| !cases.iter().any(|c| c.host.as_deref() == Some(h.as_str())))
+                .map(|h| {
+                    format!("bridge (on {h}: the first topic that crosses hosts does not pass it)")
+                }),
+        );
+    }
     match out.is_empty() {
         true => String::new(),
         false => format!(
@@ -218,6 +248,17 @@ fn left_out(scenario: &Scenario, matrix: &FaultMatrix) -> String {
             out.join(", ")
         ),
     }
+}
+
+/// Why the matrix stops after `case` (`None`: it goes on): another host's services were never
+/// heard in it, so that host's part never joined.
+fn unheard(report: &Report, case: &str) -> Option<String> {
+    let host = report.run.hosts.iter().find(|h| !h.heard)?;
+    Some(format!(
+        "The matrix stopped at {case}: host {} never joined it (the hosts are out of step: run \
+         every host's `glint run FILE --host NAME` together, with the same file).",
+        host.name
+    ))
 }
 
 /// What the matrix reads of one case's run.
@@ -281,6 +322,20 @@ fn summary(scenario: &Scenario, cases: &[Case], baseline_ok: bool, passed: bool)
         cases.len(),
         if baseline_ok { "ok" } else { "FAILED" }
     );
+    let elsewhere: Vec<&str> = (cases.iter())
+        .filter(|c| !c.judged_here)
+        .map(|c| c.name.as_str())
+        .collect();
+    if !elsewhere.is_empty() {
+        let _ = writeln!(
+            s,
+            "{} of them another host fired ({}): judged here end to end (the run, the \
+             accounting, lost 0, the science); their detection and recovery by that host's \
+             matrix, whose verdict the matrix's also needs.\n",
+            elsewhere.len(),
+            elsewhere.join(", ")
+        );
+    }
     // The grid: one row per service, one column per kind.
     let mut kinds: Vec<FaultKind> = vec![];
     let mut services: Vec<(ServiceId, Option<&str>)> = vec![];
@@ -337,7 +392,7 @@ fn summary(scenario: &Scenario, cases: &[Case], baseline_ok: bool, passed: bool)
             _ => "—".into(),
         };
         // A fault another host fired: its detection and recovery are in that host's summary.
-        let there = (c.host.as_deref()).filter(|_| f.is_none());
+        let there = (c.host.as_deref()).filter(|_| !c.judged_here);
         let detected = match (f.and_then(|f| f.detected_by.as_deref()), there) {
             (Some(by), _) => format!(
                 "{} ({by})",

@@ -164,7 +164,7 @@ pub struct FaultSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub how: Option<Corruption>,
     /// A bridge's `delay` (a slow link): the link's bandwidth while it lasts [Mbit/s],
-    /// 0.001–100000: each data message waits the time its bytes take at that rate (and
+    /// 1–100000: each data message waits the time its bytes take at that rate (and
     /// `delay_ms`, if given, on top).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bandwidth_mbit_s: Option<f64>,
@@ -345,30 +345,33 @@ pub(super) fn check_faults(c: &mut Checker, scenario: &super::Scenario) {
         );
         only(c, "every", f.every.is_some(), &[FaultKind::Drop]);
         only(c, "how", f.how.is_some(), &[FaultKind::Corrupt]);
-        let bridge = f.service_id() == Some(ServiceId::Bridge);
-        match (f.kind, f.delay_ms, f.bandwidth_mbit_s) {
-            (FaultKind::Delay, Some(ms), _) => c.range_u(&at("delay_ms"), ms, 1, 10_000),
-            (FaultKind::Delay, None, Some(_)) if bridge => {}
-            (FaultKind::Delay, None, _) => c.fail(
-                &at("delay_ms"),
-                match bridge {
-                    true => "a bridge's delay needs delay_ms (1..=10000) or bandwidth_mbit_s \
-                             (0.001..=100000)"
+        let slow_link = f.kind == FaultKind::Delay && f.service_id() == Some(ServiceId::Bridge);
+        if f.kind == FaultKind::Delay {
+            if let Some(ms) = f.delay_ms {
+                c.range_u(&at("delay_ms"), ms, 1, 10_000);
+            } else if !slow_link {
+                c.fail(
+                    &at("delay_ms"),
+                    "a delay needs delay_ms; allowed 1..=10000".into(),
+                );
+            } else if f.bandwidth_mbit_s.is_none() {
+                c.fail(
+                    &at("delay_ms"),
+                    "a bridge's delay needs delay_ms (1..=10000) or bandwidth_mbit_s \
+                     (1..=100000)"
                         .into(),
-                    false => "a delay needs delay_ms; allowed 1..=10000".into(),
-                },
-            ),
-            _ => {}
-        }
-        match f.bandwidth_mbit_s {
-            Some(r) if bridge && f.kind == FaultKind::Delay => {
-                c.range(&at("bandwidth_mbit_s"), r, 0.001, 100_000.0)
+                );
             }
-            Some(_) => c.fail(
-                &at("bandwidth_mbit_s"),
-                "a bandwidth limit is a slow link: only for the bridge's delay".into(),
-            ),
-            None => {}
+        }
+        if let Some(r) = f.bandwidth_mbit_s {
+            if slow_link {
+                c.range(&at("bandwidth_mbit_s"), r, 1.0, 100_000.0);
+            } else {
+                c.fail(
+                    &at("bandwidth_mbit_s"),
+                    "a bandwidth limit is a slow link: only for the bridge's delay".into(),
+                );
+            }
         }
         match (f.kind, f.count) {
             (FaultKind::Delay, Some(n)) => c.range_u(&at("count"), u64::from(n), 1, 1_000_000),

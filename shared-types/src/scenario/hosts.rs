@@ -548,5 +548,22 @@ host = "b"
             )]),
             ["matrix.services[0]"]
         );
+        // a bandwidth no case uses, a kind named twice
+        let fields = |m: &str| -> Vec<String> {
+            match matrix(m) {
+                Err(crate::scenario::ScenarioError::Invalid { errors, .. }) => {
+                    errors.into_iter().map(|e| e.field).collect()
+                }
+                other => panic!("{other:?}"),
+            }
+        };
+        assert_eq!(
+            fields("kinds = [\"kill\"]\nbandwidth_mbit_s = 5.0"),
+            ["matrix.bandwidth_mbit_s"]
+        );
+        assert_eq!(
+            fields("kinds = [\"kill\", \"stop\", \"kill\"]"),
+            ["matrix.kinds[2]"]
+        );
     }
 }

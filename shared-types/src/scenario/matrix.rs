@@ -69,13 +69,17 @@ impl FaultMatrix {
         for (index, service) in self.services_of(scenario).into_iter().enumerate() {
             let trigger = deployment::trigger_topic(scenario, service);
             let at_seq = trigger.map_or(0, |t| deployment::expected_messages(scenario, t)) * 3 / 10;
-            let hosts: Vec<Option<String>> = match service {
-                ServiceId::Bridge => (scenario.hosts.keys())
+            // Where its faults fire: each host's bridge; another service on the orchestrator's
+            // host only.
+            let hosts: Vec<Option<String>> = if service == ServiceId::Bridge {
+                (scenario.hosts.keys())
                     .filter(|h| bridge_passes(scenario, trigger, h))
                     .map(|h| Some(h.clone()))
-                    .collect(),
-                _ if scenario.host_of(service) != scenario.orchestrator_host() => vec![],
-                _ => vec![None],
+                    .collect()
+            } else if scenario.host_of(service) == scenario.orchestrator_host() {
+                vec![None]
+            } else {
+                vec![]
             };
             for host in hosts {
                 for kind in self.kinds_of() {
@@ -234,12 +238,29 @@ pub(super) fn check_matrix(c: &mut Checker, scenario: &super::Scenario) {
         c.range_u("matrix.delay_ms", v, 1, 10_000);
     }
     if let Some(v) = m.bandwidth_mbit_s {
-        c.range("matrix.bandwidth_mbit_s", v, 0.001, 100_000.0);
+        c.range("matrix.bandwidth_mbit_s", v, 1.0, 100_000.0);
+        let slows = (m.services.is_empty() || m.services.iter().any(|s| s == "bridge"))
+            && m.kinds_of().contains(&FaultKind::Delay);
         if !scenario.split() {
             c.fail(
                 "matrix.bandwidth_mbit_s",
                 "a bandwidth limit slows the link between hosts: the scenario has no [hosts]"
                     .into(),
+            );
+        } else if !slows {
+            c.fail(
+                "matrix.bandwidth_mbit_s",
+                "it slows the bridge's delay cases: the matrix has none (add \"bridge\" to \
+                 services, or leave services out, and \"delay\" to kinds)"
+                    .into(),
+            );
+        }
+    }
+    for (i, k) in m.kinds.iter().enumerate() {
+        if m.kinds[..i].contains(k) {
+            c.fail(
+                &format!("matrix.kinds[{i}]"),
+                format!("`{}` is named twice", k.name()),
             );
         }
     }

@@ -27,17 +27,21 @@ struct Slow {
     /// The link's bandwidth [bit/s] (`None`: not limited).
     bandwidth_bit_s: Option<f64>,
     end: End,
-    /// When it began, messages and bytes it slowed so far.
-    began: Instant,
+    /// When it held its first message, messages and bytes it slowed so far.
+    first: Option<Instant>,
     slowed: u64,
     bytes: u64,
+    /// A message is held now (a pace by time ends once it is out).
+    holding: bool,
 }
 
 impl Slow {
-    /// The log line of its end: what it slowed, and the rate its data crossed at.
+    /// The log line of its end: what it slowed, and the rate its data crossed at (from its
+    /// first held message to now).
     fn over(&self) {
         let (slowed, bytes) = (self.slowed, self.bytes);
-        let mbit_s = bytes as f64 * 8.0 / self.began.elapsed().as_secs_f64().max(1e-9) / 1e6;
+        let s = self.first.map_or(0.0, |t| t.elapsed().as_secs_f64());
+        let mbit_s = bytes as f64 * 8.0 / s.max(1e-9) / 1e6;
         tracing::info!(
             slowed,
             bytes,
@@ -57,18 +61,18 @@ impl Pace {
     /// Starts pacing: `delay_ms` and the bytes' time at `bandwidth_mbit_s` before each data
     /// put, until `count` messages or `duration_s`.
     fn start(&self, f: &FaultSpec) {
-        let now = Instant::now();
         let end = match (f.count, f.duration_s) {
             (Some(n), _) => End::After(n),
-            (None, d) => End::At(now + Duration::from_secs_f64(d.unwrap_or(0.0))),
+            (None, d) => End::At(Instant::now() + Duration::from_secs_f64(d.unwrap_or(0.0))),
         };
         *self.lock() = Some(Slow {
             delay: Duration::from_millis(f.delay_ms.unwrap_or(0)),
             bandwidth_bit_s: f.bandwidth_mbit_s.map(|r| r * 1e6),
             end,
-            began: now,
+            first: None,
             slowed: 0,
             bytes: 0,
+            holding: false,
         });
     }
 
@@ -95,8 +99,10 @@ impl Pace {
             if let End::After(n) = &mut slow.end {
                 *n -= 1;
             }
+            slow.first.get_or_insert_with(Instant::now);
             slow.slowed += 1;
             slow.bytes += bytes as u64;
+            slow.holding = true;
             let on_the_wire = (slow.bandwidth_bit_s).map_or(Duration::ZERO, |r| {
                 Duration::from_secs_f64(bytes as f64 * 8.0 / r)
             });
@@ -105,6 +111,9 @@ impl Pace {
         std::thread::sleep(wait);
         // The last message of a pace by count: over now, not at the next message.
         let mut on = self.lock();
+        if let Some(slow) = on.as_mut() {
+            slow.holding = false;
+        }
         if let Some(slow) = on.filter(|s| s.end == End::After(0)) {
             slow.over();
             *on = None;
@@ -114,8 +123,9 @@ impl Pace {
     /// Whether a pace is in force (the heartbeat's `delaying`).
     pub fn on(&self) -> bool {
         let mut on = self.lock();
-        // A pace by time ends at its time, messages or not.
-        if let Some(slow) = on.filter(|s| matches!(s.end, End::At(t) if Instant::now() >= t)) {
+        // A pace by time ends at its time, messages or not, once the message it holds is out.
+        let due = |s: &Slow| !s.holding && matches!(s.end, End::At(t) if Instant::now() >= t);
+        if let Some(slow) = on.filter(due) {
             slow.over();
             *on = None;
         }
