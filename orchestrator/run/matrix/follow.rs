@@ -5,7 +5,7 @@ use shared_types::scenario::FaultMatrix;
 use shared_types::Scenario;
 
 use super::judge::timeline;
-use super::{case_options, Case, CaseFault, CaseReport, HostMatrixReport, DETECT_S, STOP_MARGIN_S};
+use super::{case_options, Case, CaseFault, HostMatrixReport, DETECT_S, STOP_MARGIN_S};
 use crate::run::hosts::Part;
 use crate::run::{self, RunOptions};
 use std::path::PathBuf;
@@ -81,18 +81,7 @@ pub(super) fn follow(
         host: host.to_string(),
         success: passed,
         baseline_success: baseline_ok,
-        cases: (rows.iter())
-            .map(|c| CaseReport {
-                case: c.name.clone(),
-                host: c.host.clone(),
-                success: c.success,
-                science_equal: None,
-                passed: c.misses.is_empty(),
-                misses: c.misses.clone(),
-                within_targets: c.late.is_empty(),
-                late: c.late.clone(),
-            })
-            .collect(),
+        cases: rows.iter().map(Case::report).collect(),
         faults: (rows.iter())
             .filter(|c| c.judged_here)
             .filter_map(|c| {
@@ -103,15 +92,8 @@ pub(super) fn follow(
             })
             .collect(),
     };
-    std::fs::write(
-        root.join("report.json"),
-        serde_json::to_string_pretty(&report)? + "\n",
-    )?;
-    std::fs::write(
-        root.join("summary.md"),
-        follower_summary(&scenario, host, &rows, baseline_ok, passed)
-            + &stopped.map_or(String::new(), |why| format!("\n{why}\n")),
-    )?;
+    let text = follower_summary(&scenario, host, &rows, baseline_ok, passed);
+    super::write(&root, &report, text, stopped)?;
     drop(dir);
     Ok((root, passed))
 }

@@ -6,7 +6,7 @@
 //! (and `glint run`'s exit code) is the invariants'; the time targets are figures beside it.
 
 use std::fmt::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use schemars::JsonSchema;
@@ -184,18 +184,7 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
             success: baseline.results.success,
             science: baseline.results.science.clone(),
         },
-        cases: (cases.iter())
-            .map(|c| CaseReport {
-                case: c.name.clone(),
-                host: c.host.clone(),
-                success: c.success,
-                science_equal: c.science_equal,
-                passed: c.misses.is_empty(),
-                misses: c.misses.clone(),
-                within_targets: c.late.is_empty(),
-                late: c.late.clone(),
-            })
-            .collect(),
+        cases: cases.iter().map(Case::report).collect(),
         faults: (cases.iter())
             .filter_map(|c| {
                 let mut fault = c.fault.clone()?;
@@ -207,18 +196,42 @@ pub fn run_matrix(opts: RunOptions) -> Result<(PathBuf, bool)> {
             })
             .collect(),
     };
-    std::fs::write(
-        root.join("report.json"),
-        serde_json::to_string_pretty(&report)? + "\n",
-    )?;
-    std::fs::write(
-        root.join("summary.md"),
-        summary(&scenario, &cases, baseline_ok, passed)
-            + &left_out(&scenario, &matrix)
-            + &stopped.map_or(String::new(), |why| format!("\n{why}\n")),
-    )?;
+    let text = summary(&scenario, &cases, baseline_ok, passed) + &left_out(&scenario, &matrix);
+    write(&root, &report, text, stopped)?;
     drop(dir);
     Ok((root, passed))
+}
+
+/// Writes a matrix's `report.json` and `summary.md` (`stopped`: why it stopped early, last).
+fn write(
+    root: &Path,
+    report: &impl Serialize,
+    summary: String,
+    stopped: Option<String>,
+) -> Result<()> {
+    std::fs::write(
+        root.join("report.json"),
+        serde_json::to_string_pretty(report)? + "\n",
+    )?;
+    let stopped = stopped.map_or(String::new(), |why| format!("\n{why}\n"));
+    std::fs::write(root.join("summary.md"), summary + &stopped)?;
+    Ok(())
+}
+
+impl Case {
+    /// Its verdict as `report.json` gives it.
+    fn report(&self) -> CaseReport {
+        CaseReport {
+            case: self.name.clone(),
+            host: self.host.clone(),
+            success: self.success,
+            science_equal: self.science_equal,
+            passed: self.misses.is_empty(),
+            misses: self.misses.clone(),
+            within_targets: self.late.is_empty(),
+            late: self.late.clone(),
+        }
+    }
 }
 
 /// The services of the matrix no case faults, and why (empty: none): those of another host
