@@ -121,6 +121,14 @@ fn the_split_debris_chain_gives_the_single_host_science() {
     ] {
         assert!(ground_summary.contains(row), "{row} in\n{ground_summary}");
     }
+    // The laser's calls do not cross hosts: the summary says the run is angles only and shows
+    // no range columns or EKF picture (they would hold only NaN).
+    let board_summary = std::fs::read_to_string(dir.join("board/summary.md")).unwrap();
+    assert!(
+        board_summary.contains("No laser ranges in this run") && !board_summary.contains("NaN"),
+        "{board_summary}"
+    );
+    assert!(!dir.join("board/debris-ekf.svg").exists());
     for part in ["board", "ground", "single"] {
         let log = std::fs::read_to_string(stderr_path(&dir.join(part))).unwrap_or_default();
         assert!(!log.contains("panicked"), "{part}: {log}");

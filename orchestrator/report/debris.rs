@@ -29,14 +29,18 @@ pub fn markdown(score: &DebrisScore) -> String {
         d.false_targets_rejected,
         d.false_targets
     );
-    let _ = writeln!(
-        s,
-        "| debris | track | frames | α err RMS meas / filt [deg] | β err RMS meas / filt [deg] | direct fix RMS [m] | EKF pos err final [m] | EKF vel err final [m/s] | NEES mean (95 % bounds) | laser hits |\n|---|---|---|---|---|---|---|---|---|---|"
-    );
+    // Without a laser (off, or its calls not crossing hosts) there is no range: no direct fix,
+    // no EKF, and their columns would hold only NaN.
+    let ranged = score.targets.iter().any(|t| t.laser_shots > 0);
+    if ranged {
+        s.push_str("| debris | track | frames | α err RMS meas / filt [deg] | β err RMS meas / filt [deg] | direct fix RMS [m] | EKF pos err final [m] | EKF vel err final [m/s] | NEES mean (95 % bounds) | laser hits |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    } else {
+        s.push_str("No laser ranges in this run: angles only (the direct fix and the EKF need a range).\n\n| debris | track | frames | α err RMS meas / filt [deg] | β err RMS meas / filt [deg] |\n|---|---|---|---|---|\n");
+    }
     for t in &score.targets {
-        let _ = writeln!(
+        let _ = write!(
             s,
-            "| {} | {} | {} | {:.2e} / {:.2e} | {:.2e} / {:.2e} | {:.3} | {:.3} | {:.3} | {:.2} ({:.2}–{:.2}) | {}/{} |",
+            "| {} | {} | {} | {:.2e} / {:.2e} | {:.2e} / {:.2e} |",
             t.id,
             t.track_id.map_or("—".into(), |v| v.to_string()),
             t.frames_tracked,
@@ -44,17 +48,28 @@ pub fn markdown(score: &DebrisScore) -> String {
             t.azimuth_err_deg_rms_filtered,
             t.elevation_err_deg_rms_measured,
             t.elevation_err_deg_rms_filtered,
-            t.pos_err_m_rms_direct,
-            t.pos_err_m_final,
-            t.vel_err_mps_final,
-            t.nees_mean,
-            t.nees_bounds[0],
-            t.nees_bounds[1],
-            t.laser_hits,
-            t.laser_shots
         );
+        if ranged {
+            let _ = write!(
+                s,
+                " {:.3} | {:.3} | {:.3} | {:.2} ({:.2}–{:.2}) | {}/{} |",
+                t.pos_err_m_rms_direct,
+                t.pos_err_m_final,
+                t.vel_err_mps_final,
+                t.nees_mean,
+                t.nees_bounds[0],
+                t.nees_bounds[1],
+                t.laser_hits,
+                t.laser_shots
+            );
+        }
+        s.push('\n');
     }
-    s.push_str("\n![angle errors](debris-angles.svg)\n\n![EKF position error](debris-ekf.svg)\n\n![annotated frame](frame-annotated.svg)\n");
+    s.push_str("\n![angle errors](debris-angles.svg)\n\n");
+    if ranged {
+        s.push_str("![EKF position error](debris-ekf.svg)\n\n");
+    }
+    s.push_str("![annotated frame](frame-annotated.svg)\n");
     s
 }
 
@@ -125,13 +140,16 @@ pub fn plots(
             markers: true,
         });
     }
-    line_chart(
-        &dir.join("debris-ekf.svg"),
-        "EKF position error and its 3σ bound",
-        "time [s]",
-        "position error [m]",
-        &series,
-    )?;
+    // No EKF without laser ranges: no picture of it (the summary says why).
+    if series.iter().any(|s| !s.points.is_empty()) {
+        line_chart(
+            &dir.join("debris-ekf.svg"),
+            "EKF position error and its 3σ bound",
+            "time [s]",
+            "position error [m]",
+            &series,
+        )?;
+    }
     if let Some(snap) = snapshot {
         let (k, w, h) = (snap.frame_index, snap.width_px, snap.height_px);
         annotated_frame(dir, camera, k, w, h, &snap.pixels, detections, truths)?;
