@@ -28,7 +28,8 @@ fn free_port() -> u16 {
     l.local_addr().unwrap().port()
 }
 
-/// scenarios/debris-split.toml with `frames`, free ports, and `extra` before the first table.
+/// scenarios/debris-split.toml with `frames`, free ports, the laser off, and `extra` before the
+/// first table.
 fn split(dir: &Path, frames: u32, extra: &str) -> PathBuf {
     let (a, b) = (free_port(), free_port());
     let ports = [
@@ -43,6 +44,8 @@ fn split(dir: &Path, frames: u32, extra: &str) -> PathBuf {
             (ports[0].0, &ports[0].1),
             (ports[1].0, &ports[1].1),
             ("frames = 50", &frames),
+            // A round trip across hosts per shot: the laser's own test turns it on.
+            ("\nlaser = true", "\nlaser = false"),
             ("[hosts.board]", &head),
         ],
         dir,
@@ -121,7 +124,7 @@ fn the_split_debris_chain_gives_the_single_host_science() {
     ] {
         assert!(ground_summary.contains(row), "{row} in\n{ground_summary}");
     }
-    // The laser's calls do not cross hosts: the summary says the run is angles only and shows
+    // With the laser off the summary says the run is angles only and shows
     // no range columns or EKF picture (they would hold only NaN).
     let board_summary = std::fs::read_to_string(dir.join("board/summary.md")).unwrap();
     assert!(
@@ -133,6 +136,60 @@ fn the_split_debris_chain_gives_the_single_host_science() {
         let log = std::fs::read_to_string(stderr_path(&dir.join(part))).unwrap_or_default();
         assert!(!log.contains("panicked"), "{part}: {log}");
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The laser across hosts: the tracker on ground fires at the sensor on board, its calls
+/// carried by the bridges (ground's serves them, board's asks the sensor). Ground's bridge is
+/// killed at frame 150, calls in flight with it: the tracker asks again under the same ids,
+/// the restarted bridge carries them, and the science — the EKF fed by every range — equals
+/// the single-host run's.
+#[test]
+fn the_laser_across_hosts_gives_the_single_host_science_even_with_a_bridge_killed() {
+    let dir = temp_dir("hosts-laser");
+    let kill =
+        "[[fault]]\nservice = \"bridge\"\nhost = \"ground\"\nkind = \"kill\"\nat_seq = 150\n";
+    let frames = 300;
+    let file = split(&dir, frames, kill);
+    small_frames(&file);
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(text.contains("\nlaser = false"));
+    std::fs::write(&file, text.replace("\nlaser = false", "\nlaser = true")).unwrap();
+    let mut ground = start_ground(&file, &dir.join("ground"));
+    let mut board = start_run(&file, &dir.join("board"), &[]);
+    let (report, alone) = ended_whole(&mut board, &mut ground, &file, &dir, frames);
+    // Ranged across hosts: as many shots as on one host (debris in view, about two a frame in
+    // 256² frames), every one served
+    // by the sensor on board (a shot asked again is served again, and counted once).
+    let (split_laser, alone_laser) = (&report.results.laser, &alone.results.laser);
+    assert!(alone_laser.shots >= frames as u64, "{alone_laser:?}");
+    assert_eq!(split_laser.shots, alone_laser.shots, "{split_laser:?}");
+    assert_eq!(split_laser.served, alone_laser.served, "{split_laser:?}");
+    let summary = std::fs::read_to_string(dir.join("board/summary.md")).unwrap();
+    assert!(!summary.contains("No laser ranges"), "{summary}");
+    // The kill took effect: ground's part restarted its bridge, and the calls went on through
+    // the new incarnation (each incarnation logs what it carried).
+    let ground_summary = std::fs::read_to_string(dir.join("ground/summary.md")).unwrap();
+    let row = (ground_summary.lines())
+        .find(|l| l.starts_with("| bridge:kill@150,host=ground |"))
+        .unwrap_or_else(|| panic!("ground's fault row in\n{ground_summary}"));
+    assert!(row.trim_end().ends_with("| 1 |"), "one restart: {row}");
+    let log = std::fs::read_to_string(dir.join("ground/logs/bridge.log")).unwrap();
+    let carried: Vec<u64> = (log.lines())
+        .filter(|l| l.contains("calls across hosts"))
+        .filter_map(|l| {
+            l.split("passed_on=")
+                .nth(1)?
+                .split(' ')
+                .next()?
+                .parse()
+                .ok()
+        })
+        .collect();
+    assert!(
+        carried.iter().any(|n| *n > 0),
+        "the new bridge carried calls:\n{log}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -310,12 +310,6 @@ pub(crate) fn command(bench: crate::cli::BenchCmd) -> std::process::ExitCode {
             split,
         } => {
             glint_runtime::init_tracing("orchestrator");
-            if split && matches!(laser, OnOff::On) {
-                eprintln!(
-                    "error: --split: the tracker's laser calls do not cross hosts yet; add --laser off"
-                );
-                return ExitCode::from(2);
-            }
             if split && !cfg!(feature = "hosts") {
                 eprintln!("error: --split: {}", crate::run::hosts::WITHOUT_HOSTS);
                 return ExitCode::from(2);

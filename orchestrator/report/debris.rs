@@ -29,7 +29,7 @@ pub fn markdown(score: &DebrisScore) -> String {
         d.false_targets_rejected,
         d.false_targets
     );
-    // Without a laser (off, or its calls not crossing hosts) there is no range: no direct fix,
+    // Without a laser (`camera.tracker.laser = false`) there is no range: no direct fix,
     // no EKF, and their columns would hold only NaN.
     let ranged = score.targets.iter().any(|t| t.laser_shots > 0);
     if ranged {

@@ -13,6 +13,41 @@ pub fn deploys(scenario: &Scenario, service: ServiceId) -> bool {
         && scenario.replay.as_ref().is_none_or(|r| r.runs(service))
 }
 
+/// Whether the call `call` is made in `scenario`: it is carried and its client calls it (the
+/// tracker's laser only when `camera.tracker.laser` is on).
+pub fn calls_made(scenario: &Scenario, call: TopicId) -> bool {
+    let made = match call {
+        TopicId::Range => (scenario.camera.as_ref()).is_some_and(|c| c.tracker.laser),
+        TopicId::Solve => true,
+        TopicId::Frame
+        | TopicId::Spectrum
+        | TopicId::Truth
+        | TopicId::Heartbeat
+        | TopicId::Control
+        | TopicId::Ack
+        | TopicId::Detections
+        | TopicId::Tracks
+        | TopicId::EarthFrame
+        | TopicId::EarthAttitude
+        | TopicId::Stereo
+        | TopicId::RelNav
+        | TopicId::Photometry
+        | TopicId::PhotometryEstimate => false,
+    };
+    made && carries(scenario, call)
+}
+
+/// The services that call `call` in `scenario` (its clients; the orchestrator calls `solve`).
+pub fn callers(scenario: &Scenario, call: TopicId) -> Vec<ServiceId> {
+    if !calls_made(scenario, call) {
+        return vec![];
+    }
+    std::iter::once(ServiceId::Orchestrator)
+        .chain(services(scenario))
+        .filter(|s| s.spec().calls.contains(&call))
+        .collect()
+}
+
 /// Whether `topic` exists in `scenario` (its section is there).
 /// A topic whose producer a replay leaves out is not carried.
 pub fn carries(scenario: &Scenario, topic: TopicId) -> bool {

@@ -71,6 +71,11 @@ impl std::fmt::Display for Refusal {
 /// and of one payload element; two bridges that agree on it lay the bytes out alike.
 pub fn type_digest(topic: TopicId, header_bytes: usize, element_bytes: usize) -> u64 {
     let name = shared_types::table::payload_type_name(topic);
+    digest_of(name, header_bytes, element_bytes)
+}
+
+/// The same fingerprint for a type named `name` (a call's request or response).
+pub fn digest_of(name: &str, header_bytes: usize, element_bytes: usize) -> u64 {
     let mut bytes = name.as_bytes().to_vec();
     bytes.extend_from_slice(&(header_bytes as u64).to_le_bytes());
     bytes.extend_from_slice(&(element_bytes as u64).to_le_bytes());

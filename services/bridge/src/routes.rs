@@ -38,8 +38,7 @@ pub fn readers(scenario: &Scenario, topic: TopicId) -> Vec<ServiceId> {
             producers.dedup();
             producers
         }
-        // Calls are not bridged: the scenario check keeps a call's client and server on one
-        // host.
+        // Calls cross as calls ([`Routes::serves`], [`Routes::answers`]), not as topics.
         TopicId::Range | TopicId::Solve => vec![],
     }
 }
@@ -69,6 +68,12 @@ pub struct Routes {
     pub exports: Vec<TopicId>,
     /// Written elsewhere, read here: taken from Zenoh, published into iceoryx2.
     pub imports: Vec<TopicId>,
+    /// Calls made here and answered on another host: the bridge is their server here, puts
+    /// each request on Zenoh and answers with the response that comes back.
+    pub serves: Vec<TopicId>,
+    /// Calls made on another host and answered here: the bridge is their client here, asks
+    /// the server each request that comes off Zenoh and puts its response back.
+    pub answers: Vec<TopicId>,
 }
 
 /// `host`'s index among the scenario's hosts (sorted by name), as envelopes carry it.
@@ -85,7 +90,17 @@ pub fn routes(scenario: &Scenario, host: &str) -> Routes {
     let on = |s: &ServiceId| scenario.host_of(*s) == Some(host);
     let mut exports = vec![];
     let mut imports = vec![];
+    let (mut serves, mut answers) = (vec![], vec![]);
     for t in TopicId::ALL {
+        let clients = deployment::callers(scenario, t);
+        if let Some(server) = deployment::producer(t).filter(|_| !clients.is_empty()) {
+            if clients.iter().any(on) && !on(&server) {
+                serves.push(t);
+            }
+            if on(&server) && clients.iter().any(|s| !on(s)) {
+                answers.push(t);
+            }
+        }
         let (w, r) = (writers(scenario, t), readers(scenario, t));
         if w.iter().any(on) && r.iter().any(|s| !on(s)) {
             exports.push(t);
@@ -99,6 +114,8 @@ pub fn routes(scenario: &Scenario, host: &str) -> Routes {
         host_index: host_index(scenario, host).unwrap_or(u16::MAX),
         exports,
         imports,
+        serves,
+        answers,
     }
 }
 
@@ -156,11 +173,22 @@ mod tests {
         assert!(!exported_by(&sc, "b", ServiceId::Bridge as u32));
     }
 
-    /// A call would cross hosts with the laser on: refused, with the way out.
+    /// With the laser on, the tracker on `b` calls the sensor on `a` across hosts: `b`'s bridge
+    /// serves the calls there, `a`'s asks the sensor.
     #[test]
-    fn a_call_across_hosts_is_refused_with_the_placement_that_works() {
-        let msg = split(true).unwrap_err();
-        assert!(msg.contains("services.tracker.host"), "{msg}");
-        assert!(msg.contains("camera.tracker.laser = false"), "{msg}");
+    fn the_laser_across_hosts_is_served_by_one_bridge_and_answered_by_the_other() {
+        let sc = split(true).unwrap();
+        let (a, b) = (routes(&sc, "a"), routes(&sc, "b"));
+        use TopicId::*;
+        assert_eq!(
+            (a.serves.as_slice(), a.answers.as_slice()),
+            (&[][..], &[Range][..])
+        );
+        assert_eq!(
+            (b.serves.as_slice(), b.answers.as_slice()),
+            (&[Range][..], &[][..])
+        );
+        let off = split(false).unwrap();
+        assert!(routes(&off, "a").answers.is_empty() && routes(&off, "b").serves.is_empty());
     }
 }

@@ -35,6 +35,8 @@ pub trait Rpc {
     fn service(node: &IpcNode) -> Result<RpcService<Self::Req, Self::Resp>>;
     /// The id a request carries (echoed in its response).
     fn set_request_id(req: &mut Self::Req, id: u64);
+    /// The id of the request a response answers.
+    fn response_id(resp: &Self::Resp) -> u64;
     /// The answer to a request that failed validation.
     fn rejected(req: &Self::Req) -> Self::Resp;
 }
@@ -50,6 +52,9 @@ impl Rpc for Range {
     }
     fn set_request_id(req: &mut RangeRequest, id: u64) {
         req.request_id = id;
+    }
+    fn response_id(resp: &RangeResponse) -> u64 {
+        resp.request_id
     }
     fn rejected(req: &RangeRequest) -> RangeResponse {
         RangeResponse {
@@ -72,6 +77,9 @@ impl Rpc for Solve {
     }
     fn set_request_id(req: &mut SolveRequest, id: u64) {
         req.request_id = id;
+    }
+    fn response_id(resp: &SolveResponse) -> u64 {
+        resp.request_id
     }
     fn rejected(req: &SolveRequest) -> SolveResponse {
         SolveResponse {
@@ -198,6 +206,12 @@ impl<R: Rpc> RpcServer<R> {
                 self.send_stamped(req, resp)
             }
         }
+    }
+
+    /// Answers with a response its server already stamped and sealed (a bridge passing on the
+    /// answer of a server on another host: its seq, times and producer stay the server's).
+    pub fn forward(&mut self, req: Request<R>, resp: R::Resp) -> Result<()> {
+        self.send_stamped(req, resp)
     }
 
     fn stamp(&self, resp: &mut R::Resp, t_ns: u64) {

@@ -1,9 +1,11 @@
-//! `glint service bridge --host NAME`: one host's bridge. Three threads, each with its own
-//! iceoryx2 node (ports are not `Send`) around one Zenoh session: *egress* takes the exported
-//! topics from shared memory and puts them on Zenoh; *ingress* takes the imported ones off
-//! Zenoh and publishes them here; the main thread obeys control and sends the bridge's
-//! heartbeat, which carries each bridged data topic's per-hop counters.
+//! `glint service bridge --host NAME`: one host's bridge. Threads, each with its own iceoryx2
+//! node (ports are not `Send`) around one Zenoh session: *egress* takes the exported topics
+//! from shared memory and puts them on Zenoh; *ingress* takes the imported ones off Zenoh and
+//! publishes them here; *calls* (when a call crosses hosts) carries requests and responses
+//! ([`calls`]); the main thread obeys control and sends the bridge's heartbeat, which carries
+//! each bridged data topic's per-hop counters.
 
+mod calls;
 mod egress;
 mod ingress;
 mod pace;
@@ -137,7 +139,11 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
     let shared = Arc::new(Shared::default());
     let stop = Arc::new(AtomicBool::new(false));
     let (ready_tx, ready_rx) = mpsc::channel();
-    let threads = [Direction::Egress, Direction::Ingress].map(|dir| {
+    let mut directions = vec![Direction::Egress, Direction::Ingress];
+    if !routes.serves.is_empty() || !routes.answers.is_empty() {
+        directions.push(Direction::Calls);
+    }
+    let threads = directions.into_iter().map(|dir| {
         let (prefix, scenario, routes) = (prefix.to_string(), scenario.clone(), routes.clone());
         let (session, shared, stop, ready) = (
             session.clone(),
@@ -353,6 +359,8 @@ mod tests {
 enum Direction {
     Egress,
     Ingress,
+    /// Calls made on one host and answered on another ([`calls`]).
+    Calls,
 }
 
 impl Direction {
@@ -360,6 +368,7 @@ impl Direction {
         match self {
             Direction::Egress => "egress",
             Direction::Ingress => "ingress",
+            Direction::Calls => "calls",
         }
     }
 
@@ -381,6 +390,7 @@ impl Direction {
             Direction::Ingress => {
                 ingress::run(prefix, scenario, routes, session, shared, stop, ready)
             }
+            Direction::Calls => calls::run(prefix, scenario, routes, session, stop, ready),
         }
     }
 }
