@@ -244,6 +244,13 @@ pub struct Request<R: Rpc> {
     pub payload: R::Req,
 }
 
+impl<R: Rpc> Request<R> {
+    /// Whether its client still waits for the answer (it may have timed out, or ended).
+    pub fn is_connected(&self) -> bool {
+        self.active.is_connected()
+    }
+}
+
 pub struct RpcClient<R: Rpc> {
     client: Client<Ipc, R::Req, (), R::Resp, ()>,
     request: Notifier<Ipc>,

@@ -12,22 +12,27 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
-use glint_runtime::rpc::{Pending, Range, Request, Rpc, RpcClient, RpcServer, Solve};
-use iceoryx2::port::listener::Listener;
+use glint_runtime::rpc::{Range, Rpc, RpcClient, RpcServer, Solve};
 use iceoryx2::prelude::ZeroCopySend;
-use shared_types::topics::{Ipc, IpcNode};
+use shared_types::topics::IpcNode;
 use shared_types::{Message, Scenario, ServiceId, TopicId};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Locality;
 use zenoh::Wait;
 
+mod ends;
+
 use super::key;
 use crate::envelope::{digest_of, Envelope, Refusal};
 use crate::routes::Routes;
+use ends::{Answer, Serve};
 
-/// How long the loop waits for the wire before it looks at its iceoryx2 side again: the most a
-/// call waits here beyond its round trip.
+/// How long the loop waits while this host's server has a call to answer: the most an answer
+/// waits here beyond the server's own time.
 const POLL: Duration = Duration::from_millis(1);
+/// How long the loop waits otherwise: a request from a caller here, or anything off the wire,
+/// wakes it at once; this only bounds how late it sees the stop flag.
+const IDLE: Duration = Duration::from_millis(50);
 
 /// Which side of a call this bridge is on its host.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -71,6 +76,13 @@ trait CallEnd {
     /// A message off the wire for this end.
     fn take(&mut self, payload: &[u8], attachment: Option<&[u8]>);
     fn counts(&self) -> Counts;
+    /// Whether it holds a call not yet answered.
+    fn busy(&self) -> bool;
+    /// The leg it puts on.
+    fn wire(&self) -> &Wire;
+    /// Waits up to `timeout` for a request from a caller on this host (serve side only; the
+    /// answer side has nothing to wait for here and returns at once).
+    fn wait_for_caller(&self, timeout: Duration) -> Result<()>;
 }
 
 /// The publisher of one leg and its envelopes.
@@ -85,13 +97,24 @@ struct Wire {
 }
 
 impl Wire {
-    fn put(&mut self, bytes: &[u8]) -> Result<()> {
+    /// Whether the other host's bridge takes this leg.
+    fn matched(&self) -> Result<bool> {
+        Ok((self.publisher.matching_status().wait())
+            .map_err(|e| anyhow!("zenoh matching status: {e}"))?
+            .matching())
+    }
+
+    /// Puts `bytes` on the leg; false if Zenoh refused it (its caller asks again).
+    fn put(&mut self, bytes: &[u8]) -> bool {
         let envelope = Envelope::new(self.topic, self.host, self.link_seq, self.put_digest);
         self.link_seq += 1;
-        (self.publisher.put(bytes.to_vec()))
+        let put = (self.publisher.put(bytes.to_vec()))
             .attachment(envelope.to_bytes().to_vec())
-            .wait()
-            .map_err(|e| anyhow!("zenoh put on {}: {e}", self.topic.name()))
+            .wait();
+        if let Err(e) = &put {
+            tracing::warn!(topic = self.topic.name(), "call not put on the wire: {e}");
+        }
+        put.is_ok()
     }
 
     /// The message of type `T` in a payload off the wire, or why it is refused.
@@ -121,147 +144,6 @@ fn digests<R: Rpc>() -> (u64, u64) {
     )
 }
 
-/// The caller's host: the bridge serves the call here.
-struct Serve<R: Rpc> {
-    server: RpcServer<R>,
-    requests: Listener<Ipc>,
-    wire: Wire,
-    /// Requests put across and not yet answered, by id.
-    waiting: Vec<(u64, Request<R>)>,
-    counts: Counts,
-}
-
-impl<R: Rpc> CallEnd for Serve<R> {
-    fn topic(&self) -> TopicId {
-        R::TOPIC
-    }
-    fn side(&self) -> Side {
-        Side::Serve
-    }
-
-    fn step(&mut self) -> Result<()> {
-        let _ = self.requests.try_wait(|_| {});
-        while let Some(req) = self.server.take_request()? {
-            let id = req.payload.meta().seq;
-            // Asked again (its answer was late, or lost): the caller gave up the first one.
-            let before = self.waiting.len();
-            self.waiting.retain(|(w, _)| *w != id);
-            self.counts.abandoned += (before - self.waiting.len()) as u64;
-            self.wire.put(bytemuck::bytes_of(&req.payload))?;
-            self.counts.put += 1;
-            self.waiting.push((id, req));
-        }
-        Ok(())
-    }
-
-    fn take(&mut self, payload: &[u8], attachment: Option<&[u8]>) {
-        let resp: R::Resp = match self.wire.read(payload, attachment) {
-            Ok(r) => r,
-            Err(why) => return refused(&mut self.counts, R::TOPIC, &why),
-        };
-        let id = R::response_id(&resp);
-        let Some(at) = self.waiting.iter().position(|(w, _)| *w == id) else {
-            // Its caller asked again and this is the first attempt's answer, or a repeat.
-            self.counts.abandoned += 1;
-            return;
-        };
-        let (_, req) = self.waiting.swap_remove(at);
-        match self.server.forward(req, resp) {
-            Ok(()) => self.counts.passed_on += 1,
-            // The caller stopped waiting (timed out, restarted): it asks again.
-            Err(e) => {
-                tracing::debug!(topic = R::TOPIC.name(), "answer not passed on: {e:#}");
-                self.counts.abandoned += 1;
-            }
-        }
-    }
-
-    fn counts(&self) -> Counts {
-        self.counts
-    }
-}
-
-/// The server's host: the bridge asks the server what comes across.
-struct Answer<R: Rpc> {
-    client: RpcClient<R>,
-    wire: Wire,
-    pending: Vec<Pending<R>>,
-    /// The most requests the call keeps in flight per client (the table's `in_flight`).
-    in_flight: usize,
-    counts: Counts,
-}
-
-impl<R: Rpc> CallEnd for Answer<R> {
-    fn topic(&self) -> TopicId {
-        R::TOPIC
-    }
-    fn side(&self) -> Side {
-        Side::Answer
-    }
-
-    fn step(&mut self) -> Result<()> {
-        let mut i = 0;
-        while i < self.pending.len() {
-            match self.client.poll(&self.pending[i])? {
-                None => i += 1,
-                Some(glint_runtime::rpc::CallOutcome::Answered(resp)) => {
-                    self.pending.swap_remove(i);
-                    self.wire.put(bytemuck::bytes_of(&resp))?;
-                    self.counts.put += 1;
-                }
-                // The server died or answered what does not validate: the caller asks again.
-                Some(outcome) => {
-                    tracing::warn!(topic = R::TOPIC.name(), ?outcome, "call not answered");
-                    self.pending.swap_remove(i);
-                    self.counts.abandoned += 1;
-                }
-            }
-        }
-        Ok(())
-    }
-
-    fn take(&mut self, payload: &[u8], attachment: Option<&[u8]>) {
-        let req: R::Req = match self.wire.read(payload, attachment) {
-            Ok(r) => r,
-            Err(why) => return refused(&mut self.counts, R::TOPIC, &why),
-        };
-        let (id, t_ns) = (req.meta().seq, req.meta().t_ns);
-        // Asked again: the caller gave up the first attempt; so does this bridge. At the
-        // in-flight limit the oldest goes (its caller has long asked again).
-        let before = self.pending.len();
-        self.pending.retain(|p| p.id != id);
-        if self.pending.len() >= self.in_flight {
-            self.pending.remove(0);
-        }
-        self.counts.abandoned += (before - self.pending.len()) as u64;
-        match self.client.send(req, id, t_ns) {
-            Ok(p) => {
-                self.pending.push(p);
-                self.counts.passed_on += 1;
-            }
-            Err(e) => {
-                tracing::warn!(topic = R::TOPIC.name(), "request not passed on: {e:#}");
-                self.counts.abandoned += 1;
-            }
-        }
-    }
-
-    fn counts(&self) -> Counts {
-        self.counts
-    }
-}
-
-fn refused(counts: &mut Counts, topic: TopicId, why: &str) {
-    counts.refused += 1;
-    if counts.refused == 1 || counts.refused.is_power_of_two() {
-        tracing::warn!(
-            topic = topic.name(),
-            refused = counts.refused,
-            "call refused off the wire: {why}"
-        );
-    }
-}
-
 /// One end of call `R` on `side`, its leg's publisher open.
 fn open_end<R: Rpc + 'static>(
     node: &IpcNode,
@@ -278,6 +160,11 @@ fn open_end<R: Rpc + 'static>(
         put_digest,
         take_digest,
     };
+    let in_flight = match R::TOPIC.spec().pattern {
+        shared_types::table::Pattern::Calls { in_flight, .. } => in_flight,
+        shared_types::table::Pattern::Frames { .. }
+        | shared_types::table::Pattern::Messages { .. } => 1,
+    };
     Ok(match side {
         Side::Serve => {
             let (server, requests) = RpcServer::<R>::open(node, ServiceId::Bridge)?;
@@ -286,23 +173,17 @@ fn open_end<R: Rpc + 'static>(
                 requests,
                 wire: wire(request, response),
                 waiting: vec![],
-                counts: Counts::default(),
-            })
-        }
-        Side::Answer => {
-            let in_flight = match R::TOPIC.spec().pattern {
-                shared_types::table::Pattern::Calls { in_flight, .. } => in_flight,
-                shared_types::table::Pattern::Frames { .. }
-                | shared_types::table::Pattern::Messages { .. } => 1,
-            };
-            Box::new(Answer {
-                client: RpcClient::<R>::open(node, ServiceId::Bridge)?,
-                wire: wire(response, request),
-                pending: vec![],
                 in_flight,
                 counts: Counts::default(),
             })
         }
+        Side::Answer => Box::new(Answer {
+            client: RpcClient::<R>::open(node, ServiceId::Bridge)?,
+            wire: wire(response, request),
+            pending: vec![],
+            in_flight,
+            counts: Counts::default(),
+        }),
     })
 }
 
@@ -354,8 +235,10 @@ pub fn run(
     for (i, (call, side)) in sides.enumerate() {
         let (out, into) = side.legs();
         let base = key(&deployment, call);
+        // Never blocks the thread on a congested or cut link: a call dropped there is asked
+        // again by its caller, as one that a killed bridge lost.
         let publisher = (session.declare_publisher(format!("{base}/{out}")))
-            .congestion_control(CongestionControl::Block)
+            .congestion_control(CongestionControl::Drop)
             .priority(Priority::InteractiveHigh)
             .express(true)
             .allowed_destination(Locality::Remote)
@@ -373,12 +256,41 @@ pub fn run(
         subscribers.push(subscriber);
     }
     drop(tx);
+    // Ready once the other host's bridge takes what this one puts: a call put before that
+    // would wait for its caller's timeout.
+    for e in &ends {
+        while !e.wire().matched()? {
+            if stop.load(Ordering::SeqCst) || glint_runtime::lifeline::end_requested().is_some() {
+                return Ok(());
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
     ready();
+    // Where to wait: on a caller here while no call is held (its request wakes the loop), else
+    // on the wire (an answer, or a request from another host, wakes it); a call held by this
+    // host's server is looked at every POLL.
+    let serves_only = ends.iter().all(|e| e.side() == Side::Serve);
     while !stop.load(Ordering::SeqCst) && glint_runtime::lifeline::end_requested().is_none() {
-        let mut next = inbox.recv_timeout(POLL).map_err(|e| match e {
-            std::sync::mpsc::RecvTimeoutError::Timeout => None,
-            std::sync::mpsc::RecvTimeoutError::Disconnected => Some(()),
-        });
+        let answering = ends.iter().any(|e| e.side() == Side::Answer && e.busy());
+        let timeout = if answering { POLL } else { IDLE };
+        let mut next = if serves_only && !ends.iter().any(|e| e.busy()) {
+            for e in &ends {
+                e.wait_for_caller(timeout / ends.len() as u32)?;
+            }
+            Err(None)
+        } else {
+            inbox.recv_timeout(timeout).map_err(|e| match e {
+                std::sync::mpsc::RecvTimeoutError::Timeout => None,
+                std::sync::mpsc::RecvTimeoutError::Disconnected => Some(()),
+            })
+        };
+        if let Err(None) = next {
+            next = inbox.try_recv().map_err(|e| match e {
+                std::sync::mpsc::TryRecvError::Empty => None,
+                std::sync::mpsc::TryRecvError::Disconnected => Some(()),
+            });
+        }
         loop {
             match next {
                 Ok((i, sample)) => {
