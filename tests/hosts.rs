@@ -193,6 +193,54 @@ fn the_laser_across_hosts_gives_the_single_host_science_even_with_a_bridge_kille
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The attitude solve across hosts: the [000] Y-spin scene with the sensor on `board` (the
+/// orchestrator's host) and the inversion on `ground`. The spectra cross one way; the
+/// orchestrator's three solve calls cross to the inversion and back through the bridges. The
+/// answer — every stage, the rate and its covariance — equals the single-host run's.
+#[test]
+fn the_attitude_solve_across_hosts_gives_the_single_host_answer() {
+    let dir = temp_dir("hosts-solve");
+    let hosts = format!(
+        "[hosts.board]\nendpoint = \"tcp/127.0.0.1:{}\"\norchestrator = true\n\
+         [hosts.ground]\nendpoint = \"tcp/127.0.0.1:{}\"\n\
+         [services.inversion]\nhost = \"ground\"\n\n[spectra]",
+        free_port(),
+        free_port()
+    );
+    let file = scenario_variant("geo-hover-yspin.toml", &[("[spectra]", &hosts)], &dir);
+    let mut ground = start_ground(&file, &dir.join("ground"));
+    let mut board = start_run(&file, &dir.join("board"), &[]);
+    let status = wait_for_exit(&mut board, Duration::from_secs(120));
+    let log = std::fs::read_to_string(stderr_path(&dir.join("board"))).unwrap_or_default();
+    assert!(status.success(), "{log}");
+    assert!(wait_for_exit(&mut ground, Duration::from_secs(30)).success());
+    let split_r = read_report(&dir.join("board/report.json"));
+    let alone = run_ok(
+        Some(&scenario("geo-hover-yspin.toml")),
+        &dir.join("single"),
+        &[],
+    )
+    .typed;
+    assert!(split_r.results.accounting.invariant_held);
+    assert_eq!(
+        split_r.results.topics["spectrum"].consumers["inversion"].received,
+        Some(1440)
+    );
+    let (s3, s3_alone) = (stage3(&split_r), stage3(&alone));
+    assert_eq!(s3.status, "ok", "{s3:?}");
+    assert_eq!(
+        serde_json::to_value(inversion(&split_r)).unwrap(),
+        serde_json::to_value(inversion(&alone)).unwrap(),
+        "the solve across hosts answers as on one host"
+    );
+    assert_eq!(s3.truth_deg_per_frame, s3_alone.truth_deg_per_frame);
+    assert_eq!(
+        split_r.results.science.digest_xxh3,
+        alone.results.science.digest_xxh3
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Waits until `ground`'s `glint service <name>` is up; its pid.
 fn ground_service(ground: &KillOnDrop, name: &str) -> u32 {
     let pid = wait_for_service(ground, name, Duration::from_millis(5));

@@ -42,6 +42,13 @@ impl Remote {
         self.services.contains(id)
     }
 
+    /// Whether `id`, a service of another host, is up as its last heartbeat across the bridges
+    /// says (ready, running or finished: not starting, not stopping).
+    pub fn is_up(&self, consumer: &Consumer, id: ServiceId) -> bool {
+        (consumer.seen.get(&id))
+            .is_some_and(|s| (Heartbeat::READY..=Heartbeat::FINISHED).contains(&s.heartbeat.state))
+    }
+
     /// Whether every one has said it is ready.
     pub fn ready(&self, consumer: &Consumer) -> bool {
         (self.services.iter()).all(|id| {

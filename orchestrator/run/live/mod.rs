@@ -347,8 +347,13 @@ impl<'a> Live<'a> {
 
     /// The solve's next call, once its server is up.
     fn sequence(&mut self) -> Result<Option<Step>> {
-        let server_up = deployment::producer(TopicId::Solve)
-            .is_some_and(|server| self.supervisor.is_up(server));
+        // A server on another host is up as its heartbeats say; one here as supervision does.
+        let server_up = deployment::producer(TopicId::Solve).is_some_and(|server| {
+            match self.remote.contains(&server) {
+                true => self.remote.is_up(&self.consumer, server),
+                false => self.supervisor.is_up(server),
+            }
+        });
         let Some(seq) = self.sequencer.as_mut() else {
             return Ok(None);
         };

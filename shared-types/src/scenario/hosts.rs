@@ -24,7 +24,6 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use super::Checker;
-use crate::topics::TopicId;
 use crate::ServiceId;
 
 /// One machine of a split deployment.
@@ -212,21 +211,7 @@ pub(super) fn check_hosts(c: &mut Checker, scenario: &super::Scenario) {
 fn check_what_crosses(c: &mut Checker, scenario: &super::Scenario) {
     use super::FaultKind;
     let orchestrator = scenario.orchestrator_host().unwrap_or_default();
-    // The laser's calls cross hosts (the bridges carry them); the attitude solve's do not yet.
-    if let Some(server) = crate::deployment::producer(TopicId::Solve) {
-        let solves = crate::deployment::carries(scenario, TopicId::Solve)
-            && crate::deployment::deploys(scenario, server);
-        if solves && scenario.host_of(server) != Some(orchestrator) {
-            c.fail(
-                &format!("services.{}.host", server.name()),
-                format!(
-                    "the orchestrator calls `solve` on {}, and its calls do not cross hosts yet: \
-                     place it on the orchestrator's host `{orchestrator}`",
-                    server.name()
-                ),
-            );
-        }
-    }
+    // Calls cross hosts as topics do (the bridges carry them): nothing to refuse here.
     // Faults act on the processes of the orchestrator's host, and on any host's bridge (that
     // host's part fires it): `kill`; `stop`, the link cut while it is stopped; `delay`, a slow
     // link (the bridge paces its puts).
