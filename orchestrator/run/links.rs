@@ -56,11 +56,14 @@ pub struct HostReport {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct HopReport {
     pub topic: String,
-    /// Taken: from shared memory (exported) or off the wire (imported).
+    /// Taken: from shared memory (exported) or off the wire (imported). A call: the requests
+    /// this bridge took (from a caller on its host, or off the wire).
     pub taken: u64,
-    /// Passed on: put on the wire, or published into shared memory here.
+    /// Passed on: put on the wire, or published into shared memory here. A call: the answers
+    /// passed on (to the caller here, or onto the wire).
     pub passed_on: u64,
-    /// Lost on the link (gaps in the link sequence).
+    /// Lost on the link (gaps in the link sequence). A call: the calls that got no answer
+    /// through this bridge (their caller asked again).
     pub link_lost: u64,
     /// Refused off the wire (envelope, contract, type or size).
     pub refused: u64,

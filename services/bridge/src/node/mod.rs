@@ -390,7 +390,7 @@ impl Direction {
             Direction::Ingress => {
                 ingress::run(prefix, scenario, routes, session, shared, stop, ready)
             }
-            Direction::Calls => calls::run(prefix, scenario, routes, session, stop, ready),
+            Direction::Calls => calls::run(prefix, scenario, routes, session, shared, stop, ready),
         }
     }
 }

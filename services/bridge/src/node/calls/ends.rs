@@ -48,16 +48,15 @@ impl<R: Rpc> CallEnd for Serve<R> {
             let Some(req) = self.server.take_request()? else {
                 break;
             };
+            self.counts.taken += 1;
             let id = req.payload.meta().seq;
             // Asked again (its answer was late, or lost): the caller gave up the first one.
             let before = self.waiting.len();
             self.waiting.retain(|(w, _)| *w != id);
             self.counts.abandoned += (before - self.waiting.len()) as u64;
-            // Put or not (the link congested: dropped, never waited for), its caller asks
-            // again if no answer comes.
-            if self.wire.put(bytemuck::bytes_of(&req.payload)) {
-                self.counts.put += 1;
-            }
+            // Put or not (the link congested: dropped, never waited for), it is held: its
+            // caller asks again if no answer comes.
+            self.wire.put(bytemuck::bytes_of(&req.payload));
             self.waiting.push((id, req));
         }
         Ok(())
@@ -71,12 +70,12 @@ impl<R: Rpc> CallEnd for Serve<R> {
         let id = R::response_id(&resp);
         let Some(at) = self.waiting.iter().position(|(w, _)| *w == id) else {
             // Its caller asked again and this is the first attempt's answer, or a repeat.
-            self.counts.abandoned += 1;
+            self.counts.late += 1;
             return;
         };
         let (_, req) = self.waiting.swap_remove(at);
         match self.server.forward(req, resp) {
-            Ok(()) => self.counts.passed_on += 1,
+            Ok(()) => self.counts.answered += 1,
             // The caller stopped waiting (timed out, restarted): it asks again.
             Err(e) => {
                 tracing::debug!(topic = R::TOPIC.name(), "answer not passed on: {e:#}");
@@ -129,8 +128,10 @@ impl<R: Rpc> CallEnd for Answer<R> {
                 None => i += 1,
                 Some(CallOutcome::Answered(resp)) => {
                     self.pending.swap_remove(i);
-                    if self.wire.put(bytemuck::bytes_of(&resp)) {
-                        self.counts.put += 1;
+                    match self.wire.put(bytemuck::bytes_of(&resp)) {
+                        true => self.counts.answered += 1,
+                        // Dropped on a congested link: its caller asks again.
+                        false => self.counts.abandoned += 1,
                     }
                 }
                 // The server died or answered what does not validate: the caller asks again.
@@ -149,6 +150,7 @@ impl<R: Rpc> CallEnd for Answer<R> {
             Ok(r) => r,
             Err(why) => return refused(&mut self.counts, R::TOPIC, &why),
         };
+        self.counts.taken += 1;
         let (id, t_ns) = (req.meta().seq, req.meta().t_ns);
         // Asked again: the caller gave up the first attempt; so does this bridge. At the
         // in-flight limit the oldest goes (its caller has long asked again).
@@ -159,10 +161,7 @@ impl<R: Rpc> CallEnd for Answer<R> {
         }
         self.counts.abandoned += (before - self.pending.len()) as u64;
         match self.client.send(req, id, t_ns) {
-            Ok(p) => {
-                self.pending.push(p);
-                self.counts.passed_on += 1;
-            }
+            Ok(p) => self.pending.push(p),
             Err(e) => {
                 tracing::warn!(topic = R::TOPIC.name(), "request not passed on: {e:#}");
                 self.counts.abandoned += 1;

@@ -13,16 +13,17 @@ use std::time::Duration;
 
 use anyhow::{anyhow, Result};
 use glint_runtime::rpc::{Range, Rpc, RpcClient, RpcServer, Solve};
+use glint_runtime::TopicStats;
 use iceoryx2::prelude::ZeroCopySend;
 use shared_types::topics::IpcNode;
-use shared_types::{Message, Scenario, ServiceId, TopicId};
+use shared_types::{DropReason, Message, Scenario, ServiceId, TopicId};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Locality;
 use zenoh::Wait;
 
 mod ends;
 
-use super::key;
+use super::{key, Shared};
 use crate::envelope::{digest_of, Envelope, Refusal};
 use crate::routes::Routes;
 use ends::{Answer, Serve};
@@ -53,18 +54,36 @@ impl Side {
     }
 }
 
-/// What one end of a call counted.
-#[derive(Debug, Default, Clone, Copy)]
+/// What one end of a call counted. Every request taken ends answered or abandoned (or is still
+/// held): `taken == answered + abandoned + held`.
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
 struct Counts {
-    /// Put on the wire.
-    put: u64,
-    /// Taken off the wire and passed on.
-    passed_on: u64,
+    /// Requests taken: from a caller on this host (serve), or valid off the wire (answer).
+    taken: u64,
+    /// Answers passed on: to the caller here (serve), or onto the wire (answer).
+    answered: u64,
+    /// Requests given up here: asked again by their caller, their caller gone, their server
+    /// gone or its answer invalid, over the in-flight limit (their caller asks again).
+    abandoned: u64,
     /// Off the wire and refused: not this contract's, or failed validation.
     refused: u64,
-    /// Given up here: an answer nobody waits for any more, a request its caller asked again, a
-    /// call its server did not answer (its caller asks again).
-    abandoned: u64,
+    /// Answers off the wire for no request held: a first attempt's, after its caller asked
+    /// again (the retry's answer is the same).
+    late: u64,
+}
+
+impl Counts {
+    /// The call's row in the bridge's per-hop counters: *taken* the requests, *passed on* the
+    /// answers, *lost* the calls that got no answer through this bridge (their caller asked
+    /// again), *refused* what came off the wire and was not this contract's.
+    fn hop(&self, topic: TopicId) -> TopicStats {
+        let mut s = TopicStats::new(topic);
+        s.received = self.taken;
+        s.published = self.answered;
+        s.dropped[DropReason::Link as usize] = self.abandoned;
+        s.dropped[DropReason::Malformed as usize] = self.refused;
+        s
+    }
 }
 
 /// One call this bridge carries, on its side.
@@ -222,6 +241,7 @@ pub fn run(
     scenario: &Scenario,
     routes: &Routes,
     session: &zenoh::Session,
+    shared: &Shared,
     stop: &AtomicBool,
     ready: impl FnOnce(),
 ) -> Result<()> {
@@ -267,6 +287,7 @@ pub fn run(
         }
     }
     ready();
+    let mut reported = vec![Counts::default(); ends.len()];
     // Where to wait: on a caller here while no call is held (its request wakes the loop), else
     // on the wire (an answer, or a request from another host, wakes it); a call held by this
     // host's server is looked at every POLL.
@@ -306,8 +327,13 @@ pub fn run(
                 std::sync::mpsc::TryRecvError::Disconnected => Some(()),
             });
         }
-        for e in &mut ends {
+        for (e, last) in ends.iter_mut().zip(&mut reported) {
             e.step()?;
+            // Each call's row of this bridge's per-hop counters, in its heartbeat.
+            if e.counts() != *last {
+                *last = e.counts();
+                shared.set(&last.hop(e.topic()));
+            }
         }
     }
     for e in &ends {
@@ -315,10 +341,11 @@ pub fn run(
         tracing::info!(
             call = e.topic().name(),
             side = ?e.side(),
-            put = c.put,
-            passed_on = c.passed_on,
+            taken = c.taken,
+            answered = c.answered,
             refused = c.refused,
             abandoned = c.abandoned,
+            late = c.late,
             "calls across hosts"
         );
     }
