@@ -10,7 +10,7 @@
 //! They go marked [`Envelope::RESENT`]; consumers skip those they already had (`duplicates`).
 
 use std::collections::VecDeque;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
@@ -23,7 +23,7 @@ use zenoh::sample::Locality;
 use zenoh::Wait;
 
 use super::ports::{taker, TakeBytes};
-use super::{key, Shared};
+use super::{key, Env};
 use crate::envelope::Envelope;
 use crate::link::LinkSeqs;
 use crate::routes::{exported_by, Routes};
@@ -47,15 +47,15 @@ struct Route {
 
 /// The egress thread's body: runs until `stop` is set or a termination signal arrives;
 /// `ready` is called once every port is open.
-pub fn run(
-    prefix: &str,
-    scenario: &Scenario,
-    routes: &Routes,
-    session: &zenoh::Session,
-    shared: &Shared,
-    stop: &AtomicBool,
-    ready: impl FnOnce(),
-) -> Result<()> {
+pub fn run(env: &Env, ready: impl FnOnce()) -> Result<()> {
+    let Env {
+        prefix,
+        scenario,
+        routes,
+        session,
+        shared,
+        stop,
+    } = *env;
     let node = glint_runtime::open_node(prefix, "bridge-out")?;
     let deployment = scenario.deployment_key();
     let mut out = vec![];

@@ -5,20 +5,19 @@
 //! producer unchanged), so consumers here account for it end to end as for a local one.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
 use glint_runtime::TopicStats;
-use shared_types::{DropReason, Scenario, TopicId};
+use shared_types::{DropReason, TopicId};
 use zenoh::sample::Locality;
 use zenoh::Wait;
 
 use super::ports::{putter, PutBytes};
-use super::Shared;
+use super::Env;
 use crate::envelope::{Envelope, Refusal};
 use crate::link::{LinkSeqs, LinkVerdict};
-use crate::routes::Routes;
 
 /// How long a wait for the wire lasts before the stop flag is looked at again.
 const POLL: Duration = Duration::from_millis(50);
@@ -34,15 +33,15 @@ struct Route {
 
 /// The ingress thread's body: runs until `stop` is set; `ready` is called once every port and
 /// the subscriber are open.
-pub fn run(
-    prefix: &str,
-    scenario: &Scenario,
-    routes: &Routes,
-    session: &zenoh::Session,
-    shared: &Shared,
-    stop: &AtomicBool,
-    ready: impl FnOnce(),
-) -> Result<()> {
+pub fn run(env: &Env, ready: impl FnOnce()) -> Result<()> {
+    let Env {
+        prefix,
+        scenario,
+        routes,
+        session,
+        shared,
+        stop,
+    } = *env;
     let node = glint_runtime::open_node(prefix, "bridge-in")?;
     let mut inbound: BTreeMap<TopicId, Route> = BTreeMap::new();
     for &t in &routes.imports {

@@ -44,6 +44,19 @@ impl std::fmt::Display for OrchestratorLost {
 
 impl std::error::Error for OrchestratorLost {}
 
+/// What each of the bridge's threads works with.
+#[derive(Clone, Copy)]
+pub struct Env<'a> {
+    /// The deployment's shared-memory prefix on this host.
+    pub prefix: &'a str,
+    pub scenario: &'a Scenario,
+    pub routes: &'a Routes,
+    pub session: &'a zenoh::Session,
+    pub shared: &'a Shared,
+    /// Set when the bridge stops; each thread ends at it.
+    pub stop: &'a AtomicBool,
+}
+
 /// The per-hop counters the threads keep and the heartbeat carries.
 #[derive(Default)]
 pub struct Shared {
@@ -154,17 +167,17 @@ pub fn run(prefix: &str, scenario: &Scenario, host: &str) -> Result<()> {
         std::thread::Builder::new()
             .name(format!("bridge-{}", dir.name()))
             .spawn(move || {
-                let r = dir.run(
-                    &prefix,
-                    &scenario,
-                    &routes,
-                    &session,
-                    &shared,
-                    &stop,
-                    || {
-                        let _ = ready.send(dir);
-                    },
-                );
+                let env = Env {
+                    prefix: &prefix,
+                    scenario: &scenario,
+                    routes: &routes,
+                    session: &session,
+                    shared: &shared,
+                    stop: &stop,
+                };
+                let r = dir.run(&env, || {
+                    let _ = ready.send(dir);
+                });
                 if let Err(e) = r {
                     shared.fail(format!("{}: {e:#}", dir.name()));
                 }
@@ -372,25 +385,11 @@ impl Direction {
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn run(
-        self,
-        prefix: &str,
-        scenario: &Scenario,
-        routes: &Routes,
-        session: &zenoh::Session,
-        shared: &Shared,
-        stop: &AtomicBool,
-        ready: impl FnOnce(),
-    ) -> Result<()> {
+    fn run(self, env: &Env, ready: impl FnOnce()) -> Result<()> {
         match self {
-            Direction::Egress => {
-                egress::run(prefix, scenario, routes, session, shared, stop, ready)
-            }
-            Direction::Ingress => {
-                ingress::run(prefix, scenario, routes, session, shared, stop, ready)
-            }
-            Direction::Calls => calls::run(prefix, scenario, routes, session, shared, stop, ready),
+            Direction::Egress => egress::run(env, ready),
+            Direction::Ingress => ingress::run(env, ready),
+            Direction::Calls => calls::run(env, ready),
         }
     }
 }

@@ -8,7 +8,7 @@
 //! lost is asked again by its caller under the same id, as on one host, and the server counts
 //! the repeat as a duplicate.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use anyhow::{anyhow, Result};
@@ -16,16 +16,15 @@ use glint_runtime::rpc::{Range, Rpc, RpcClient, RpcServer, Solve};
 use glint_runtime::TopicStats;
 use iceoryx2::prelude::ZeroCopySend;
 use shared_types::topics::IpcNode;
-use shared_types::{DropReason, Message, Scenario, ServiceId, TopicId};
+use shared_types::{DropReason, Message, ServiceId, TopicId};
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::Locality;
 use zenoh::Wait;
 
 mod ends;
 
-use super::{key, Shared};
+use super::{key, Env};
 use crate::envelope::{digest_of, Envelope, Refusal};
-use crate::routes::Routes;
 use ends::{Answer, Serve};
 
 /// How long the loop waits while this host's server has a call to answer: the most an answer
@@ -236,15 +235,15 @@ fn end(
 
 /// The calls thread's body: runs until `stop` is set or a termination signal arrives; `ready`
 /// is called once every port and subscriber is open.
-pub fn run(
-    prefix: &str,
-    scenario: &Scenario,
-    routes: &Routes,
-    session: &zenoh::Session,
-    shared: &Shared,
-    stop: &AtomicBool,
-    ready: impl FnOnce(),
-) -> Result<()> {
+pub fn run(env: &Env, ready: impl FnOnce()) -> Result<()> {
+    let Env {
+        prefix,
+        scenario,
+        routes,
+        session,
+        shared,
+        stop,
+    } = *env;
     let node = glint_runtime::open_node(prefix, "bridge-calls")?;
     let deployment = scenario.deployment_key();
     let sides = (routes.serves.iter().map(|t| (*t, Side::Serve)))
